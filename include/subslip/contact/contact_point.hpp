@@ -1,0 +1,133 @@
+// One frictional contact point (paper section 2): traction, contact stiffness, prescribed
+// sliding history, and the step updates of the two integrators.
+//
+// Frame: the contact normal n is fixed (e3); the tangential plane is spanned by e1, e2. Normal
+// traction f_n is positive in compression (paper 2.13), normal sliding velocity v_n positive
+// when the bodies approach (2.3).
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "subslip/law/subloading_friction.hpp"
+
+namespace subslip::contact {
+
+using Vec2 = Eigen::Vector2d;
+
+// Contact elastic modulus tensor C^e = alpha_n n(x)n + alpha_t (I - n(x)n) (2.18).
+struct ContactStiffness {
+  double alpha_n = 1.0e6;  // [stress/length]
+  double alpha_t = 1.0e6;  // [stress/length]
+};
+
+enum class NormalControl { traction, velocity };
+
+// One segment of a prescribed history. Within a segment the tangential sliding velocity is
+// constant (zero for a hold); the normal side either ramps the normal traction linearly to
+// `normal_traction` at the segment end or approaches at `normal_velocity`.
+struct Segment {
+  Vec2 velocity = Vec2::Zero();  // tangential sliding velocity [length/time]
+  double duration = 0.0;         // [time]
+  NormalControl normal_control = NormalControl::traction;
+  double normal_traction = 0.0;  // end value when normal_control == traction [stress]
+  double normal_velocity = 0.0;  // when normal_control == velocity [length/time]
+  int increments = 1;            // number of increments in the segment
+  double growth = 1.0;           // ratio of successive increment lengths (1: uniform)
+  int output_every = 1;          // write every k-th increment (and always the last)
+};
+
+// The increment lengths of a segment: `increments` lengths in geometric progression with ratio
+// `growth`, summing to `duration` exactly.
+std::vector<double> increment_lengths(const Segment& s);
+
+struct ContactState {
+  double time = 0.0;
+  Vec2 slip = Vec2::Zero();      // total tangential sliding displacement
+  double slip_path = 0.0;        // accumulated |du_t|
+  double vp_slip = 0.0;          // accumulated viscoplastic sliding |du_vp|
+  double vp_rate = 0.0;          // viscoplastic sliding rate of the last increment
+  Vec2 traction_t = Vec2::Zero();
+  double traction_n = 0.0;       // f_n, compression positive
+  law::LawState law;
+  double r = 0.0;                // dynamic loading ratio f_t / (f_n mu)
+
+  double traction_ratio() const { return traction_n > 0.0 ? traction_t.norm() / traction_n : 0.0; }
+};
+
+enum class Method { forward_euler, implicit };
+
+struct IntegratorOptions {
+  Method method = Method::implicit;
+  int max_cutbacks = 40;         // halvings of one increment before giving up
+  double residual_tolerance = 1e-12;  // implicit: |G| in traction-ratio units
+};
+
+// Work done by one increment, for reporting.
+struct StepStats {
+  int iterations = 0;  // Newton iterations (implicit) or 0
+  int cutbacks = 0;    // halvings needed
+  int substeps = 1;    // sub-increments actually taken
+};
+
+// The outcome of one attempted update, without cut-back.
+struct StepAttempt {
+  ContactState state;
+  int iterations = 0;
+  bool ok = false;
+  std::string why;  // when !ok
+};
+
+// One forward-Euler update (paper section 2f, method 2) over dt with tangential sliding du_t
+// and end-of-step normal traction fn1. Not cut back.
+StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                               const ContactState& s0, const Vec2& du_t, double fn1, double dt);
+
+// One implicit update: exact mu and r_s updates, radial return of the tangential traction, and
+// the flow rule solved as a bracketed scalar equation in the viscoplastic slip increment.
+StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                          double residual_tolerance);
+
+// Advances over one increment, halving it when an update fails (non-finite, out of the
+// admissible set r_s <= r < r_hat, or no convergence). Throws StepFailure when max_cutbacks
+// halvings do not help.
+struct StepFailure : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                     const IntegratorOptions& opt, const ContactState& s0, const Segment& seg,
+                     double fn_start, double t_in_segment, double dt, StepStats& stats);
+
+// The normal traction at time t into a segment that started with fn_start.
+double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start,
+                          double t);
+
+struct ContactModel {
+  law::LawParameters law;
+  law::LawState initial_law_state;
+  ContactStiffness stiffness;
+  double initial_normal_traction = 0.0;
+};
+
+// The state before the first segment: no tangential traction, r = r_s = 0 unless given.
+ContactState initial_state(const ContactModel& model);
+
+struct RunStats {
+  long increments = 0;
+  long substeps = 0;
+  long iterations = 0;
+  long cutbacks = 0;
+  double wall_seconds = 0.0;
+};
+
+// Runs a whole history. `on_output(state, segment_index)` is called for the initial state and
+// then at every output increment.
+using OutputCallback = std::function<void(const ContactState&, int segment)>;
+RunStats run_history(const ContactModel& model, const std::vector<Segment>& segments,
+                     const IntegratorOptions& opt, const OutputCallback& on_output);
+
+}  // namespace subslip::contact

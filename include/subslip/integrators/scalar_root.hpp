@@ -1,0 +1,68 @@
+// A safeguarded Newton iteration for one monotone scalar equation on a bracket.
+//
+// Why not a library root finder: the callers need the iteration count (reported per step), a
+// result that never leaves the bracket, and failure reported as a value (so a step can be cut
+// back) rather than an exception. The method is the classic one (Newton inside the bracket,
+// bisection whenever Newton would leave it or stalls), so it always converges for a continuous
+// function that changes sign on the bracket.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <utility>
+
+namespace subslip {
+
+struct ScalarRoot {
+  double x;          // the root (the bracket end on the negative side when it collapses)
+  int iterations;
+  bool converged;
+};
+
+// Solves F(x) = 0 for x in [lo, hi] where F(lo) >= 0 >= F(hi) or F(lo) <= 0 <= F(hi).
+// `eval(x)` returns std::pair{F(x), dF/dx(x)}; F may be +/-infinity outside its domain
+// (the side is then known from the sign). Converges when |F| <= f_tol or the bracket is
+// narrower than x_tol * max(|x|, x_floor), or when a Newton correction is that small.
+template <class Eval>
+ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, double f_tol,
+                              double x_tol, double x_floor, int max_iterations = 200) {
+  auto [f_lo, df_lo] = eval(lo);
+  (void)df_lo;
+  if (f_lo == 0.0) return {lo, 0, true};
+  const bool increasing = f_lo < 0.0;  // sign convention of the bracket
+  double x = (guess > lo && guess < hi) ? guess : 0.5 * (lo + hi);
+  double previous_abs_f = std::numeric_limits<double>::infinity();
+  for (int it = 1; it <= max_iterations; ++it) {
+    auto [f, df] = eval(x);
+    if (std::isfinite(f) && std::abs(f) <= f_tol) return {x, it, true};
+    // Shrink the bracket with the sign of F at x.
+    if ((f < 0.0) == increasing) {
+      lo = x;
+    } else {
+      hi = x;
+    }
+    if (hi - lo <= x_tol * std::max(std::abs(x), x_floor)) {
+      return {increasing ? lo : hi, it, true};
+    }
+    double next = 0.5 * (lo + hi);
+    // Newton only while it makes real progress; otherwise bisect (guards against slow
+    // one-sided creep toward a steep root).
+    const bool progressing = std::abs(f) < 0.5 * previous_abs_f;
+    if (std::isfinite(f) && std::isfinite(df) && df != 0.0 && progressing) {
+      const double newton = x - f / df;
+      if (newton > lo && newton < hi) {
+        // A Newton correction below the resolution asked for ends the iteration: the residual
+        // itself may not go lower in double precision when F is very steep.
+        if (std::abs(newton - x) <= x_tol * std::max(std::abs(x), x_floor)) {
+          return {newton, it, true};
+        }
+        next = newton;
+      }
+    }
+    previous_abs_f = std::isfinite(f) ? std::abs(f) : previous_abs_f;
+    x = next;
+  }
+  return {x, max_iterations, false};
+}
+
+}  // namespace subslip

@@ -1,0 +1,268 @@
+#include "subslip/contact/contact_point.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "subslip/integrators/scalar_root.hpp"
+
+namespace subslip::contact {
+
+namespace {
+
+bool finite(const ContactState& s) {
+  return std::isfinite(s.traction_t.x()) && std::isfinite(s.traction_t.y()) &&
+         std::isfinite(s.traction_n) && std::isfinite(s.law.mu) && std::isfinite(s.law.r_s) &&
+         std::isfinite(s.r) && std::isfinite(s.vp_slip);
+}
+
+// The admissible set every integrator must stay in: finite, mu > 0, 0 <= r_s <= r < r_hat.
+std::string inadmissible_reason(const law::SubloadingFrictionLaw& law, const ContactState& s) {
+  if (!finite(s)) return "non-finite state";
+  if (s.law.mu <= 0.0) return "mu <= 0";
+  if (s.law.r_s < 0.0) return "r_s < 0";
+  if (s.law.r_s > s.r) return "r_s > r";
+  if (!law.is_rate_independent() && s.r >= law.parameters().overstress.r_hat) return "r >= r_hat";
+  if (law.parameters().subloading.function == law::SubloadingFunction::cot && s.law.r_s >= 2.0)
+    return "r_s >= 2 (cot branch)";
+  return {};
+}
+
+// State with the kinematic part of the increment applied (time, slip, normal traction).
+ContactState kinematic_update(const ContactState& s0, const Vec2& du_t, double fn1, double dt) {
+  ContactState s = s0;
+  s.time += dt;
+  s.slip += du_t;
+  s.slip_path += du_t.norm();
+  s.traction_n = fn1;
+  return s;
+}
+
+// An open contact (f_n <= 0) transmits no traction: friction state relaxes to r = r_s = 0 and
+// mu recovers with time.
+StepAttempt open_contact(const law::SubloadingFrictionLaw& law, ContactState s, double dt) {
+  s.traction_t.setZero();
+  s.law.mu = law.friction_coefficient_after(s.law.mu, 0.0, dt).value;
+  s.law.r_s = 0.0;
+  s.r = 0.0;
+  s.vp_rate = 0.0;
+  return {s, 0, true, {}};
+}
+
+}  // namespace
+
+std::vector<double> increment_lengths(const Segment& seg) {
+  std::vector<double> dt(static_cast<size_t>(seg.increments));
+  double sum = 0.0, h = 1.0;
+  for (auto& d : dt) {
+    d = h;
+    sum += h;
+    h *= seg.growth;
+  }
+  for (auto& d : dt) d *= seg.duration / sum;
+  return dt;
+}
+
+double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start,
+                          double t) {
+  if (seg.normal_control == NormalControl::velocity) return fn_start + c.alpha_n * seg.normal_velocity * t;
+  if (seg.duration <= 0.0) return seg.normal_traction;
+  return fn_start + (seg.normal_traction - fn_start) * (t / seg.duration);
+}
+
+StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                               const ContactState& s0, const Vec2& du_t, double fn1, double dt) {
+  ContactState s = kinematic_update(s0, du_t, fn1, dt);
+  if (fn1 <= 0.0) return open_contact(law, s, dt);
+  const auto& fp = law.parameters().friction;
+  const double ft0 = s0.traction_t.norm();
+  // Direction of the viscoplastic sliding: the tangential traction (2.39).
+  const Vec2 t_f = ft0 > 0.0 ? Vec2(s0.traction_t / ft0) : Vec2::Zero();
+
+  double ds;  // viscoplastic (or plastic) slip of the step
+  if (law.is_rate_independent()) {
+    // Plastic multiplier (2.44) with the normal traction rate taken from the prescribed normal.
+    const double fn0 = s0.traction_n;
+    const double mu = s0.law.mu, r = s0.law.r_s;
+    const double fn_rate = (fn1 - fn0) / dt;
+    const double v_t = t_f.dot(du_t) / dt;
+    const double numerator = (c.alpha_t * v_t - r * mu * fn_rate) / fn0 - law.creep_modulus(r, mu);
+    const double denominator = law.plastic_modulus(r, mu) + c.alpha_t / fn0;
+    ds = (fn0 > 0.0 && numerator > 0.0 && std::isfinite(denominator)) ? numerator / denominator * dt
+                                                                        : 0.0;
+  } else {
+    ds = dt * law.slip_rate(s0.r, s0.law.r_s);
+  }
+
+  s.traction_t = s0.traction_t + c.alpha_t * (du_t - ds * t_f);
+  s.law.mu = s0.law.mu + fp.kappa * (1.0 - s0.law.mu / fp.mu_k) * ds +
+             fp.xi * (1.0 - s0.law.mu / fp.mu_s) * dt;
+  s.r = s.traction_t.norm() / (fn1 * s.law.mu);
+  if (ds > 0.0) {
+    // Method 2: r_s by forward Euler of (3.11). U(0) is infinite, so the very first slip from
+    // r_s = 0 uses the analytical integral (2.28), which is regular there.
+    s.law.r_s = s0.law.r_s > 0.0 ? s0.law.r_s + law.subloading_rate(s0.law.r_s) * ds
+                                 : law.subloading_ratio_after(0.0, ds).value;
+  }
+  // (3.12): r_s follows r down whenever no viscoplastic sliding would occur.
+  s.law.r_s = std::min(s.law.r_s, s.r);
+  if (law.is_rate_independent() && ds <= 0.0) s.law.r_s = s.r;
+  s.vp_slip = s0.vp_slip + ds;
+  s.vp_rate = ds / dt;
+  StepAttempt out{s, 0, true, {}};
+  out.why = inadmissible_reason(law, s);
+  out.ok = out.why.empty();
+  return out;
+}
+
+StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                          double residual_tolerance) {
+  ContactState s = kinematic_update(s0, du_t, fn1, dt);
+  if (fn1 <= 0.0) return open_contact(law, s, dt);
+  const Vec2 trial = s0.traction_t + c.alpha_t * du_t;
+  const double ft_trial = trial.norm();
+  const auto mu_elastic = law.friction_coefficient_after(s0.law.mu, 0.0, dt);
+  const double r_trial = ft_trial / (fn1 * mu_elastic.value);
+
+  if (r_trial <= s0.law.r_s || ft_trial == 0.0) {
+    // No viscoplastic sliding: the subloading ratio follows r (3.12).
+    s.traction_t = trial;
+    s.law.mu = mu_elastic.value;
+    s.r = r_trial;
+    s.law.r_s = std::min(s0.law.r_s, r_trial);
+    s.vp_rate = 0.0;
+    return {s, 0, true, {}};
+  }
+
+  // Radial return: f_t = t (ft_trial - alpha_t ds) keeps the trial direction (2.39), so the
+  // step reduces to one equation G(ds) = 0 in the slip increment ds, decreasing on
+  // [0, ft_trial/alpha_t] from G(0) = r_trial - r_s0 > 0 to G(max) < 0.
+  auto ratio_at = [&](double ds, double& dr_dds, law::ValueAndSlope& mu) {
+    mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
+    const double ft = ft_trial - c.alpha_t * ds;
+    const double r = ft / (fn1 * mu.value);
+    dr_dds = -c.alpha_t / (fn1 * mu.value) - r / mu.value * mu.d_slip;
+    return r;
+  };
+  auto residual = [&](double ds) {
+    double dr;
+    law::ValueAndSlope mu;
+    const double r = ratio_at(ds, dr, mu);
+    const auto rs = law.subloading_ratio_after(s0.law.r_s, ds);
+    const auto g = law.flow_residual(r, rs.value, ds, dt);
+    if (!g.admissible) return std::pair{g.value, 0.0};
+    return std::pair{g.value, g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip};
+  };
+  const double ds_max = ft_trial / c.alpha_t;
+  // Start from the previous viscoplastic rate (over a smooth history it is close to the
+  // answer); failing that, from the slip that would bring r back to r_s0 (the rate-independent
+  // answer, which lies on the far side of the root).
+  double guess = s0.vp_rate * dt;
+  if (!(guess > 0.0 && guess < ds_max)) {
+    guess = (ft_trial - s0.law.r_s * fn1 * mu_elastic.value) / c.alpha_t;
+  }
+  const auto root = safeguarded_newton(residual, 0.0, ds_max, guess, residual_tolerance, 1e-14,
+                                       1e-300);
+  if (!root.converged) return {s, root.iterations, false, "flow rule did not converge"};
+
+  const double ds = root.x;
+  double dr;
+  law::ValueAndSlope mu;
+  s.r = ratio_at(ds, dr, mu);
+  s.law.mu = mu.value;
+  s.traction_t = trial * ((ft_trial - c.alpha_t * ds) / ft_trial);
+  s.law.r_s = std::min(law.subloading_ratio_after(s0.law.r_s, ds).value, s.r);
+  s.vp_slip = s0.vp_slip + ds;
+  s.vp_rate = ds / dt;
+  StepAttempt out{s, root.iterations, true, {}};
+  out.why = inadmissible_reason(law, s);
+  out.ok = out.why.empty();
+  return out;
+}
+
+ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                     const IntegratorOptions& opt, const ContactState& s0, const Segment& seg,
+                     double fn_start, double t_in_segment, double dt, StepStats& stats) {
+  // The increment is taken whole when possible; a failed piece is replaced by its two halves.
+  struct Piece {
+    double dt;
+    int depth;
+  };
+  std::vector<Piece> todo{{dt, 0}};
+  ContactState s = s0;
+  double t_local = t_in_segment;
+  stats = {};
+  stats.substeps = 0;
+  while (!todo.empty()) {
+    const Piece p = todo.back();
+    todo.pop_back();
+    const Vec2 du = seg.velocity * p.dt;
+    const double fn1 = normal_traction_at(seg, c, fn_start, t_local + p.dt);
+    StepAttempt a = opt.method == Method::implicit
+                        ? implicit_step(law, c, s, du, fn1, p.dt, opt.residual_tolerance)
+                        : forward_euler_step(law, c, s, du, fn1, p.dt);
+    stats.iterations += a.iterations;
+    if (a.ok) {
+      s = a.state;
+      t_local += p.dt;
+      ++stats.substeps;
+      continue;
+    }
+    if (p.depth >= opt.max_cutbacks) {
+      std::ostringstream msg;
+      msg << "contact step failed at time " << s.time << " after " << p.depth
+          << " cutbacks (dt = " << p.dt << "): " << a.why << "; state: mu = " << s.law.mu
+          << ", r = " << s.r << ", r_s = " << s.law.r_s << ", f_t = " << s.traction_t.norm()
+          << ", f_n = " << s.traction_n;
+      throw StepFailure(msg.str());
+    }
+    ++stats.cutbacks;
+    todo.push_back({0.5 * p.dt, p.depth + 1});
+    todo.push_back({0.5 * p.dt, p.depth + 1});
+  }
+  return s;
+}
+
+ContactState initial_state(const ContactModel& model) {
+  ContactState s;
+  s.law = model.initial_law_state;
+  s.traction_n = model.initial_normal_traction;
+  s.r = 0.0;
+  s.law.r_s = std::min(s.law.r_s, s.r);
+  return s;
+}
+
+RunStats run_history(const ContactModel& model, const std::vector<Segment>& segments,
+                     const IntegratorOptions& opt, const OutputCallback& on_output) {
+  const auto start = std::chrono::steady_clock::now();
+  const law::SubloadingFrictionLaw law(model.law);
+  RunStats stats;
+  ContactState s = initial_state(model);
+  on_output(s, -1);
+  for (size_t k = 0; k < segments.size(); ++k) {
+    const Segment& seg = segments[k];
+    const double fn_start = s.traction_n;
+    const auto dts = increment_lengths(seg);
+    double t_local = 0.0;
+    for (size_t i = 0; i < dts.size(); ++i) {
+      StepStats st;
+      s = advance(law, model.stiffness, opt, s, seg, fn_start, t_local, dts[i], st);
+      t_local += dts[i];
+      ++stats.increments;
+      stats.substeps += st.substeps;
+      stats.iterations += st.iterations;
+      stats.cutbacks += st.cutbacks;
+      const bool last = i + 1 == dts.size();
+      if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) {
+        on_output(s, static_cast<int>(k));
+      }
+    }
+  }
+  stats.wall_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+}  // namespace subslip::contact
