@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "subslip/integrators/scalar_root.hpp"
@@ -146,14 +147,19 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
     dr_dds = -c.alpha_t / (fn1 * mu.value) - r / mu.value * mu.d_slip;
     return r;
   };
-  auto residual = [&](double ds) {
+  // The unknown is z = ds^(1/p) (p = 1 except for the power overstress, see slip_exponent).
+  const double p = law.slip_exponent();
+  auto slip_of = [p](double z) { return p == 1.0 ? z : std::pow(z, p); };
+  auto residual = [&](double z) {
+    const double ds = slip_of(z);
     double dr;
     law::ValueAndSlope mu;
     const double r = ratio_at(ds, dr, mu);
     const auto rs = law.subloading_ratio_after(s0.law.r_s, ds);
     const auto g = law.flow_residual(r, rs.value, ds, dt);
     if (!g.admissible) return std::pair{g.value, 0.0};
-    return std::pair{g.value, g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip};
+    const double dds_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
+    return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dds_dz};
   };
   const double ds_max = ft_trial / c.alpha_t;
   // Start from the previous viscoplastic rate (over a smooth history it is close to the
@@ -163,11 +169,12 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   if (!(guess > 0.0 && guess < ds_max)) {
     guess = (ft_trial - s0.law.r_s * fn1 * mu_elastic.value) / c.alpha_t;
   }
-  const auto root = safeguarded_newton(residual, 0.0, ds_max, guess, residual_tolerance, 1e-14,
-                                       1e-300);
+  const auto root = safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p),
+                                       std::pow(guess, 1.0 / p), residual_tolerance,
+                                       4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
   if (!root.converged) return {s, root.iterations, false, "flow rule did not converge"};
 
-  const double ds = root.x;
+  const double ds = slip_of(root.x);
   double dr;
   law::ValueAndSlope mu;
   s.r = ratio_at(ds, dr, mu);

@@ -107,8 +107,13 @@ double SubloadingFrictionLaw::subloading_slip_integral(double r) const {
   if (r >= 1.0) return kInf;
   switch (p_.subloading.function) {
     case SubloadingFunction::cot:
-      // ds = tan(pi r/2) dr / u  =>  s = -(2/(pi u)) ln cos(pi r/2); cos written as a sine of
-      // the distance to 1 so that it keeps its digits as r -> 1.
+      // ds = tan(pi r/2) dr / u  =>  s = -(2/(pi u)) ln cos(pi r/2). The cosine keeps its
+      // digits as 1 - 2 sin^2(pi r/4) (through log1p) for small r, and as a sine of the
+      // distance to 1 for r -> 1.
+      if (r < 0.5) {
+        const double h = std::sin(0.25 * kPi * r);
+        return -2.0 / (kPi * u) * std::log1p(-2.0 * h * h);
+      }
       return -2.0 / (kPi * u) * std::log(std::sin(0.5 * kPi * (1.0 - r)));
     case SubloadingFunction::neg_log:
       // ds = dr / (-u ln r)  =>  s = -li(r) / u = -Ei(ln r) / u.

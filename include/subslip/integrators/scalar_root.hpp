@@ -22,7 +22,7 @@ struct ScalarRoot {
 // Solves F(x) = 0 for x in [lo, hi] where F(lo) >= 0 >= F(hi) or F(lo) <= 0 <= F(hi).
 // `eval(x)` returns std::pair{F(x), dF/dx(x)}; F may be +/-infinity outside its domain
 // (the side is then known from the sign). Converges when |F| <= f_tol or the bracket is
-// narrower than x_tol * max(|x|, x_floor), or when a Newton correction is that small.
+// narrower than x_tol * max(|x|, x_floor).
 template <class Eval>
 ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, double f_tol,
                               double x_tol, double x_floor, int max_iterations = 200) {
@@ -34,7 +34,10 @@ ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, d
   double previous_abs_f = std::numeric_limits<double>::infinity();
   for (int it = 1; it <= max_iterations; ++it) {
     auto [f, df] = eval(x);
-    if (std::isfinite(f) && std::abs(f) <= f_tol) return {x, it, true};
+    // Converged when |F| is within tolerance or within what double precision can resolve at x
+    // (F changes by |dF/dx| ulp(x) between neighbouring doubles: very steep F stop there).
+    const double resolution = 4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x);
+    if (std::isfinite(f) && std::abs(f) <= std::max(f_tol, resolution)) return {x, it, true};
     // Shrink the bracket with the sign of F at x.
     if ((f < 0.0) == increasing) {
       lo = x;
@@ -50,14 +53,7 @@ ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, d
     const bool progressing = std::abs(f) < 0.5 * previous_abs_f;
     if (std::isfinite(f) && std::isfinite(df) && df != 0.0 && progressing) {
       const double newton = x - f / df;
-      if (newton > lo && newton < hi) {
-        // A Newton correction below the resolution asked for ends the iteration: the residual
-        // itself may not go lower in double precision when F is very steep.
-        if (std::abs(newton - x) <= x_tol * std::max(std::abs(x), x_floor)) {
-          return {newton, it, true};
-        }
-        next = newton;
-      }
+      if (newton > lo && newton < hi) next = newton;
     }
     previous_abs_f = std::isfinite(f) ? std::abs(f) : previous_abs_f;
     x = next;

@@ -9,6 +9,7 @@
 // Equation numbers refer to the paper.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string_view>
@@ -114,6 +115,13 @@ class SubloadingFrictionLaw {
 
   // The implicit flow residual (see FlowResidual). slip >= 0, dt > 0.
   FlowResidual flow_residual(double r, double r_s, double slip, double dt) const;
+
+  // The exponent p of the unknown z = ds^(1/p) in which implicit solvers should iterate: with
+  // the power overstress the flow residual behaves like -ds^(1/n) near ds = 0 (infinite slope,
+  // roots as small as 1e-70), but is smooth and well scaled in z = ds^(1/n). p = 1 otherwise.
+  double slip_exponent() const {
+    return p_.overstress.form == OverstressForm::power ? std::max(p_.overstress.n, 1.0) : 1.0;
+  }
 
   // The accumulated slip needed to bring r_s from 0 to r_s (the integral of 1/U): the inverse
   // of subloading_ratio_after. Monotone increasing, infinite at r_s = 1.

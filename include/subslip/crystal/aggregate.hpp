@@ -1,0 +1,110 @@
+// The crystal drivers: a single crystal is an aggregate of one grain; a Taylor (iso-strain)
+// polycrystal gives every grain the same velocity gradient and homogenises the stress as the
+// weighted average. Loading is mixed control in the DAMASK load-case convention: every
+// component of L is either prescribed or free, and each free component's stress is prescribed.
+//
+// The step is a pure function of the start state: the whole aggregate is advanced from the
+// committed state; a mixed-control Newton re-runs the grains from that state with an updated
+// L; a failed grain makes the whole step halve (cut back) and retry. Grains run in parallel
+// (OpenMP, static schedule); all reductions are done serially in grain order afterwards, so
+// results are bitwise independent of the thread count.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "subslip/crystal/crystal_kernel.hpp"
+
+namespace subslip::crystal {
+
+using Mask3 = Eigen::Matrix<bool, 3, 3>;
+
+struct LoadSegment {
+  Mat3 velocity_gradient = Mat3::Zero();  // prescribed components of L [1/time]
+  Mask3 free = Mask3::Constant(false);     // true: L_ij free, stress_ij prescribed
+  Mat3 stress_target = Mat3::Zero();       // Cauchy stress reached at the segment end (free comps)
+  double duration = 1.0;                   // [time]
+  int increments = 1;
+  double growth = 1.0;                     // ratio of successive increments
+  int output_every = 1;
+};
+
+// The increment lengths of a segment: geometric progression summing to the duration exactly.
+std::vector<double> increment_lengths(double duration, int increments, double growth);
+
+enum class CrystalMethod { implicit, forward_euler };
+
+struct AggregateOptions {
+  CrystalMethod method = CrystalMethod::implicit;
+  GrainStepOptions grain;
+  int max_cutbacks = 20;          // halvings of one increment
+  double stress_tolerance = 1e-8; // mixed control: |sigma_free - target| relative to stress scale
+  int max_mixed_iterations = 25;
+};
+
+// What an observer sees at an output step.
+struct MacroState {
+  double time = 0.0;
+  int segment = -1;        // -1 for the initial state
+  Mat3 velocity_gradient = Mat3::Zero();
+  Mat3 deformation_gradient = Mat3::Identity();
+  Mat3 strain = Mat3::Zero();  // log strain ln V (finite rotation) or the integral of D
+  Mat3 stress = Mat3::Zero();  // volume-averaged Cauchy stress
+};
+
+struct AggregateStats {
+  long increments = 0;
+  long substeps = 0;
+  long grain_steps = 0;        // grain updates that were committed
+  long grain_solves = 0;       // grain updates attempted (mixed-control iterations included)
+  long newton_iterations = 0;  // summed over grain solves
+  long cutbacks = 0;
+  long mixed_iterations = 0;
+  double wall_seconds = 0.0;
+};
+
+// Per-grain fields for output, filled into caller-owned arrays (row-major, one row a grain).
+class GrainFields {
+ public:
+  virtual ~GrainFields() = default;
+  virtual int grain_count() const = 0;
+  virtual int slip_count() const = 0;
+  virtual void stress(double* out) const = 0;       // [grains x 6]: 11 22 33 23 13 12, sample frame
+  virtual void orientation(double* out) const = 0;  // [grains x 9]: g row-major (v_c = g v_s)
+  virtual void slip(double* out) const = 0;         // [grains x N]
+  virtual void slip_rate(double* out) const = 0;    // [grains x N]
+  virtual void crss(double* out) const = 0;         // [grains x N]: mu tau0
+  virtual void ratio(double* out) const = 0;        // [grains x N]: r
+  virtual void subloading_ratio(double* out) const = 0;  // [grains x N]: r_s
+};
+
+using MacroObserver = std::function<void(const MacroState&, const GrainFields&)>;
+
+struct CrystalStepFailure : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// A runtime-polymorphic handle on a Taylor aggregate of some slip count (one virtual call per
+// run or output, never per slip system).
+class Aggregate {
+ public:
+  virtual ~Aggregate() = default;
+  virtual int grain_count() const = 0;
+  virtual int slip_count() const = 0;
+  virtual std::size_t state_bytes_per_grain() const = 0;
+  virtual AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
+                             const MacroObserver& observe) = 0;
+};
+
+// The Taylor aggregate for N slip systems (N = Eigen::Dynamic for unusual counts).
+template <int N>
+std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,
+                                                 const std::vector<Mat3>& orientations,
+                                                 const std::vector<double>& weights,
+                                                 const typename SlipTypes<N>::VecN& initial_mu);
+
+}  // namespace subslip::crystal

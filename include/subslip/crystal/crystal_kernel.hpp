@@ -1,0 +1,129 @@
+// The crystal batch kernel: the subloading-overstress law on every slip system of a grain.
+//
+// Composition (in the spirit of ExaCMech: slip geometry x kinetics x elasticity): a Phase<N>
+// holds the slip geometry and elasticity as per-phase constant matrices in the LATTICE frame and
+// one law object per slip system; N, the slip count, is a template parameter so that the hot
+// loop works on fixed-size Eigen vectors and matrices (Eigen::Dynamic with a fixed maximum is
+// the fallback for unusual counts: still no heap allocation per grain-step).
+//
+// Why the lattice frame: the stress is kept as its lattice-frame components. Then the Schmid
+// tensors P_a, the products C:P_a and the interaction matrix A_ab = P_a:C:P_b are constants of
+// the phase, the resolved shear stress is linear in the slip increments,
+//   tau = tau_trial - A dgamma,
+// and a superposed rigid rotation only changes the orientation, never the lattice stress: the
+// stress rate is the corotational rate with the lattice spin, which keeps stress invariants
+// unchanged under rigid rotation (objective, no spurious shear oscillation).
+//
+// Crystal reading of the law (per slip system a; the law itself is in law/):
+//   r_a = |tau_a| / (mu_a f_n,a),  f_n,a = tau0_a (or tau0_a + compressive normal stress on the
+//   slip plane in the pressure-sensitive reading), CRSS g_a = mu_a tau0_a,
+//   gdot_a = phi(r_a, r_s,a) sign(tau_a),
+//   mu_a driven by the effective slip sum_b q_ab |dgamma_b| (q = identity by default).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "subslip/crystal/elasticity.hpp"
+#include "subslip/law/subloading_friction.hpp"
+
+namespace subslip::crystal {
+
+inline constexpr int kMaxSlipSystems = 48;
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Vec6 = MandelVector;
+using Mat6 = MandelMatrix;
+
+// Fixed-size types for N slip systems (N = Eigen::Dynamic: runtime size up to kMaxSlipSystems).
+template <int N>
+struct SlipTypes {
+  static constexpr int MaxN = N == Eigen::Dynamic ? kMaxSlipSystems : N;
+  using VecN = Eigen::Matrix<double, N, 1, 0, MaxN, 1>;
+  using MatNN = Eigen::Matrix<double, N, N, 0, MaxN, MaxN>;
+  using Mat6N = Eigen::Matrix<double, 6, N, 0, 6, MaxN>;
+  using Mat3N = Eigen::Matrix<double, 3, N, 0, 3, MaxN>;
+  using MatN6 = Eigen::Matrix<double, N, 6, N == 1 ? Eigen::RowMajor : Eigen::ColMajor, MaxN, 6>;
+};
+
+enum class Kinematics {
+  finite_rotation,  // small elastic strain, finite lattice rotation (texture evolves)
+  small_strain,     // infinitesimal: D = sym(L), no rotation of the lattice
+};
+
+// Per-phase constants, lattice frame, Mandel notation (11, 22, 33, sqrt2*23, sqrt2*13, sqrt2*12).
+template <int N>
+struct Phase {
+  using T = SlipTypes<N>;
+  int slip_count = N == Eigen::Dynamic ? 0 : N;
+  Mat6 stiffness;                 // C
+  typename T::Mat6N schmid;       // P_a = sym(s_a (x) m_a)
+  typename T::Mat6N c_schmid;     // C P_a
+  typename T::MatNN interaction;  // A_ab = P_a : C : P_b
+  typename T::Mat6N plane_normal_dyad;  // M_a = m_a (x) m_a (pressure-sensitive reading)
+  typename T::Mat6N c_normal_dyad;      // C M_a
+  typename T::MatNN normal_interaction; // M_a : C : P_b
+  typename T::Mat3N slip_spin;    // axial vector of skew(s_a (x) m_a): lattice spin per unit slip
+  typename T::VecN tau0;          // reference stress per system (plays f_n)
+  typename T::MatNN latent;       // q_ab (used only when has_latent)
+  bool has_latent = false;
+  bool pressure_sensitive = false;
+  Kinematics kinematics = Kinematics::finite_rotation;
+  std::vector<law::SubloadingFrictionLaw> laws;  // one per slip system
+
+  // Builds the derived matrices from the slip directions/normals (lattice frame, unit vectors)
+  // and the lattice-frame stiffness.
+  void assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, const Mat6& c);
+};
+
+template <int N>
+struct GrainState {
+  using T = SlipTypes<N>;
+  Vec6 stress;              // Cauchy stress, lattice frame (Mandel)
+  Mat3 orientation;         // g: v_crystal = g v_sample (passive, Rowenhorst P = -1)
+  typename T::VecN mu;      // friction coefficient per system (CRSS = mu tau0)
+  typename T::VecN r_s;     // subloading ratio per system
+  typename T::VecN slip;    // accumulated signed slip per system
+  typename T::VecN rate;    // slip rate of the last step (signed), warm start and output
+
+  void reset(int n, const Mat3& g, const typename T::VecN& mu0);
+  Vec6 sample_stress() const;
+};
+
+struct GrainStepOptions {
+  double tolerance = 1e-12;  // on the flow residual, traction-ratio units
+  int max_iterations = 60;
+  bool want_tangent = false;
+};
+
+struct GrainStepReport {
+  bool ok = false;
+  int iterations = 0;
+  int system = -1;           // the slip system that failed, when known
+  const char* why = "";
+};
+
+// d sigma_sample(n+1) / d (D_sample dt), Mandel, when requested.
+using Tangent = Mat6;
+
+// One implicit step of one grain: velocity gradient L (sample frame, constant over dt).
+template <int N>
+GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                    Tangent* tangent);
+
+// One forward-Euler step (paper section 2f, method 2, applied per slip system).
+template <int N>
+GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, GrainState<N>& s1, Tangent* tangent);
+
+// Dynamic loading ratio r_a = |tau_a| / (mu_a f_n,a) of a state, per system.
+template <int N>
+typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s);
+
+}  // namespace subslip::crystal

@@ -1,0 +1,69 @@
+// Orientation files (see docs/orientations.md).
+//
+// Format: plain text, one orientation per line.
+//
+//   # subslip-orientations convention=bunge-euler-deg passive P=-1
+//   # any further '#' line is a comment; blank lines are ignored
+//   35.2644 45 0
+//   90 35.2644 45
+//
+// - The first non-blank line must be the header: '#', the word subslip-orientations, then
+//   convention=bunge-euler-deg or convention=quaternion, optionally followed by the words passive
+//   and P=-1 (the only conventions supported; they are those of crystal/rotation.hpp, so active
+//   and P=+1 are refused).
+// - bunge-euler-deg: phi1 Phi phi2 in degrees; Phi in [0, 180], phi1 and phi2 in [-360, 360].
+// - quaternion: w x y z. q and -q are the same rotation (w < 0 is flipped). A norm within 1e-3
+//   of 1 is normalised silently; a larger deviation is an error (it is then a typo, not rounding).
+// - An optional last column is a positive weight (default 1). Whether weights are present is
+//   decided by the column count of the first data line and must be the same on every line.
+// - Numbers are separated by spaces, tabs or commas; text after '#' on a data line is a comment.
+//
+// Every problem throws subslip::InputError "FILE:LINE: KEY: MESSAGE" with the 1-based line (0 for
+// a missing or empty file), KEY naming the column or part at fault (header, convention, columns,
+// phi1, Phi, phi2, w, x, y, z, quaternion, weight, orientations, file).
+#pragma once
+
+#include <istream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "subslip/crystal/rotation.hpp"
+#include "subslip/crystal/texture.hpp"
+#include "subslip/io/input_error.hpp"
+
+namespace subslip::io {
+
+enum class OrientationConvention { bunge_euler_deg, quaternion };
+
+std::string_view to_string(OrientationConvention convention);  // "bunge-euler-deg", "quaternion"
+
+// Reads a whole file. Weights are returned as written (not normalised to sum 1).
+std::vector<crystal::Orientation> read_orientation_file(const std::string& path);
+// The same from a stream; `file_name` is what error messages call it.
+std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name);
+
+struct OrientationFileFormat {
+  OrientationConvention convention = OrientationConvention::bunge_euler_deg;
+  int significant_digits = 6;
+  // Write the weight column even when every weight is 1 (it is always written otherwise).
+  bool always_write_weights = false;
+  std::vector<std::string> comments;  // written as '# ' lines after the header
+};
+
+// The text of an orientation file (header, comments, one line per orientation).
+std::string format_orientations(const std::vector<crystal::Orientation>& orientations,
+                                const OrientationFileFormat& format = {});
+// Writes format_orientations(...) to `path` and returns the text; an empty path writes nothing
+// (the caller may print the text). Throws std::runtime_error when the file cannot be written.
+std::string write_orientation_file(const std::string& path,
+                                   const std::vector<crystal::Orientation>& orientations,
+                                   const OrientationFileFormat& format = {});
+// Generates the requested set (crystal::generate_orientations) and writes it as above, with a
+// comment recording the request so that the file says how to regenerate it. This is what
+// `subslip orientations --random N --seed S -o FILE` and `--component goss --spread 5` call.
+std::string write_orientation_file(const std::string& path,
+                                   const crystal::OrientationRequest& request,
+                                   const OrientationFileFormat& format = {});
+
+}  // namespace subslip::io

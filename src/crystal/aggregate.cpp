@@ -1,0 +1,345 @@
+#include "subslip/crystal/aggregate.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+namespace subslip::crystal {
+
+std::vector<double> increment_lengths(double duration, int increments, double growth) {
+  std::vector<double> dt(static_cast<size_t>(increments));
+  double sum = 0.0, h = 1.0;
+  for (auto& d : dt) {
+    d = h;
+    sum += h;
+    h *= growth;
+  }
+  for (auto& d : dt) d *= duration / sum;
+  return dt;
+}
+
+namespace {
+
+constexpr double kSqrt2 = std::numbers::sqrt2;
+constexpr int kMandelIndex[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
+
+// One free (stress-controlled) component of the velocity gradient.
+struct FreeComponent {
+  int i, j;
+  bool symmetric_pair;  // both L_ij and L_ji free: the unknown is D_ij, no spin
+};
+
+std::vector<FreeComponent> free_components(const Mask3& free) {
+  std::vector<FreeComponent> out;
+  for (int i = 0; i < 3; ++i) {
+    if (free(i, i)) out.push_back({i, i, false});
+    for (int j = i + 1; j < 3; ++j) {
+      if (free(i, j) && free(j, i)) {
+        out.push_back({i, j, true});
+      } else if (free(i, j)) {
+        out.push_back({i, j, false});
+      } else if (free(j, i)) {
+        out.push_back({j, i, false});
+      }
+    }
+  }
+  return out;
+}
+
+// L with the free components set to u.
+Mat3 assemble_velocity_gradient(const Mat3& prescribed, const std::vector<FreeComponent>& fc,
+                                const Eigen::VectorXd& u) {
+  Mat3 l = prescribed;
+  for (size_t k = 0; k < fc.size(); ++k) {
+    l(fc[k].i, fc[k].j) = u(static_cast<int>(k));
+    if (fc[k].symmetric_pair) l(fc[k].j, fc[k].i) = u(static_cast<int>(k));
+  }
+  return l;
+}
+
+// d(Mandel strain increment)/du_k per unit dt.
+Vec6 strain_direction(const FreeComponent& c) {
+  Vec6 e = Vec6::Zero();
+  const int m = kMandelIndex[c.i][c.j];
+  if (c.i == c.j) {
+    e(m) = 1.0;
+  } else {
+    e(m) = c.symmetric_pair ? kSqrt2 : kSqrt2 / 2.0;  // D_ij = u or u/2, Mandel weight sqrt2
+  }
+  return e;
+}
+
+// Tensor component sigma_ij of a Mandel vector.
+double component(const Vec6& v, int i, int j) {
+  const int m = kMandelIndex[i][j];
+  return i == j ? v(m) : v(m) / kSqrt2;
+}
+
+Mat3 log_strain(const Mat3& f) {
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(f * f.transpose());
+  const Eigen::Vector3d log_values = eig.eigenvalues().array().log() * 0.5;
+  return eig.eigenvectors() * log_values.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+template <int N>
+class TaylorAggregate final : public Aggregate, private GrainFields {
+ public:
+  using VecN = typename SlipTypes<N>::VecN;
+
+  TaylorAggregate(Phase<N> phase, const std::vector<Mat3>& orientations,
+                  const std::vector<double>& weights, const VecN& initial_mu)
+      : phase_(std::move(phase)) {
+    const size_t n = orientations.size();
+    committed_.resize(n);
+    trial_.resize(n);
+    tangents_.resize(n);
+    reports_.resize(n);
+    weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
+    double total = 0.0;
+    for (double w : weights_) total += w;
+    for (double& w : weights_) w /= total;
+    for (size_t g = 0; g < n; ++g) committed_[g].reset(phase_.slip_count, orientations[g], initial_mu);
+  }
+
+  int grain_count() const override { return static_cast<int>(committed_.size()); }
+  int slip_count() const override { return phase_.slip_count; }
+  std::size_t state_bytes_per_grain() const override {
+    return sizeof(double) * (6 + 9 + 4 * static_cast<size_t>(phase_.slip_count));
+  }
+
+  AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
+                     const MacroObserver& observe) override {
+    const auto start = std::chrono::steady_clock::now();
+    stats_ = {};
+    macro_ = {};
+    observe(macro_, *this);
+    for (size_t k = 0; k < segments.size(); ++k) run_segment(segments[k], static_cast<int>(k), opt, observe);
+    stats_.wall_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return stats_;
+  }
+
+ private:
+  void run_segment(const LoadSegment& seg, int index, const AggregateOptions& opt,
+                   const MacroObserver& observe) {
+    const auto fc = free_components(seg.free);
+    const Mat3 stress_start = macro_.stress;
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
+    // Start the free components from the previous step's values where they are free too.
+    for (size_t k = 0; k < fc.size(); ++k) u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
+    double t_local = 0.0;
+    for (size_t i = 0; i < dts.size(); ++i) {
+      advance_increment(seg, fc, stress_start, t_local, dts[i], u, opt);
+      t_local += dts[i];
+      ++stats_.increments;
+      macro_.segment = index;
+      const bool last = i + 1 == dts.size();
+      if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) observe(macro_, *this);
+    }
+  }
+
+  // Advances the aggregate by dt, halving on failure.
+  void advance_increment(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                         const Mat3& stress_start, double t_local, double dt, Eigen::VectorXd& u,
+                         const AggregateOptions& opt) {
+    struct Piece {
+      double dt;
+      int depth;
+    };
+    std::vector<Piece> todo{{dt, 0}};
+    while (!todo.empty()) {
+      const Piece p = todo.back();
+      todo.pop_back();
+      const double progress = std::min(1.0, (t_local + p.dt) / seg.duration);
+      Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
+      std::string why;
+      if (try_step(seg, fc, target, p.dt, u, opt, why)) {
+        commit(seg, fc, u, p.dt);
+        t_local += p.dt;
+        ++stats_.substeps;
+        continue;
+      }
+      if (p.depth >= opt.max_cutbacks) {
+        std::ostringstream msg;
+        msg << "crystal step failed at time " << macro_.time << " after " << p.depth
+            << " cutbacks (dt = " << p.dt << "): " << why;
+        throw CrystalStepFailure(msg.str());
+      }
+      ++stats_.cutbacks;
+      todo.push_back({0.5 * p.dt, p.depth + 1});
+      todo.push_back({0.5 * p.dt, p.depth + 1});
+    }
+  }
+
+  // Runs every grain from the committed state with L; false (and why) when any grain fails.
+  bool solve_grains(const Mat3& l, double dt, bool want_tangent, const AggregateOptions& opt,
+                    std::string& why) {
+    const long n = static_cast<long>(committed_.size());
+#pragma omp parallel for schedule(static)
+    for (long g = 0; g < n; ++g) {
+      const auto gi = static_cast<size_t>(g);
+      Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
+      reports_[gi] = opt.method == CrystalMethod::implicit
+                         ? implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t)
+                         : explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+    }
+    stats_.grain_solves += n;
+    for (size_t g = 0; g < committed_.size(); ++g) {  // serial: the first failure, deterministically
+      stats_.newton_iterations += reports_[g].iterations;
+      if (!reports_[g].ok) {
+        why = describe_failure(g, reports_[g]);
+        return false;
+      }
+    }
+    return true;
+  }
+
+  std::string describe_failure(size_t g, const GrainStepReport& rep) const {
+    std::ostringstream msg;
+    const auto& s = committed_[g];
+    msg << "grain " << g << ", slip system " << rep.system << ": " << rep.why
+        << " (after " << rep.iterations << " iterations)";
+    if (rep.system >= 0) {
+      const VecN r = loading_ratio(phase_, s);
+      msg << "; start state: mu = " << s.mu(rep.system) << ", r = " << r(rep.system)
+          << ", r_s = " << s.r_s(rep.system) << ", slip = " << s.slip(rep.system);
+    }
+    return msg.str();
+  }
+
+  Vec6 average_stress() const {
+    Vec6 sum = Vec6::Zero();
+    for (size_t g = 0; g < trial_.size(); ++g) sum += weights_[g] * trial_[g].sample_stress();
+    return sum;
+  }
+
+  // One attempt at the increment: fixed L, or Newton on the free components of L.
+  bool try_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
+                double dt, Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
+    if (fc.empty()) return solve_grains(seg.velocity_gradient, dt, false, opt, why);
+    const int k = static_cast<int>(fc.size());
+    const double scale = std::max(target.cwiseAbs().maxCoeff(),
+                                  std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff()));
+    Eigen::VectorXd u_try = u;
+    for (int it = 0; it < opt.max_mixed_iterations; ++it) {
+      ++stats_.mixed_iterations;
+      const Mat3 l = assemble_velocity_gradient(seg.velocity_gradient, fc, u_try);
+      if (!solve_grains(l, dt, true, opt, why)) return false;
+      const Vec6 sigma = average_stress();
+      Eigen::VectorXd residual(k);
+      for (int a = 0; a < k; ++a) residual(a) = component(sigma, fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
+      if (residual.cwiseAbs().maxCoeff() <= opt.stress_tolerance * scale) {
+        u = u_try;
+        return true;
+      }
+      // Jacobian from the averaged consistent tangents (serial sum: thread-count independent).
+      Mat6 mean_tangent = Mat6::Zero();
+      for (size_t g = 0; g < tangents_.size(); ++g) mean_tangent += weights_[g] * tangents_[g];
+      Eigen::MatrixXd jac(k, k);
+      for (int b = 0; b < k; ++b) {
+        const Vec6 dsigma = mean_tangent * strain_direction(fc[b]) * dt;
+        for (int a = 0; a < k; ++a) jac(a, b) = component(dsigma, fc[a].i, fc[a].j);
+      }
+      const Eigen::VectorXd delta = jac.partialPivLu().solve(-residual);
+      if (!delta.allFinite()) break;
+      u_try += delta;
+    }
+    why = "mixed control: free components of L did not converge";
+    return false;
+  }
+
+  void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Eigen::VectorXd& u,
+              double dt) {
+    std::swap(committed_, trial_);
+    stats_.grain_steps += static_cast<long>(committed_.size());
+    const Mat3 l = fc.empty() ? seg.velocity_gradient : assemble_velocity_gradient(seg.velocity_gradient, fc, u);
+    // Deformation gradient by the Cayley (midpoint) map: exact for a pure rotation.
+    const Mat3 half = 0.5 * dt * l;
+    macro_.deformation_gradient =
+        (Mat3::Identity() - half).lu().solve((Mat3::Identity() + half) * macro_.deformation_gradient);
+    if (phase_.kinematics == Kinematics::small_strain) {
+      macro_.strain += 0.5 * (l + l.transpose()) * dt;
+    } else {
+      macro_.strain = log_strain(macro_.deformation_gradient);
+    }
+    Vec6 sum = Vec6::Zero();
+    for (size_t g = 0; g < committed_.size(); ++g) sum += weights_[g] * committed_[g].sample_stress();
+    macro_.stress = symmetric_from_mandel(sum);
+    macro_.velocity_gradient = l;
+    macro_.time += dt;
+  }
+
+  // GrainFields
+  template <class F>
+  void per_grain(double* out, int width, F&& f) const {
+    for (size_t g = 0; g < committed_.size(); ++g) f(committed_[g], out + g * static_cast<size_t>(width));
+  }
+  void stress(double* out) const override {
+    per_grain(out, 6, [](const GrainState<N>& s, double* row) {
+      const Mat3 t = symmetric_from_mandel(s.sample_stress());
+      const double v[6] = {t(0, 0), t(1, 1), t(2, 2), t(1, 2), t(0, 2), t(0, 1)};
+      std::copy(v, v + 6, row);
+    });
+  }
+  void orientation(double* out) const override {
+    per_grain(out, 9, [](const GrainState<N>& s, double* row) {
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) row[3 * i + j] = s.orientation(i, j);
+    });
+  }
+  void per_system(double* out, const std::function<double(const GrainState<N>&, int)>& f) const {
+    const int n = phase_.slip_count;
+    per_grain(out, n, [&](const GrainState<N>& s, double* row) {
+      for (int a = 0; a < n; ++a) row[a] = f(s, a);
+    });
+  }
+  void slip(double* out) const override { per_system(out, [](const auto& s, int a) { return s.slip(a); }); }
+  void slip_rate(double* out) const override { per_system(out, [](const auto& s, int a) { return s.rate(a); }); }
+  void crss(double* out) const override {
+    per_system(out, [this](const auto& s, int a) { return s.mu(a) * phase_.tau0(a); });
+  }
+  void ratio(double* out) const override {
+    const int n = phase_.slip_count;
+    per_grain(out, n, [&](const GrainState<N>& s, double* row) {
+      const VecN r = loading_ratio(phase_, s);
+      for (int a = 0; a < n; ++a) row[a] = r(a);
+    });
+  }
+  void subloading_ratio(double* out) const override { per_system(out, [](const auto& s, int a) { return s.r_s(a); }); }
+
+  Phase<N> phase_;
+  std::vector<GrainState<N>> committed_, trial_;
+  std::vector<Tangent> tangents_;
+  std::vector<GrainStepReport> reports_;
+  std::vector<double> weights_;
+  MacroState macro_;
+  AggregateStats stats_;
+};
+
+}  // namespace
+
+template <int N>
+std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase, const std::vector<Mat3>& orientations,
+                                                 const std::vector<double>& weights,
+                                                 const typename SlipTypes<N>::VecN& initial_mu) {
+  return std::make_unique<TaylorAggregate<N>>(std::move(phase), orientations, weights, initial_mu);
+}
+
+#define SUBSLIP_INSTANTIATE_AGGREGATE(N)                                         \
+  template std::unique_ptr<Aggregate> make_taylor_aggregate<N>(                  \
+      Phase<N>, const std::vector<Mat3>&, const std::vector<double>&,            \
+      const typename SlipTypes<N>::VecN&);
+
+SUBSLIP_INSTANTIATE_AGGREGATE(1)
+SUBSLIP_INSTANTIATE_AGGREGATE(3)
+SUBSLIP_INSTANTIATE_AGGREGATE(6)
+SUBSLIP_INSTANTIATE_AGGREGATE(12)
+SUBSLIP_INSTANTIATE_AGGREGATE(24)
+SUBSLIP_INSTANTIATE_AGGREGATE(48)
+SUBSLIP_INSTANTIATE_AGGREGATE(Eigen::Dynamic)
+
+}  // namespace subslip::crystal

@@ -1,0 +1,427 @@
+#include "subslip/crystal/crystal_kernel.hpp"
+
+#include "subslip/crystal/rotation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace subslip::crystal {
+
+namespace {
+
+Vec3 axial(const Mat3& w) { return Vec3(w(2, 1), w(0, 2), w(1, 0)); }
+
+double sign_of(double v) { return v >= 0.0 ? 1.0 : -1.0; }
+
+// Velocity gradient split and expressed in the lattice frame at the start of the step.
+struct StepKinematics {
+  Vec6 strain_increment;  // D_lat dt (Mandel)
+  Vec3 lattice_spin;      // axial vector of W_lat (lattice frame)
+};
+
+StepKinematics step_kinematics(const Mat3& g, const Mat3& L, double dt) {
+  const Mat3 d = 0.5 * (L + L.transpose());
+  const Mat3 w = 0.5 * (L - L.transpose());
+  return {mandel_from_symmetric(g * d * g.transpose()) * dt, axial(g * w * g.transpose())};
+}
+
+// The orientation after a step: the lattice spins with W - W_p (lattice components omega),
+// and g maps sample to crystal components, so g1 = exp(-[omega] dt) g0.
+template <int N>
+Mat3 rotated_orientation(const Phase<N>& ph, const Mat3& g0, const Vec3& lattice_spin,
+                         const typename SlipTypes<N>::VecN& rate, double dt) {
+  if (ph.kinematics == Kinematics::small_strain) return g0;
+  const Vec3 omega = lattice_spin - ph.slip_spin * rate;
+  return rotation_exp(-omega * dt) * g0;
+}
+
+// Normal traction on each slip plane: tau0 alone, or tau0 plus the compressive normal stress.
+template <int N>
+typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const Vec6& stress) {
+  if (!ph.pressure_sensitive) return ph.tau0;
+  return ph.tau0 - ph.plane_normal_dyad.transpose() * stress;
+}
+
+// What the Newton iteration needs at one iterate of the slip magnitudes x.
+template <int N>
+struct Iterate {
+  using T = SlipTypes<N>;
+  // x are the unknowns z_a = slip_a^(1/p_a) (p_a = 1 unless the power overstress is used).
+  typename T::VecN x, slip, dslip_dx, sign, tau, fn, mu, d_mu, rs, d_rs, r, merit_rows;
+  typename T::VecN g_value, g_dr, g_drs, g_dslip;
+  Eigen::Matrix<bool, N, 1, 0, T::MaxN, 1> active;  // row is the flow rule (else x_a = 0)
+  double merit = 0.0;
+  bool admissible = true;
+  int bad_system = -1;
+};
+
+template <int N>
+class ImplicitSolver {
+ public:
+  using T = SlipTypes<N>;
+  using VecN = typename T::VecN;
+  using MatNN = typename T::MatNN;
+
+  ImplicitSolver(const Phase<N>& ph, const GrainState<N>& s0, const Vec6& stress_trial, double dt)
+      : ph_(ph), s0_(s0), dt_(dt), n_(ph.slip_count) {
+    tau_trial_ = ph.schmid.transpose() * stress_trial;
+    fn_trial_ = normal_traction(ph, stress_trial);
+    // Row scale c_a: the elastic stiffness of system a in ratio units, so that both branches of
+    // min(c x, -G) are traction ratios.
+    scale_.resize(n_);
+    exponent_.resize(n_);
+    for (int a = 0; a < n_; ++a) {
+      scale_(a) = ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a));
+      exponent_(a) = ph.laws[static_cast<size_t>(a)].slip_exponent();
+    }
+  }
+
+  // Slip magnitude of an unknown z and back.
+  double slip_of(int a, double z) const { return exponent_(a) == 1.0 ? z : std::pow(z, exponent_(a)); }
+  double unknown_of(int a, double slip) const {
+    return exponent_(a) == 1.0 ? slip : std::pow(slip, 1.0 / exponent_(a));
+  }
+
+  void evaluate(const VecN& x, const VecN& sign, Iterate<N>& it) const {
+    it.x = x;
+    it.sign = sign;
+    it.slip.resize(n_), it.dslip_dx.resize(n_);
+    for (int a = 0; a < n_; ++a) {
+      const double p = exponent_(a);
+      it.slip(a) = slip_of(a, x(a));
+      it.dslip_dx(a) = p == 1.0 ? 1.0 : p * std::pow(x(a), p - 1.0);
+    }
+    const VecN dgamma = sign.cwiseProduct(it.slip);
+    it.tau = tau_trial_ - ph_.interaction * dgamma;
+    it.fn = ph_.pressure_sensitive ? VecN(fn_trial_ + ph_.normal_interaction * dgamma) : ph_.tau0;
+    const VecN effective = ph_.has_latent ? VecN(ph_.latent * it.slip) : it.slip;
+    for (VecN* v : {&it.mu, &it.d_mu, &it.rs, &it.d_rs, &it.r, &it.g_value, &it.g_dr, &it.g_drs,
+                    &it.g_dslip, &it.merit_rows})
+      v->setZero(n_);
+    it.active.setConstant(n_, false);
+    it.admissible = true;
+    it.bad_system = -1;
+    for (int a = 0; a < n_; ++a) {
+      const auto& law = ph_.laws[static_cast<size_t>(a)];
+      const auto mu = law.friction_coefficient_after(s0_.mu(a), effective(a), dt_);
+      const auto rs = law.subloading_ratio_after(s0_.r_s(a), it.slip(a));
+      it.mu(a) = mu.value, it.d_mu(a) = mu.d_slip, it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
+      if (!(it.fn(a) > 0.0) || !(mu.value > 0.0)) {
+        it.admissible = false, it.bad_system = a;
+        it.merit = std::numeric_limits<double>::infinity();
+        return;
+      }
+      it.r(a) = sign(a) * it.tau(a) / (mu.value * it.fn(a));
+      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
+      it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
+      const double inactive_row = scale_(a) * x(a);
+      it.active(a) = inactive_row > -g.value;
+      it.merit_rows(a) = it.active(a) ? -g.value : inactive_row;
+      if (!g.admissible) it.admissible = false, it.bad_system = a;
+    }
+    it.merit = it.admissible ? 0.5 * it.merit_rows.squaredNorm()
+                             : std::numeric_limits<double>::infinity();
+  }
+
+  // d(rows)/dx at an iterate (semismooth Newton: each row differentiated on its branch).
+  MatNN jacobian(const Iterate<N>& it) const {
+    MatNN j = MatNN::Zero(n_, n_);
+    for (int a = 0; a < n_; ++a) {
+      if (!it.active(a)) {
+        j(a, a) = scale_(a);
+        continue;
+      }
+      const double inv = 1.0 / (it.mu(a) * it.fn(a));
+      for (int b = 0; b < n_; ++b) {
+        double dr = -it.sign(a) * ph_.interaction(a, b) * it.sign(b) * inv;
+        const double q = ph_.has_latent ? ph_.latent(a, b) : (a == b ? 1.0 : 0.0);
+        dr -= it.r(a) / it.mu(a) * it.d_mu(a) * q;
+        if (ph_.pressure_sensitive)
+          dr -= it.r(a) / it.fn(a) * ph_.normal_interaction(a, b) * it.sign(b);
+        j(a, b) = -it.g_dr(a) * dr;
+      }
+      j(a, a) -= it.g_drs(a) * it.d_rs(a) + it.g_dslip(a);
+      j.row(a) = j.row(a).cwiseProduct(it.dslip_dx.transpose());  // d/dslip -> d/dx
+    }
+    return j;
+  }
+
+  // d(rows)/d(strain increment), for the consistent tangent.
+  typename T::MatN6 strain_jacobian(const Iterate<N>& it) const {
+    typename T::MatN6 j = T::MatN6::Zero(n_, 6);
+    for (int a = 0; a < n_; ++a) {
+      if (!it.active(a)) continue;
+      Eigen::Matrix<double, 1, 6> dr =
+          it.sign(a) * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
+      if (ph_.pressure_sensitive)
+        dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
+      j.row(a) = -it.g_dr(a) * dr;
+    }
+    return j;
+  }
+
+  const VecN& tau_trial() const { return tau_trial_; }
+
+  // Moves an inadmissible start (some r_a >= r_hat, typically a large elastic trial) into the
+  // admissible set: each offending system gets the slip that, through its own diagonal
+  // stiffness, brings r_a to the middle of [r_s,a, r_hat]. Slip on a system relaxes the others
+  // too (A is positive semi-definite), so a few rounds suffice; the Newton iteration then starts
+  // from an admissible point and converges to the same root whatever the start.
+  bool make_admissible(VecN& x, VecN& sign, Iterate<N>& it, int rounds = 30) const {
+    for (int round = 0; round < rounds; ++round) {
+      evaluate(x, sign, it);
+      if (it.admissible) return true;
+      if (it.bad_system >= 0 && !(it.fn(it.bad_system) > 0.0)) return false;
+      for (int a = 0; a < n_; ++a) {
+        const auto& o = ph_.laws[static_cast<size_t>(a)].parameters().overstress;
+        if (o.form == law::OverstressForm::rate_independent || it.r(a) < o.r_hat) continue;
+        const double target = 0.5 * (it.rs(a) + o.r_hat);
+        if (x(a) == 0.0) sign(a) = sign_of(it.tau(a));
+        const double more = (sign(a) * it.tau(a) - target * it.mu(a) * it.fn(a)) / ph_.interaction(a, a);
+        x(a) = unknown_of(a, it.slip(a) + more);
+      }
+    }
+    evaluate(x, sign, it);
+    return it.admissible;
+  }
+
+ private:
+  const Phase<N>& ph_;
+  const GrainState<N>& s0_;
+  double dt_;
+  int n_;
+  VecN tau_trial_, fn_trial_, scale_, exponent_;
+};
+
+template <int N>
+bool admissible_state(const Phase<N>& ph, const GrainState<N>& s, const typename SlipTypes<N>::VecN& r,
+                      const typename SlipTypes<N>::VecN& fn, GrainStepReport& rep) {
+  if (!s.stress.allFinite() || !s.orientation.allFinite()) {
+    rep.why = "non-finite stress or orientation";
+    return false;
+  }
+  for (int a = 0; a < ph.slip_count; ++a) {
+    const auto& o = ph.laws[static_cast<size_t>(a)].parameters().overstress;
+    const bool ri = o.form == law::OverstressForm::rate_independent;
+    if (!std::isfinite(s.mu(a)) || !std::isfinite(s.r_s(a)) || !std::isfinite(s.slip(a)) ||
+        !std::isfinite(r(a))) {
+      rep.why = "non-finite slip-system state", rep.system = a;
+      return false;
+    }
+    if (!(s.mu(a) > 0.0) || !(fn(a) > 0.0)) {
+      rep.why = "mu <= 0 or slip plane not in compression", rep.system = a;
+      return false;
+    }
+    if (!ri && r(a) >= o.r_hat) {
+      rep.why = "r >= r_hat", rep.system = a;
+      return false;
+    }
+    if (s.r_s(a) < 0.0 || s.r_s(a) > r(a)) {
+      rep.why = "r_s outside [0, r]", rep.system = a;
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+template <int N>
+void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, const Mat6& c) {
+  const int n = static_cast<int>(s.size());
+  slip_count = n;
+  stiffness = c;
+  schmid.resize(6, n), plane_normal_dyad.resize(6, n), slip_spin.resize(3, n);
+  for (int a = 0; a < n; ++a) {
+    const Mat3 sm = s[static_cast<size_t>(a)] * m[static_cast<size_t>(a)].transpose();
+    schmid.col(a) = mandel_from_symmetric(0.5 * (sm + sm.transpose()));
+    plane_normal_dyad.col(a) = mandel_from_symmetric(m[static_cast<size_t>(a)] * m[static_cast<size_t>(a)].transpose());
+    slip_spin.col(a) = 0.5 * m[static_cast<size_t>(a)].cross(s[static_cast<size_t>(a)]);
+  }
+  c_schmid = c * schmid;
+  interaction = schmid.transpose() * c_schmid;
+  c_normal_dyad = c * plane_normal_dyad;
+  normal_interaction = plane_normal_dyad.transpose() * c_schmid;
+  if (tau0.size() != n) tau0 = SlipTypes<N>::VecN::Ones(n);
+  if (latent.rows() != n) latent = SlipTypes<N>::MatNN::Identity(n, n);
+}
+
+template <int N>
+void GrainState<N>::reset(int n, const Mat3& g, const typename SlipTypes<N>::VecN& mu0) {
+  stress.setZero();
+  orientation = g;
+  mu = mu0;
+  r_s = SlipTypes<N>::VecN::Zero(n);
+  slip = SlipTypes<N>::VecN::Zero(n);
+  rate = SlipTypes<N>::VecN::Zero(n);
+}
+
+template <int N>
+Vec6 GrainState<N>::sample_stress() const {
+  return mandel_from_symmetric(orientation.transpose() * symmetric_from_mandel(stress) * orientation);
+}
+
+template <int N>
+typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s) {
+  const typename SlipTypes<N>::VecN tau = ph.schmid.transpose() * s.stress;
+  const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
+  return tau.cwiseAbs().cwiseQuotient(s.mu.cwiseProduct(fn));
+}
+
+template <int N>
+GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                    Tangent* tangent) {
+  using T = SlipTypes<N>;
+  using VecN = typename T::VecN;
+  const int n = ph.slip_count;
+  GrainStepReport rep;
+  const StepKinematics kin = step_kinematics(s0.orientation, L, dt);
+  const Vec6 stress_trial = s0.stress + ph.stiffness * kin.strain_increment;
+  ImplicitSolver<N> solver(ph, s0, stress_trial, dt);
+
+  // Warm start: the previous slip rate where its sign agrees with the trial shear.
+  VecN sign(n), x(n);
+  for (int a = 0; a < n; ++a) {
+    sign(a) = sign_of(solver.tau_trial()(a));
+    const double previous = s0.rate(a) * dt;
+    x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, std::abs(previous)) : 0.0;
+  }
+  Iterate<N> it, trial;
+  if (!solver.make_admissible(x, sign, it)) {
+    rep.why = "no admissible start (r >= r_hat or slip plane open)", rep.system = it.bad_system;
+    return rep;
+  }
+
+  bool converged = false;
+  for (rep.iterations = 0; rep.iterations < opt.max_iterations && !converged; ++rep.iterations) {
+    const typename T::MatNN j = solver.jacobian(it);
+    // Converged when every row is within tolerance or within what double precision resolves
+    // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
+    const VecN resolution =
+        4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x);
+    if ((it.merit_rows.cwiseAbs() - resolution.cwiseMax(opt.tolerance)).maxCoeff() <= 0.0) {
+      converged = true;
+      break;
+    }
+    const VecN step = -Eigen::PartialPivLU<typename T::MatNN>(j).solve(it.merit_rows);
+    if (!step.allFinite()) break;
+    // Backtracking line search on the merit 1/2 |rows|^2, projected onto x >= 0; a trial point
+    // beyond r_hat counts as infinitely bad, so the iterate never leaves the admissible set.
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+      VecN xt = (it.x + alpha * step).cwiseMax(0.0);
+      VecN st = it.sign;
+      for (int a = 0; a < n; ++a)
+        if (xt(a) == 0.0) st(a) = sign_of(it.tau(a));  // an idle system may reverse
+      solver.evaluate(xt, st, trial);
+      if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) {
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;
+    std::swap(it, trial);
+  }
+  if (!converged) {
+    rep.why = "slip increments did not converge";
+    return rep;
+  }
+
+  const VecN dgamma = it.sign.cwiseProduct(it.slip);
+  s1.stress = stress_trial - ph.c_schmid * dgamma;
+  s1.mu = it.mu;
+  s1.slip = s0.slip + dgamma;
+  s1.rate = dgamma / dt;
+  const VecN r_abs = it.tau.cwiseAbs().cwiseQuotient(it.mu.cwiseProduct(it.fn));
+  s1.r_s = it.rs.cwiseMin(r_abs);  // (3.12): r_s follows r down where no slip occurs
+  s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
+  if (!admissible_state(ph, s1, r_abs, it.fn, rep)) return rep;
+
+  if (tangent) {
+    const typename T::MatNN j = solver.jacobian(it);
+    const typename T::MatN6 dx = -Eigen::PartialPivLU<typename T::MatNN>(j).solve(
+        solver.strain_jacobian(it));
+    const Mat6 lattice_tangent =
+        ph.stiffness - ph.c_schmid * it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
+    *tangent = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent *
+               mandel_rotation_operator(s0.orientation);
+  }
+  rep.ok = true;
+  return rep;
+}
+
+template <int N>
+GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, GrainState<N>& s1, Tangent* tangent) {
+  using VecN = typename SlipTypes<N>::VecN;
+  const int n = ph.slip_count;
+  GrainStepReport rep;
+  const StepKinematics kin = step_kinematics(s0.orientation, L, dt);
+  const VecN tau = ph.schmid.transpose() * s0.stress;
+  const VecN fn0 = normal_traction(ph, s0.stress);
+  VecN dgamma(n);
+  for (int a = 0; a < n; ++a) {
+    const auto& law = ph.laws[static_cast<size_t>(a)];
+    if (law.is_rate_independent()) {
+      rep.why = "forward Euler needs an overstress form (rate_independent is implicit only)";
+      return rep;
+    }
+    const double r = std::abs(tau(a)) / (s0.mu(a) * fn0(a));
+    dgamma(a) = law.slip_rate(r, s0.r_s(a)) * dt * sign_of(tau(a));
+  }
+  s1.stress = s0.stress + ph.stiffness * kin.strain_increment - ph.c_schmid * dgamma;
+  const VecN magnitude = dgamma.cwiseAbs();
+  const VecN effective = ph.has_latent ? VecN(ph.latent * magnitude) : magnitude;
+  const VecN tau1 = ph.schmid.transpose() * s1.stress;
+  const VecN fn1 = normal_traction(ph, s1.stress);
+  VecN r1(n);
+  s1.mu.resize(n), s1.r_s.resize(n);
+  for (int a = 0; a < n; ++a) {
+    const auto& law = ph.laws[static_cast<size_t>(a)];
+    const auto& f = law.parameters().friction;
+    const double mu0 = s0.mu(a), rs0 = s0.r_s(a);
+    s1.mu(a) = mu0 + f.kappa * (1.0 - mu0 / f.mu_k) * effective(a) + f.xi * (1.0 - mu0 / f.mu_s) * dt;
+    double rs1 = rs0;
+    if (magnitude(a) > 0.0) {
+      // Method 2: forward Euler of (3.11); U(0) is infinite, so slip from r_s = 0 uses (2.28).
+      rs1 = rs0 > 0.0 ? rs0 + law.subloading_rate(rs0) * magnitude(a)
+                      : law.subloading_ratio_after(0.0, magnitude(a)).value;
+    }
+    r1(a) = std::abs(tau1(a)) / (s1.mu(a) * fn1(a));
+    s1.r_s(a) = std::min(rs1, r1(a));
+  }
+  s1.slip = s0.slip + dgamma;
+  s1.rate = dgamma / dt;
+  s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
+  if (!admissible_state(ph, s1, r1, fn1, rep)) return rep;
+  if (tangent) {
+    *tangent = mandel_rotation_operator(s1.orientation.transpose()) * ph.stiffness *
+               mandel_rotation_operator(s0.orientation);
+  }
+  rep.ok = true;
+  return rep;
+}
+
+#define SUBSLIP_INSTANTIATE_KERNEL(N)                                                           \
+  template struct Phase<N>;                                                                     \
+  template struct GrainState<N>;                                                                \
+  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
+                                                  const Mat3&, double, const GrainStepOptions&, \
+                                                  GrainState<N>&, Tangent*);                    \
+  template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
+                                                  const Mat3&, double, GrainState<N>&, Tangent*); \
+  template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);
+
+SUBSLIP_INSTANTIATE_KERNEL(1)
+SUBSLIP_INSTANTIATE_KERNEL(3)
+SUBSLIP_INSTANTIATE_KERNEL(6)
+SUBSLIP_INSTANTIATE_KERNEL(12)
+SUBSLIP_INSTANTIATE_KERNEL(24)
+SUBSLIP_INSTANTIATE_KERNEL(48)
+SUBSLIP_INSTANTIATE_KERNEL(Eigen::Dynamic)
+
+}  // namespace subslip::crystal

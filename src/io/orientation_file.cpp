@@ -1,0 +1,326 @@
+#include "subslip/io/orientation_file.hpp"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+namespace subslip::io {
+
+namespace {
+
+constexpr std::string_view kMagic = "subslip-orientations";
+constexpr std::string_view kHeaderExample =
+    "# subslip-orientations convention=bunge-euler-deg passive P=-1";
+// Quaternions closer than this to unit norm are rounding noise and are normalised; farther ones
+// are refused, since then a number is most likely mistyped.
+constexpr double kNormTolerance = 1e-3;
+
+constexpr std::array<const char*, 3> kEulerColumns{"phi1", "Phi", "phi2"};
+constexpr std::array<const char*, 4> kQuaternionColumns{"w", "x", "y", "z"};
+
+// Joins message parts with append: GCC 12 warns falsely (-Wrestrict) on "literal" + std::string&&.
+template <typename... Parts>
+std::string concat(const Parts&... parts) {
+  std::string text;
+  (text.append(std::string_view(parts)), ...);
+  return text;
+}
+
+bool is_blank(std::string_view text) {
+  return text.find_first_not_of(" \t\r") == std::string_view::npos;
+}
+
+std::string_view trim_left(std::string_view text) {
+  const std::size_t first = text.find_first_not_of(" \t\r");
+  return first == std::string_view::npos ? std::string_view{} : text.substr(first);
+}
+
+std::vector<std::string> split_fields(std::string_view text) {
+  std::vector<std::string> fields;
+  std::size_t position = 0;
+  while (true) {
+    const std::size_t start = text.find_first_not_of(" \t\r,", position);
+    if (start == std::string_view::npos) break;
+    const std::size_t end = text.find_first_of(" \t\r,", start);
+    fields.emplace_back(text.substr(start, end - start));
+    if (end == std::string_view::npos) break;
+    position = end;
+  }
+  return fields;
+}
+
+std::string format_number(double value, int digits) {
+  char buffer[64];
+  // + 0.0 turns -0 into 0 so that files never show "-0".
+  std::snprintf(buffer, sizeof buffer, "%.*g", digits, value + 0.0);
+  return buffer;
+}
+
+// Reads one orientation file line by line; throws InputError at the first problem.
+class OrientationReader {
+ public:
+  explicit OrientationReader(const std::string& file_name) : file_(file_name) {}
+
+  std::vector<crystal::Orientation> read(std::istream& in) {
+    std::string text;
+    while (std::getline(in, text)) {
+      ++line_;
+      if (!text.empty() && text.back() == '\r') text.pop_back();
+      if (!convention_) {
+        read_header_line(text);
+      } else {
+        read_data_line(text);
+      }
+    }
+    if (!convention_) {
+      fail(0, "orientations",
+           concat("empty file: expected the header '", kHeaderExample,
+                  "' and at least one orientation"));
+    }
+    if (orientations_.empty()) fail(0, "orientations", "no orientations after the header");
+    return std::move(orientations_);
+  }
+
+ private:
+  [[noreturn]] void fail(int line, const std::string& key, const std::string& message) const {
+    throw InputError(file_, line, key, message);
+  }
+  [[noreturn]] void fail(const std::string& key, const std::string& message) const {
+    fail(line_, key, message);
+  }
+
+  void read_header_line(std::string_view text) {
+    if (is_blank(text)) return;
+    const std::string_view content = trim_left(text);
+    std::istringstream words{std::string(content.starts_with('#') ? content.substr(1) : "")};
+    std::string word;
+    if (!(words >> word) || word != kMagic) {
+      fail("header", concat("the first line must be the header '", kHeaderExample,
+                            "' (or convention=quaternion)"));
+    }
+    while (words >> word) read_header_word(word);
+    if (!convention_) {
+      fail("convention", "the header lacks convention=bunge-euler-deg or convention=quaternion");
+    }
+  }
+
+  void read_header_word(const std::string& word) {
+    if (word.starts_with("convention=")) {
+      const std::string value = word.substr(std::string_view("convention=").size());
+      if (value == "bunge-euler-deg") {
+        convention_ = OrientationConvention::bunge_euler_deg;
+      } else if (value == "quaternion") {
+        convention_ = OrientationConvention::quaternion;
+      } else {
+        fail("convention",
+             concat("unknown convention '", value, "'; valid: bunge-euler-deg, quaternion"));
+      }
+    } else if (word == "passive" || word == "P=-1") {
+      // The only conventions there are; stating them is optional.
+    } else if (word == "active") {
+      fail("header",
+           "active rotations are not supported: orientations are passive "
+           "(sample -> crystal), Rowenhorst et al. 2015 with P=-1");
+    } else if (word.starts_with("P=")) {
+      fail("header", concat("only P=-1 is supported (Rowenhorst et al. 2015), got ", word));
+    } else {
+      fail("header",
+           concat("unknown word '", word, "'; the header takes convention=..., passive, P=-1"));
+    }
+  }
+
+  void read_data_line(std::string_view text) {
+    const std::size_t comment = text.find('#');
+    if (comment != std::string_view::npos) text = text.substr(0, comment);
+    if (is_blank(text)) return;
+    const std::vector<std::string> fields = split_fields(text);
+    const bool has_weight = check_column_count(int(fields.size()));
+    const int angle_columns = int(fields.size()) - (has_weight ? 1 : 0);
+
+    std::vector<double> values;
+    for (int i = 0; i < angle_columns; ++i)
+      values.push_back(parse_number(fields[i], column_name(i)));
+    const double weight = has_weight ? parse_number(fields.back(), "weight") : 1.0;
+    if (!(weight > 0.0)) fail("weight", concat("weight must be positive, got ", fields.back()));
+
+    const crystal::Quaternion q = *convention_ == OrientationConvention::bunge_euler_deg
+                                      ? quaternion_from_euler_degrees(values, fields)
+                                      : checked_quaternion(values);
+    orientations_.push_back(crystal::Orientation::from_quaternion(q, weight));
+  }
+
+  int angle_columns() const {
+    return *convention_ == OrientationConvention::bunge_euler_deg ? 3 : 4;
+  }
+
+  const char* column_name(int i) const {
+    return *convention_ == OrientationConvention::bunge_euler_deg ? kEulerColumns[i]
+                                                                  : kQuaternionColumns[i];
+  }
+
+  // Returns whether the line has a weight column; fixes the layout on the first data line.
+  bool check_column_count(int count) {
+    const int base = angle_columns();
+    if (count != base && count != base + 1) {
+      fail("columns", concat("expected ", std::to_string(base), " numbers (",
+                             base == 3 ? "phi1 Phi phi2" : "w x y z", ") or ",
+                             std::to_string(base + 1), " (with a weight) for convention=",
+                             to_string(*convention_), ", found ", std::to_string(count)));
+    }
+    if (first_data_line_ == 0) {
+      first_data_line_ = line_;
+      first_column_count_ = count;
+    } else if (count != first_column_count_) {
+      fail("columns",
+           concat("found ", std::to_string(count), " numbers but line ",
+                  std::to_string(first_data_line_), " has ", std::to_string(first_column_count_),
+                  ": the weight column must be on every line or on none"));
+    }
+    return count == base + 1;
+  }
+
+  double parse_number(const std::string& token, const char* column) const {
+    std::string_view digits = token;
+    if (digits.starts_with('+')) digits.remove_prefix(1);
+    double value = 0.0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
+    if (error == std::errc::result_out_of_range) {
+      fail(column, concat("'", token, "' is out of the range of double precision"));
+    }
+    if (error != std::errc{} || end != digits.data() + digits.size()) {
+      fail(column, concat("'", token, "' is not a number"));
+    }
+    if (!std::isfinite(value)) {
+      fail(column, concat("'", token, "' is not finite (NaN/Inf not allowed)"));
+    }
+    return value;
+  }
+
+  crystal::Quaternion quaternion_from_euler_degrees(const std::vector<double>& degrees,
+                                                    const std::vector<std::string>& fields) const {
+    for (int i : {0, 2}) {
+      if (degrees[i] < -360.0 || degrees[i] > 360.0) {
+        fail(kEulerColumns[i], concat(fields[i], " deg is outside [-360, 360]"));
+      }
+    }
+    if (degrees[1] < 0.0 || degrees[1] > 180.0) {
+      fail("Phi", concat(fields[1], " deg is outside [0, 180]"));
+    }
+    const Eigen::Vector3d euler(degrees[0], degrees[1], degrees[2]);
+    return crystal::euler_to_quaternion(crystal::degrees_to_radians(euler));
+  }
+
+  crystal::Quaternion checked_quaternion(const std::vector<double>& v) const {
+    const crystal::Quaternion q{v[0], v[1], v[2], v[3]};
+    const double norm = q.norm();
+    if (!(std::abs(norm - 1.0) <= kNormTolerance)) {
+      fail("quaternion", concat("norm ", format_number(norm, 8),
+                                " differs from 1 by more than 1e-3 (deviations up to 1e-3 are "
+                                "normalised silently; larger ones are refused)"));
+    }
+    return q.normalized().canonical();
+  }
+
+  std::string file_;
+  int line_ = 0;
+  std::optional<OrientationConvention> convention_;
+  int first_data_line_ = 0;
+  int first_column_count_ = 0;
+  std::vector<crystal::Orientation> orientations_;
+};
+
+std::string format_line(const crystal::Orientation& orientation,
+                        const OrientationFileFormat& format, bool with_weight) {
+  const int digits = format.significant_digits;
+  std::string line;
+  if (format.convention == OrientationConvention::bunge_euler_deg) {
+    Eigen::Vector3d degrees =
+        crystal::radians_to_degrees(crystal::quaternion_to_euler(orientation.q));
+    // pi * (180 / pi) may round a hair above 180, which the reader would refuse.
+    degrees[1] = std::clamp(degrees[1], 0.0, 180.0);
+    line = concat(format_number(degrees[0], digits), " ", format_number(degrees[1], digits), " ",
+                  format_number(degrees[2], digits));
+  } else {
+    const crystal::Quaternion q = orientation.q.normalized().canonical();
+    line = concat(format_number(q.w, digits), " ", format_number(q.x, digits), " ",
+                  format_number(q.y, digits), " ", format_number(q.z, digits));
+  }
+  if (with_weight) line.append(" ").append(format_number(orientation.weight, digits));
+  return line.append("\n");
+}
+
+}  // namespace
+
+std::string_view to_string(OrientationConvention convention) {
+  return convention == OrientationConvention::bunge_euler_deg ? "bunge-euler-deg" : "quaternion";
+}
+
+std::vector<crystal::Orientation> read_orientations(std::istream& in,
+                                                    const std::string& file_name) {
+  return OrientationReader(file_name).read(in);
+}
+
+std::vector<crystal::Orientation> read_orientation_file(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) {
+    throw InputError(
+        path, 0, "file",
+        std::filesystem::exists(path, error) ? "not a regular file" : "no such orientation file");
+  }
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
+  return read_orientations(in, path);
+}
+
+std::string format_orientations(const std::vector<crystal::Orientation>& orientations,
+                                const OrientationFileFormat& format) {
+  if (format.significant_digits < 1 || format.significant_digits > 17) {
+    throw std::invalid_argument("significant_digits must be in [1, 17]");
+  }
+  const bool with_weight =
+      format.always_write_weights ||
+      std::any_of(orientations.begin(), orientations.end(),
+                  [](const crystal::Orientation& o) { return o.weight != 1.0; });
+  std::string text =
+      concat("# ", kMagic, " convention=", to_string(format.convention), " passive P=-1\n");
+  for (const std::string& comment : format.comments) text.append(concat("# ", comment, "\n"));
+  const std::string columns = format.convention == OrientationConvention::bunge_euler_deg
+                                  ? "phi1 Phi phi2 (deg)"
+                                  : "w x y z";
+  text.append(concat("# columns: ", columns, with_weight ? " weight" : "", "\n"));
+  for (const crystal::Orientation& orientation : orientations) {
+    text += format_line(orientation, format, with_weight);
+  }
+  return text;
+}
+
+std::string write_orientation_file(const std::string& path,
+                                   const std::vector<crystal::Orientation>& orientations,
+                                   const OrientationFileFormat& format) {
+  std::string text = format_orientations(orientations, format);
+  if (path.empty()) return text;
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  out.close();
+  if (!out) throw std::runtime_error(concat("cannot write orientation file '", path, "'"));
+  return text;
+}
+
+std::string write_orientation_file(const std::string& path,
+                                   const crystal::OrientationRequest& request,
+                                   const OrientationFileFormat& format) {
+  OrientationFileFormat with_provenance = format;
+  with_provenance.comments.insert(with_provenance.comments.begin(),
+                                  concat("generated by subslip: ", crystal::describe(request)));
+  return write_orientation_file(path, crystal::generate_orientations(request), with_provenance);
+}
+
+}  // namespace subslip::io
