@@ -1,6 +1,7 @@
 #include "subslip/crystal/crystal_kernel.hpp"
 
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/integrators/scalar_root.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -49,7 +50,7 @@ template <int N>
 struct Iterate {
   using T = SlipTypes<N>;
   // x are the unknowns z_a = slip_a^(1/p_a) (p_a = 1 unless the power overstress is used).
-  typename T::VecN x, slip, dslip_dx, sign, tau, fn, mu, d_mu, rs, d_rs, r, merit_rows;
+  typename T::VecN x, slip, dslip_dx, effective, sign, tau, fn, mu, d_mu, rs, d_rs, r, merit_rows;
   typename T::VecN g_value, g_dr, g_drs, g_dslip;
   Eigen::Matrix<bool, N, 1, 0, T::MaxN, 1> active;  // row is the flow rule (else x_a = 0)
   double merit = 0.0;
@@ -95,8 +96,13 @@ class ImplicitSolver {
     }
     const VecN dgamma = sign.cwiseProduct(it.slip);
     it.tau = tau_trial_ - ph_.interaction * dgamma;
+    // An idle system may slip either way: its direction is that of its current shear (which
+    // its own sign does not affect, its slip being zero).
+    for (int a = 0; a < n_; ++a)
+      if (x(a) == 0.0) it.sign(a) = sign_of(it.tau(a));
     it.fn = ph_.pressure_sensitive ? VecN(fn_trial_ + ph_.normal_interaction * dgamma) : ph_.tau0;
-    const VecN effective = ph_.has_latent ? VecN(ph_.latent * it.slip) : it.slip;
+    it.effective = ph_.has_latent ? VecN(ph_.latent * it.slip) : it.slip;
+    const VecN& effective = it.effective;
     for (VecN* v : {&it.mu, &it.d_mu, &it.rs, &it.d_rs, &it.r, &it.g_value, &it.g_dr, &it.g_drs,
                     &it.g_dslip, &it.merit_rows})
       v->setZero(n_);
@@ -113,7 +119,7 @@ class ImplicitSolver {
         it.merit = std::numeric_limits<double>::infinity();
         return;
       }
-      it.r(a) = sign(a) * it.tau(a) / (mu.value * it.fn(a));
+      it.r(a) = it.sign(a) * it.tau(a) / (mu.value * it.fn(a));
       const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
       it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
       const double inactive_row = scale_(a) * x(a);
@@ -163,6 +169,63 @@ class ImplicitSolver {
   }
 
   const VecN& tau_trial() const { return tau_trial_; }
+
+  bool finite_slopes(const Iterate<N>& it) const {
+    for (int a = 0; a < n_; ++a)
+      if (it.active(a) && !std::isfinite(it.d_rs(a))) return false;
+    return true;
+  }
+
+  // The flow rule of system a alone, the other systems' slips frozen at `it`: one bracketed
+  // scalar equation exactly like a single contact's. Returns the unknown x_a (0 if no slip).
+  double solve_single(int a, const Iterate<N>& it, double tolerance) const {
+    const auto& law = ph_.laws[static_cast<size_t>(a)];
+    const double stiffness = ph_.interaction(a, a);
+    const double fn = it.fn(a);
+    // Shear on a (signed along its slip) and effective slip with a's own slip taken out.
+    const double tau_free = it.sign(a) * it.tau(a) + stiffness * it.slip(a);
+    const double effective_other = it.effective(a) - it.slip(a);
+    if (!(tau_free > 0.0) || !(fn > 0.0)) return 0.0;
+    const double p = exponent_(a);
+    auto residual = [&](double z) {
+      const double slip = slip_of(a, z);
+      const auto mu = law.friction_coefficient_after(s0_.mu(a), effective_other + slip, dt_);
+      const auto rs = law.subloading_ratio_after(s0_.r_s(a), slip);
+      const double r = (tau_free - stiffness * slip) / (mu.value * fn);
+      const double dr = -stiffness / (mu.value * fn) - r / mu.value * mu.d_slip;
+      const auto g = law.flow_residual(r, rs.value, slip, dt_);
+      if (!g.admissible) return std::pair{g.value, 0.0};
+      const double dslip_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
+      return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dslip_dz};
+    };
+    if (residual(0.0).first <= 0.0) return 0.0;
+    const double z_max = unknown_of(a, tau_free / stiffness);
+    const auto root = safeguarded_newton(residual, 0.0, z_max, 0.5 * z_max, tolerance,
+                                         4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
+    return root.x;
+  }
+
+  // A start the coupled Newton can work from: finite slopes (no system at zero slip with
+  // r_s = 0, where dr_s/dslip = U(0) is infinite) and admissible (every r_a < r_hat). Offending
+  // systems get their own scalar solution (a Jacobi sweep); a few sweeps suffice since slip on
+  // one system only relaxes the others (A is positive semi-definite).
+  bool make_admissible(VecN& x, VecN& sign, Iterate<N>& it, double tolerance, int rounds = 8) const {
+    for (int round = 0; round < rounds; ++round) {
+      evaluate(x, sign, it);
+      bool changed = false;
+      for (int a = 0; a < n_; ++a) {
+        const bool infinite_slope = it.active(a) && !std::isfinite(it.d_rs(a));
+        if (!infinite_slope && std::isfinite(it.g_value(a))) continue;
+        sign(a) = it.sign(a);
+        const double z = solve_single(a, it, tolerance);
+        changed = changed || z != x(a);
+        x(a) = z;
+      }
+      if (!changed) break;
+    }
+    evaluate(x, sign, it);
+    return it.admissible;
+  }
 
   // Moves an inadmissible start (some r_a >= r_hat, typically a large elastic trial) into the
   // admissible set: each offending system gets the slip that, through its own diagonal
@@ -290,7 +353,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, std::abs(previous)) : 0.0;
   }
   Iterate<N> it, trial;
-  if (!solver.make_admissible(x, sign, it)) {
+  if (!solver.make_admissible(x, sign, it, opt.tolerance)) {
     rep.why = "no admissible start (r >= r_hat or slip plane open)", rep.system = it.bad_system;
     return rep;
   }
@@ -313,11 +376,14 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     double alpha = 1.0;
     bool accepted = false;
     for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
-      VecN xt = (it.x + alpha * step).cwiseMax(0.0);
-      VecN st = it.sign;
+      // x >= 0; a slipping system (flow-rule row) may shrink by at most 99 % per iteration
+      // (fraction to the boundary): overshooting to exactly zero slip would put it where its
+      // slope dr_s/dslip = U(r_s) can be infinite, while a system that should stop is switched
+      // to the x_a = 0 row by the semismooth branch and then lands on zero exactly.
+      VecN xt = it.x + alpha * step;
       for (int a = 0; a < n; ++a)
-        if (xt(a) == 0.0) st(a) = sign_of(it.tau(a));  // an idle system may reverse
-      solver.evaluate(xt, st, trial);
+        xt(a) = std::max(xt(a), it.active(a) ? 0.01 * it.x(a) : 0.0);
+      solver.evaluate(xt, it.sign, trial);
       if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) {
         accepted = true;
         break;
@@ -325,6 +391,10 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     }
     if (!accepted) break;
     std::swap(it, trial);
+    if (!solver.finite_slopes(it)) {
+      VecN xs = it.x, ss = it.sign;
+      if (!solver.make_admissible(xs, ss, it, opt.tolerance)) break;
+    }
   }
   if (!converged) {
     rep.why = "slip increments did not converge";

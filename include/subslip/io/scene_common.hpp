@@ -1,0 +1,38 @@
+// Pieces every scene kind shares: the `scene:` kind, the `units:` block and unit strings.
+#pragma once
+
+#include <initializer_list>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "subslip/io/yaml_checked.hpp"
+
+namespace subslip::io {
+
+// The units a scene is written in. No conversion happens anywhere: every value of the scene is
+// read in these units and every output carries them.
+struct Units {
+  std::string stress = "MPa";  // Pa | kPa | MPa | GPa
+  std::string length = "mm";   // m | mm | um | nm
+  std::string time = "min";    // s | ms | min | h
+
+  std::string velocity() const { return length + "/" + time; }         // sliding speed
+  std::string per_length() const { return "1/" + length; }             // kappa, u_tilde
+  std::string per_time() const { return "1/" + time; }                 // xi
+  std::string time_per_length() const { return time + "/" + length; }  // eta_v
+  std::string stiffness() const { return stress + "/" + length; }      // alpha_n, alpha_t
+  // (name, unit) pairs, for the /units group of a result file.
+  std::vector<std::pair<std::string, std::string>> entries() const;
+};
+
+inline constexpr std::string_view kDimensionless = "1";
+
+// Reads `units: {stress: MPa, length: mm, time: min}` (all three required).
+Units parse_units(const CheckedNode& node);
+
+// The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
+std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);
+
+}  // namespace subslip::io

@@ -1,0 +1,46 @@
+// Parameter sweeps on the YAML tree, shared by every scene kind.
+//
+// A scene may carry
+//
+//   sweep:
+//     "loading[0].slide.speed": [1, 10, 100]
+//     "law.overstress.eta_v": [950, 1900]
+//
+// and then stands for one case per element of the cartesian product (the first key varies
+// slowest). Each case is the scene's YAML tree with the listed nodes replaced by the case's
+// values BEFORE the scene is parsed, so any value can be swept and every swept value goes
+// through the same checks as a written one (an error in a swept value points at its line in
+// the sweep block). Paths: `.key` steps into a mapping, `[i]` into a sequence element and `[*]`
+// into every element of a sequence. A path must name a node that exists in the scene.
+#pragma once
+
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "subslip/io/yaml_checked.hpp"
+
+namespace subslip::io {
+
+struct SweepOverride {
+  std::string path;              // as written in the sweep block
+  std::string value;             // the value's text (flow style for non-scalars)
+  std::optional<double> number;  // the value when it is a number
+};
+
+struct SweepCase {
+  std::string name;  // "speed=10,eta_v=950" (the full path when two paths share a last key);
+                     // "base" when the scene has no sweep
+  std::vector<SweepOverride> overrides;
+  YamlDocument document;  // the scene with this case's values in place
+};
+
+// Expands the `sweep:` block of `scene` (no block: one case, "base"). Only paths whose first
+// key is in `sweepable` may be swept (e.g. not `units`). Throws InputError for a malformed or
+// missing path, an empty value list, or two cases with the same name.
+std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
+                                    std::span<const std::string_view> sweepable);
+
+}  // namespace subslip::io

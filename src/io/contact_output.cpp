@@ -1,0 +1,373 @@
+#include "subslip/io/contact_output.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <utility>
+
+namespace subslip::io {
+
+namespace {
+
+struct FieldSpec {
+  std::size_t columns;  // 0: 1-D
+  h5::Type type;
+  std::string unit;
+  std::string description;
+};
+
+FieldSpec field_spec(ContactField f, const Units& u) {
+  const std::string one(kDimensionless);
+  switch (f) {
+    case ContactField::time:
+      return {0, h5::Type::float64, u.time, "time since the start of the loading history"};
+    case ContactField::slip:
+      return {2, h5::Type::float64, u.length, "tangential sliding displacement u_t (x, y)"};
+    case ContactField::slip_path:
+      return {0, h5::Type::float64, u.length, "accumulated sliding distance, integral of |du_t|"};
+    case ContactField::traction:
+      return {3, h5::Type::float64, u.stress,
+              "contact traction: tangential x, tangential y, normal f_n (compression positive)"};
+    case ContactField::ratio:
+      return {0, h5::Type::float64, one, "contact stress ratio f_t / f_n"};
+    case ContactField::mu:
+      return {0, h5::Type::float64, one, "friction coefficient mu"};
+    case ContactField::r:
+      return {0, h5::Type::float64, one, "dynamic loading friction-yield ratio r = f_t / (mu f_n)"};
+    case ContactField::r_s:
+      return {0, h5::Type::float64, one, "subloading friction-yield ratio r_s"};
+    case ContactField::vp_slip:
+      return {0, h5::Type::float64, u.length,
+              "accumulated viscoplastic sliding, integral of |du_vp|"};
+    case ContactField::vp_rate:
+      return {0, h5::Type::float64, u.velocity(),
+              "viscoplastic sliding rate over the last increment"};
+    case ContactField::segment:
+      return {0, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)"};
+  }
+  return {0, h5::Type::float64, one, ""};
+}
+
+// Rows gathered in memory between HDF5 writes (when no flush comes first).
+constexpr std::size_t kBlockRows = 256;
+
+// Chunks of about one case's length (bounded): one chunk holds a typical run.
+std::size_t chunk_rows_for(const ContactCase& c) {
+  return std::clamp<std::size_t>(output_count(c.segments), 16, 4096);
+}
+
+// An attribute with its unit in a sibling attribute "<name>.unit".
+void set_with_unit(const h5::Group& g, const std::string& name, double value,
+                   std::string_view unit) {
+  g.set_attribute(name, value);
+  g.set_attribute(name + ".unit", unit);
+}
+
+void write_overrides(const h5::Group& g, const ContactCase& c) {
+  for (const SweepOverride& o : c.overrides) {
+    if (o.number) {
+      g.set_attribute("sweep:" + o.path, *o.number);
+    } else {
+      g.set_attribute("sweep:" + o.path, o.value);
+    }
+  }
+}
+
+void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) {
+  const auto& p = c.model.law;
+  const std::string_view one = kDimensionless;
+  set_with_unit(g, "mu_s", p.friction.mu_s, one);
+  set_with_unit(g, "mu_k", p.friction.mu_k, one);
+  set_with_unit(g, "kappa", p.friction.kappa, u.per_length());
+  set_with_unit(g, "xi", p.friction.xi, u.per_time());
+  g.set_attribute("subloading_function", law::to_string(p.subloading.function));
+  set_with_unit(g, "u_tilde", p.subloading.u_tilde, u.per_length());
+  g.set_attribute("overstress_form", law::to_string(p.overstress.form));
+  if (p.overstress.form != law::OverstressForm::rate_independent) {
+    set_with_unit(g, "eta_v", p.overstress.eta_v, u.time_per_length());
+    set_with_unit(g, "n", p.overstress.n, one);
+    set_with_unit(g, "r_hat", p.overstress.r_hat, one);
+  }
+  set_with_unit(g, "alpha_n", c.model.stiffness.alpha_n, u.stiffness());
+  set_with_unit(g, "alpha_t", c.model.stiffness.alpha_t, u.stiffness());
+  set_with_unit(g, "normal_traction", c.model.initial_normal_traction, u.stress);
+  set_with_unit(g, "initial_mu", c.model.initial_law_state.mu, one);
+  g.set_attribute("integrator",
+                  c.integrator.method == contact::Method::implicit ? "implicit" : "forward_euler");
+  g.set_attribute("tolerance", c.integrator.residual_tolerance);
+  g.set_attribute("max_cutbacks", c.integrator.max_cutbacks);
+}
+
+// ---- the two ways of running cases
+
+struct Recording {
+  struct Row {
+    contact::ContactState state;
+    int segment;
+  };
+  std::vector<Row> rows;
+  contact::RunStats stats;
+  std::string failure;       // a numerical failure: recorded, the case is written as failed
+  std::exception_ptr error;  // anything else: rethrown when the case is written
+};
+
+std::string case_failure(const ContactCase& c, const contact::StepFailure& e) {
+  return "case '" + c.name + "': " + e.what();
+}
+
+// Streams one case: every output step goes to the file as it is computed.
+ContactCaseResult stream_case(const ContactScene& scene, std::size_t index, const h5::Group& cases,
+                              h5::File& file) {
+  const ContactCase& c = scene.cases[index];
+  ContactCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
+  ContactCaseResult result{c.name, {}, {}};
+  try {
+    const auto stats = contact::run_history(c.model, c.segments, c.integrator,
+                                            [&](const contact::ContactState& s, int segment) {
+                                              writer.append(s, segment);
+                                              if (file.flush_due()) {
+                                                writer.commit();
+                                                file.flush();
+                                              }
+                                            });
+    result.summary = writer.tracker().result(c, stats);
+    writer.finish(result.summary);
+  } catch (const contact::StepFailure& e) {
+    result.failure = case_failure(c, e);
+    result.summary = writer.tracker().result(c, {});
+    writer.mark_failed(e.what());
+  }
+  file.flush();
+  return result;
+}
+
+Recording record_case(const ContactCase& c) {
+  Recording rec;
+  rec.rows.reserve(output_count(c.segments));
+  try {
+    rec.stats = contact::run_history(c.model, c.segments, c.integrator,
+                                     [&](const contact::ContactState& s, int segment) {
+                                       rec.rows.push_back({s, segment});
+                                     });
+  } catch (const contact::StepFailure& e) {
+    rec.failure = case_failure(c, e);
+  } catch (...) {
+    // Exceptions must not leave an OpenMP region; the writer rethrows it in case order.
+    rec.error = std::current_exception();
+  }
+  return rec;
+}
+
+ContactCaseResult write_recorded(const ContactScene& scene, std::size_t index, const Recording& rec,
+                                 const h5::Group& cases, h5::File& file) {
+  if (rec.error) std::rethrow_exception(rec.error);
+  const ContactCase& c = scene.cases[index];
+  ContactCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
+  for (const auto& row : rec.rows) writer.append(row.state, row.segment);
+  ContactCaseResult result{c.name, writer.tracker().result(c, rec.stats), rec.failure};
+  if (rec.failure.empty()) {
+    writer.finish(result.summary);
+  } else {
+    writer.mark_failed(rec.failure);
+  }
+  file.flush();
+  return result;
+}
+
+std::vector<ContactCaseResult> run_serial(const ContactScene& scene, const h5::Group& cases,
+                                          h5::File& file, const ContactRunOptions& options) {
+  std::vector<ContactCaseResult> results;
+  for (std::size_t k = 0; k < scene.cases.size(); ++k) {
+    results.push_back(stream_case(scene, k, cases, file));
+    if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back().summary);
+  }
+  return results;
+}
+
+// Cases are computed in parallel and written by whichever thread completes the next case in
+// order, so the file is laid out exactly as in a serial run. HDF5 calls never overlap: they
+// all happen inside the one critical section.
+std::vector<ContactCaseResult> run_parallel(const ContactScene& scene, const h5::Group& cases,
+                                            h5::File& file, const ContactRunOptions& options,
+                                            int threads) {
+  const std::size_t n = scene.cases.size();
+  std::vector<std::optional<Recording>> pending(n);
+  std::vector<ContactCaseResult> results(n);
+  std::exception_ptr write_error;
+  std::size_t next = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (std::size_t k = 0; k < n; ++k) {
+    Recording rec = record_case(scene.cases[k]);
+#pragma omp critical(subslip_h5_output)
+    {
+      pending[k] = std::move(rec);
+      try {
+        while (!write_error && next < n && pending[next]) {
+          results[next] = write_recorded(scene, next, *pending[next], cases, file);
+          if (options.on_case_done)
+            options.on_case_done(next, scene.cases[next], results[next].summary);
+          pending[next].reset();
+          ++next;
+        }
+      } catch (...) {
+        write_error = std::current_exception();
+      }
+    }
+  }
+  if (write_error) std::rethrow_exception(write_error);
+  return results;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- summary
+
+void SummaryTracker::add(const contact::ContactState& s) {
+  const double ratio = s.traction_ratio();
+  if (ratio > peak_) {
+    peak_ = ratio;
+    slip_at_peak_ = s.slip_path;
+    bottom_ = ContactSummary::kNone;  // the bottom is looked for after the peak only
+  } else if (!(ratio >= bottom_)) {   // also true while bottom_ is NaN
+    bottom_ = ratio;
+  }
+  final_ = ratio;
+}
+
+ContactSummary SummaryTracker::result(const ContactCase& c, const contact::RunStats& stats) const {
+  ContactSummary out;
+  if (peak_ >= 0.0) {
+    out.peak_ratio = peak_;
+    out.slip_at_peak = slip_at_peak_;
+  }
+  out.bottom_ratio = bottom_;
+  out.final_ratio = final_;
+  out.steady_speed = last_sliding_speed(c.segments);
+  out.steady_ratio_analytical = steady_ratio_analytical(c);
+  out.stats = stats;
+  return out;
+}
+
+double steady_ratio_analytical(const ContactCase& c) {
+  const double v = last_sliding_speed(c.segments);
+  if (!(v > 0.0)) return ContactSummary::kNone;
+  return law::SubloadingFrictionLaw(c.model.law).steady_state(v).ratio;
+}
+
+// ---------------------------------------------------------------- ContactCaseWriter
+
+ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index,
+                                     const Units& units)
+    : group_(cases.create_group(c.name)), units_(units) {
+  group_.set_attribute("name", c.name);
+  group_.set_attribute("index", index);
+  write_overrides(group_, c);
+  write_parameters(group_, c, units);
+  const std::size_t chunk_rows = chunk_rows_for(c);
+  for (ContactField f : c.fields) {
+    const FieldSpec spec = field_spec(f, units);
+    series_[static_cast<std::size_t>(f)].emplace(
+        group_.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
+                              spec.description, chunk_rows, kBlockRows}));
+  }
+}
+
+void ContactCaseWriter::append(const contact::ContactState& s, int segment) {
+  tracker_.add(s);
+  for (std::size_t k = 0; k < series_.size(); ++k) {
+    if (!series_[k]) continue;
+    h5::Series& out = *series_[k];
+    switch (kAllContactFields[k]) {
+      case ContactField::time:
+        out.append(s.time);
+        break;
+      case ContactField::slip: {
+        const double row[2] = {s.slip.x(), s.slip.y()};
+        out.append(row);
+        break;
+      }
+      case ContactField::slip_path:
+        out.append(s.slip_path);
+        break;
+      case ContactField::traction: {
+        const double row[3] = {s.traction_t.x(), s.traction_t.y(), s.traction_n};
+        out.append(row);
+        break;
+      }
+      case ContactField::ratio:
+        out.append(s.traction_ratio());
+        break;
+      case ContactField::mu:
+        out.append(s.law.mu);
+        break;
+      case ContactField::r:
+        out.append(s.r);
+        break;
+      case ContactField::r_s:
+        out.append(s.law.r_s);
+        break;
+      case ContactField::vp_slip:
+        out.append(s.vp_slip);
+        break;
+      case ContactField::vp_rate:
+        out.append(s.vp_rate);
+        break;
+      case ContactField::segment:
+        out.append_int(segment);
+        break;
+    }
+  }
+}
+
+void ContactCaseWriter::commit() {
+  for (auto& series : series_) {
+    if (series) series->commit();
+  }
+}
+
+void ContactCaseWriter::finish(const ContactSummary& summary) {
+  commit();
+  const std::string_view one = kDimensionless;
+  set_with_unit(group_, "peak_ratio", summary.peak_ratio, one);
+  set_with_unit(group_, "slip_at_peak", summary.slip_at_peak, units_.length);
+  set_with_unit(group_, "bottom_ratio", summary.bottom_ratio, one);
+  set_with_unit(group_, "final_ratio", summary.final_ratio, one);
+  set_with_unit(group_, "steady_ratio_analytical", summary.steady_ratio_analytical, one);
+  set_with_unit(group_, "steady_speed", summary.steady_speed, units_.velocity());
+  group_.set_attribute("increments", summary.stats.increments);
+  group_.set_attribute("substeps", summary.stats.substeps);
+  group_.set_attribute("newton_iterations", summary.stats.iterations);
+  group_.set_attribute("cutbacks", summary.stats.cutbacks);
+  group_.set_attribute("wall_seconds", summary.stats.wall_seconds);
+}
+
+void ContactCaseWriter::mark_failed(const std::string& why) {
+  commit();
+  group_.set_attribute("failed", why);
+}
+
+// ---------------------------------------------------------------- the run
+
+std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
+                                                 const ContactRunOptions& options) {
+  h5::write_result_header(file,
+                          {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
+  const h5::Group cases = file.root().create_group("cases");
+  std::vector<std::string> names;
+  for (const auto& c : scene.cases) names.push_back(c.name);
+  cases.set_attribute("names", names);
+  file.set_flush_interval(options.flush_interval);
+
+  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  auto results = threads > 1 && scene.cases.size() > 1
+                     ? run_parallel(scene, cases, file, options, threads)
+                     : run_serial(scene, cases, file, options);
+  const bool all_ok = std::all_of(results.begin(), results.end(),
+                                  [](const ContactCaseResult& r) { return r.failure.empty(); });
+  if (all_ok) h5::mark_completed(file);
+  return results;
+}
+
+}  // namespace subslip::io

@@ -1,0 +1,310 @@
+#include "subslip/io/contact_scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace subslip::io {
+
+namespace {
+
+using law::OverstressForm;
+using law::SubloadingFunction;
+
+// ln(growth^(n-1)) beyond this would overflow the increment lengths.
+constexpr double kMaxLogGrowth = 600.0;
+
+law::FrictionCoefficientEvolution parse_friction(const CheckedNode& node) {
+  node.allow_keys({"mu_s", "mu_k", "kappa", "xi"});
+  law::FrictionCoefficientEvolution f;
+  f.mu_s = node.get_double("mu_s", Range::positive());
+  f.mu_k = node.get_double("mu_k", Range::positive());
+  f.kappa = node.get_double("kappa", Range::non_negative());
+  f.xi = node.get_double("xi", Range::non_negative());
+  return f;
+}
+
+law::SubloadingEvolution parse_subloading(const CheckedNode& node) {
+  node.allow_keys({"function", "u_tilde"});
+  law::SubloadingEvolution s;
+  if (auto f = node.optional("function")) {
+    s.function = f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
+                                                 {"neg_log", SubloadingFunction::neg_log},
+                                                 {"reciprocal", SubloadingFunction::reciprocal}});
+  }
+  s.u_tilde = node.get_double("u_tilde", Range::positive());
+  return s;
+}
+
+law::Overstress parse_overstress(const CheckedNode& node) {
+  node.allow_keys({"form", "eta_v", "n", "r_hat"});
+  law::Overstress o;
+  if (auto f = node.optional("form")) {
+    o.form = f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
+                                         {"power", OverstressForm::power},
+                                         {"rate_independent", OverstressForm::rate_independent}});
+  }
+  if (o.form == OverstressForm::rate_independent) {
+    // Silently ignoring them would let a reader believe they act.
+    for (const char* unused : {"eta_v", "n", "r_hat"}) {
+      if (auto v = node.optional(unused))
+        v->fail("not used by the rate_independent form; remove it");
+    }
+    return o;
+  }
+  o.eta_v = node.get_double("eta_v", Range::positive());
+  o.n = node.get_double("n", Range::positive());
+  o.r_hat = node.get_double("r_hat", Range::greater_than(1.0));
+  return o;
+}
+
+law::LawParameters parse_law(const CheckedNode& node) {
+  node.allow_keys({"friction", "subloading", "overstress"});
+  law::LawParameters p;
+  p.friction = parse_friction(node.required("friction"));
+  p.subloading = parse_subloading(node.required("subloading"));
+  p.overstress = parse_overstress(node.required("overstress"));
+  return p;
+}
+
+void parse_contact_block(const CheckedNode& node, contact::ContactModel& model) {
+  node.allow_keys({"alpha_n", "alpha_t", "normal_traction"});
+  model.stiffness.alpha_n = node.get_double("alpha_n", Range::positive());
+  model.stiffness.alpha_t = node.get_double("alpha_t", Range::positive());
+  model.initial_normal_traction = node.get_double("normal_traction", Range::positive());
+}
+
+void parse_initial(const std::optional<CheckedNode>& node, contact::ContactModel& model) {
+  model.initial_law_state.mu = model.law.friction.mu_s;
+  model.initial_law_state.r_s = 0.0;
+  if (!node) return;
+  node->allow_keys({"mu"});
+  model.initial_law_state.mu = node->get_double("mu", model.law.friction.mu_s, Range::positive());
+}
+
+contact::Vec2 read_vec2(const CheckedNode& node) {
+  const auto v = node.as_doubles(Range::any(), 2);
+  return {v[0], v[1]};
+}
+
+// The tangential velocity and duration of a `slide:` block.
+void parse_slide(const CheckedNode& node, contact::Segment& seg) {
+  node.allow_keys({"speed", "direction", "velocity", "distance", "duration"});
+  const std::string given = *node.one_of({"speed", "velocity"}, true);
+  if (given == "speed") {
+    const double speed = node.get_double("speed", Range::non_negative());
+    contact::Vec2 direction(1.0, 0.0);
+    if (auto d = node.optional("direction")) {
+      direction = read_vec2(*d);
+      if (!(direction.norm() > 0.0)) d->fail("direction must be non-zero");
+      direction.normalize();
+    }
+    seg.velocity = speed * direction;
+  } else {
+    if (auto d = node.optional("direction"))
+      d->fail("'direction' goes with 'speed'; a 'velocity' has its own");
+    seg.velocity = read_vec2(node.required("velocity"));
+  }
+  if (*node.one_of({"distance", "duration"}, true) == "distance") {
+    const CheckedNode distance = node.required("distance");
+    const double d = distance.as_double(Range::positive());
+    if (!(seg.velocity.norm() > 0.0))
+      distance.fail("a slide at zero speed covers no distance; give a duration");
+    seg.duration = d / seg.velocity.norm();
+  } else {
+    seg.duration = node.get_double("duration", Range::positive());
+  }
+}
+
+// The normal side of a segment; `fn` is f_n at the segment start and becomes f_n at its end.
+void parse_normal(const std::optional<CheckedNode>& node, const contact::ContactModel& model,
+                  contact::Segment& seg, double& fn) {
+  seg.normal_control = contact::NormalControl::traction;
+  seg.normal_traction = fn;  // default: hold f_n constant
+  if (!node) return;
+  node->allow_keys({"traction", "velocity"});
+  if (*node->one_of({"traction", "velocity"}, true) == "traction") {
+    seg.normal_traction = node->get_double("traction");
+    fn = seg.normal_traction;
+  } else {
+    seg.normal_control = contact::NormalControl::velocity;
+    seg.normal_velocity = node->get_double("velocity");
+    fn += model.stiffness.alpha_n * seg.normal_velocity * seg.duration;
+  }
+}
+
+void parse_stepping(const CheckedNode& node, contact::Segment& seg) {
+  seg.increments = node.get_int("increments", Range::at_least(1));
+  seg.growth = node.get_double("growth", 1.0, Range::positive());
+  seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
+  if (std::abs(std::log(seg.growth)) * (seg.increments - 1) > kMaxLogGrowth) {
+    node.required("growth").fail("growth^(increments - 1) overflows; use a growth closer to 1");
+  }
+}
+
+contact::Segment parse_segment(const CheckedNode& node, const contact::ContactModel& model,
+                               double& fn) {
+  node.allow_keys({"slide", "hold", "increments", "growth", "output_every", "normal"});
+  contact::Segment seg;
+  if (*node.one_of({"slide", "hold"}, true) == "slide") {
+    parse_slide(node.required("slide"), seg);
+  } else {
+    const CheckedNode hold = node.required("hold");
+    hold.allow_keys({"duration"});
+    seg.velocity.setZero();
+    seg.duration = hold.get_double("duration", Range::positive());
+  }
+  parse_stepping(node, seg);
+  parse_normal(node.optional("normal"), model, seg, fn);
+  return seg;
+}
+
+std::vector<contact::Segment> parse_loading(const CheckedNode& node,
+                                            const contact::ContactModel& model) {
+  if (node.size() == 0) node.fail("needs at least one segment");
+  std::vector<contact::Segment> segments;
+  double fn = model.initial_normal_traction;
+  for (const CheckedNode& element : node.elements())
+    segments.push_back(parse_segment(element, model, fn));
+  return segments;
+}
+
+contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& node) {
+  contact::IntegratorOptions opt;
+  if (!node) return opt;
+  node->allow_keys({"method", "max_cutbacks", "tolerance"});
+  if (auto m = node->optional("method")) {
+    opt.method = m->as_enum<contact::Method>({{"implicit", contact::Method::implicit},
+                                              {"forward_euler", contact::Method::forward_euler}});
+  }
+  opt.max_cutbacks =
+      node->get_int("max_cutbacks", opt.max_cutbacks, Range::in_closed_interval(0, 200));
+  opt.residual_tolerance = node->get_double("tolerance", opt.residual_tolerance, Range::positive());
+  return opt;
+}
+
+std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
+  const std::vector<ContactField> all(kAllContactFields.begin(), kAllContactFields.end());
+  if (!node) return all;
+  node->allow_keys({"fields"});
+  const auto fields = node->optional("fields");
+  if (!fields) return all;
+  std::vector<std::string_view> names;
+  for (ContactField f : kAllContactFields) names.push_back(to_string(f));
+  std::vector<bool> wanted(kAllContactFields.size(), false);
+  for (const CheckedNode& element : fields->elements()) {
+    const std::string name = element.as_choice(names);
+    const auto k =
+        static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+    if (wanted[k]) element.fail("field '" + name + "' listed twice");
+    wanted[k] = true;
+  }
+  // Every later reading of a run needs the time axis and the friction ratio.
+  for (ContactField must : {ContactField::time, ContactField::ratio}) {
+    if (!wanted[static_cast<std::size_t>(must)]) {
+      fields->fail("must include '" + std::string(to_string(must)) + "'");
+    }
+  }
+  std::vector<ContactField> out;
+  for (std::size_t k = 0; k < wanted.size(); ++k) {
+    if (wanted[k]) out.push_back(kAllContactFields[k]);
+  }
+  return out;
+}
+
+void check_top_level(const CheckedNode& root) {
+  root.allow_keys({"scene", "title", "units", "law", "contact", "initial", "loading", "integrator",
+                   "output", "sweep"});
+  root.get_choice("scene", {"contact"});
+}
+
+ContactCase parse_case(SweepCase swept) {
+  const CheckedNode root = swept.document.root();
+  check_top_level(root);
+  ContactCase c;
+  c.name = std::move(swept.name);
+  c.overrides = std::move(swept.overrides);
+  c.model.law = parse_law(root.required("law"));
+  parse_contact_block(root.required("contact"), c.model);
+  parse_initial(root.optional("initial"), c.model);
+  c.segments = parse_loading(root.required("loading"), c.model);
+  c.integrator = parse_integrator(root.optional("integrator"));
+  c.fields = parse_output(root.optional("output"));
+  return c;
+}
+
+}  // namespace
+
+std::string_view to_string(ContactField f) {
+  switch (f) {
+    case ContactField::time:
+      return "time";
+    case ContactField::slip:
+      return "slip";
+    case ContactField::slip_path:
+      return "slip_path";
+    case ContactField::traction:
+      return "traction";
+    case ContactField::ratio:
+      return "ratio";
+    case ContactField::mu:
+      return "mu";
+    case ContactField::r:
+      return "r";
+    case ContactField::r_s:
+      return "r_s";
+    case ContactField::vp_slip:
+      return "vp_slip";
+    case ContactField::vp_rate:
+      return "vp_rate";
+    case ContactField::segment:
+      return "segment";
+  }
+  return "?";
+}
+
+ContactScene load_contact_scene(const std::filesystem::path& path) {
+  return parse_contact_scene(YamlDocument::from_file(path));
+}
+
+ContactScene parse_contact_scene(const YamlDocument& document) {
+  const CheckedNode root = document.root();
+  check_top_level(root);
+  ContactScene scene;
+  scene.file = document.file();
+  scene.text = document.text();
+  scene.title = root.get_string("title", "");
+  scene.units = parse_units(root.required("units"));
+  for (SweepCase& swept : expand_sweep(document, kContactSweepable)) {
+    const std::string name = swept.name;
+    const bool swept_case = !swept.overrides.empty();
+    try {
+      scene.cases.push_back(parse_case(std::move(swept)));
+    } catch (const InputError& e) {
+      if (!swept_case) throw;
+      // The same problem may come from one swept value only: say which case.
+      const std::string prefix = InputError::format(e.file, e.line, e.key, "");
+      const std::string message = std::string(e.what()).substr(prefix.size());
+      throw InputError(e.file, e.line, e.key, message + " (in sweep case '" + name + "')");
+    }
+  }
+  return scene;
+}
+
+double last_sliding_speed(const std::vector<contact::Segment>& segments) {
+  for (auto it = segments.rbegin(); it != segments.rend(); ++it) {
+    if (it->velocity.norm() > 0.0) return it->velocity.norm();
+  }
+  return 0.0;
+}
+
+std::size_t output_count(const std::vector<contact::Segment>& segments) {
+  std::size_t n = 1;  // the initial state
+  for (const auto& s : segments) {
+    const auto inc = static_cast<std::size_t>(s.increments);
+    const auto every = static_cast<std::size_t>(s.output_every);
+    n += inc / every + (inc % every != 0 ? 1 : 0);
+  }
+  return n;
+}
+
+}  // namespace subslip::io

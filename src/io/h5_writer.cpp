@@ -1,0 +1,566 @@
+#include "subslip/io/h5_writer.hpp"
+
+#include <fcntl.h>
+#include <hdf5.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstddef>
+#include <cstring>
+#include <ctime>
+#include <type_traits>
+
+namespace subslip::io::h5 {
+
+static_assert(std::is_same_v<hid_t, Id>, "h5::Id must be hid_t (HDF5 >= 1.10)");
+
+namespace {
+
+// HDF5 prints its error stack to stderr by default; we report errors as exceptions instead.
+void quiet_hdf5() {
+  static const bool once = [] {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    return true;
+  }();
+  (void)once;
+}
+
+// The innermost (first) description on HDF5's error stack, if any.
+std::string hdf5_reason() {
+  std::string reason;
+  H5Ewalk2(
+      H5E_DEFAULT, H5E_WALK_DOWNWARD,
+      [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
+        auto* out = static_cast<std::string*>(data);
+        if (out->empty() && e->desc != nullptr) *out = e->desc;
+        return 0;
+      },
+      &reason);
+  H5Eclear2(H5E_DEFAULT);
+  return reason;
+}
+
+[[noreturn]] void fail(const std::string& what) {
+  const std::string reason = hdf5_reason();
+  throw Error("HDF5: " + what + (reason.empty() ? "" : " (" + reason + ")"));
+}
+
+void check(herr_t status, const std::string& what) {
+  if (status < 0) fail(what);
+}
+
+Handle own(hid_t id, Handle::Closer close, const std::string& what) {
+  if (id < 0) fail(what);
+  return Handle(id, close);
+}
+
+Handle make_property_list(hid_t cls) {
+  return own(H5Pcreate(cls), H5Pclose, "create property list");
+}
+
+// Variable-length UTF-8 string type: what h5py reads back as `str`.
+Handle string_type() {
+  Handle t = own(H5Tcopy(H5T_C_S1), H5Tclose, "copy string type");
+  check(H5Tset_size(t.get(), H5T_VARIABLE), "set string size");
+  check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "set string charset");
+  return t;
+}
+
+Handle scalar_space() {
+  return own(H5Screate(H5S_SCALAR), H5Sclose, "create scalar space");
+}
+
+Handle simple_space(std::span<const hsize_t> dims, const hsize_t* max_dims = nullptr) {
+  return own(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), max_dims), H5Sclose,
+             "create dataspace");
+}
+
+// Groups (and the root) track creation order, so that readers list cases and attributes in
+// the order they were written rather than alphabetically.
+void track_creation_order(hid_t plist) {
+  const unsigned flags = H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED;
+  check(H5Pset_link_creation_order(plist, flags), "set link creation order");
+  check(H5Pset_attr_creation_order(plist, flags), "set attribute creation order");
+}
+
+void replace_attribute(hid_t object, const std::string& name, hid_t file_type, hid_t space,
+                       hid_t memory_type, const void* data) {
+  const htri_t exists = H5Aexists(object, name.c_str());
+  if (exists < 0) fail("check attribute '" + name + "'");
+  if (exists > 0) check(H5Adelete(object, name.c_str()), "delete attribute '" + name + "'");
+  Handle attr = own(H5Acreate2(object, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT),
+                    H5Aclose, "create attribute '" + name + "'");
+  check(H5Awrite(attr.get(), memory_type, data), "write attribute '" + name + "'");
+}
+
+Handle open_attribute(hid_t object, std::string_view name) {
+  const std::string n(name);
+  return own(H5Aopen(object, n.c_str(), H5P_DEFAULT), H5Aclose, "open attribute '" + n + "'");
+}
+
+hssize_t element_count(hid_t space) {
+  const hssize_t n = H5Sget_simple_extent_npoints(space);
+  if (n < 0) fail("count elements");
+  return n;
+}
+
+// Reads strings of `type` (variable or fixed length) stored in `count` elements.
+template <class Read>
+std::vector<std::string> read_strings(hid_t stored_type, std::size_t count, Read&& read) {
+  std::vector<std::string> out;
+  if (H5Tis_variable_str(stored_type) > 0) {
+    Handle memory = string_type();
+    std::vector<char*> raw(count, nullptr);
+    check(read(memory.get(), raw.data()), "read strings");
+    for (char* s : raw) {
+      out.emplace_back(s != nullptr ? s : "");
+      H5free_memory(s);
+    }
+    return out;
+  }
+  const std::size_t size = H5Tget_size(stored_type);
+  Handle memory = own(H5Tcopy(stored_type), H5Tclose, "copy string type");
+  std::vector<char> raw(size * count + 1, '\0');
+  check(read(memory.get(), raw.data()), "read strings");
+  for (std::size_t i = 0; i < count; ++i) {
+    std::string s(raw.data() + i * size, size);
+    s.erase(s.find_last_not_of('\0') + 1);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+template <class T>
+std::vector<T> read_attribute_numbers(hid_t object, std::string_view name, hid_t memory_type) {
+  Handle attr = open_attribute(object, name);
+  Handle space = own(H5Aget_space(attr.get()), H5Sclose, "attribute space");
+  std::vector<T> out(static_cast<std::size_t>(element_count(space.get())));
+  check(H5Aread(attr.get(), memory_type, out.data()), "read attribute '" + std::string(name) + "'");
+  return out;
+}
+
+// Names visited by H5Literate / H5Aiterate, in creation order when tracked, else by name.
+herr_t collect_name(hid_t, const char* name, const void*, void* data) {
+  static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+  return 0;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- paths and time
+
+void check_output_path(const std::filesystem::path& path, bool overwrite) {
+  namespace fs = std::filesystem;
+  const std::string p = path.string();
+  if (p.empty()) throw OutputPathError("empty output path");
+  std::error_code ec;
+  if (fs::exists(path, ec)) {
+    if (fs::is_directory(path, ec)) throw OutputPathError(p + ": is a directory");
+    if (!overwrite) throw OutputPathError(p + ": already exists; use --force to overwrite it");
+    const int fd = ::open(p.c_str(), O_WRONLY);
+    if (fd < 0) throw OutputPathError(p + ": cannot be overwritten: " + std::strerror(errno));
+    ::close(fd);
+  }
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  if (!fs::exists(dir, ec)) {
+    fs::create_directories(dir, ec);
+    if (ec)
+      throw OutputPathError(p + ": cannot create directory " + dir.string() + ": " + ec.message());
+  }
+  if (!fs::is_directory(dir, ec))
+    throw OutputPathError(p + ": " + dir.string() + " is not a directory");
+  static std::atomic<int> counter{0};
+  const fs::path probe =
+      dir / (".subslip-probe-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+  const int fd = ::open(probe.c_str(), O_CREAT | O_EXCL | O_WRONLY, 0600);
+  if (fd < 0) {
+    throw OutputPathError(p + ": directory " + dir.string() +
+                          " is not writable: " + std::strerror(errno));
+  }
+  ::close(fd);
+  fs::remove(probe, ec);
+}
+
+std::string iso8601_utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return buf;
+}
+
+// ---------------------------------------------------------------- Handle
+
+Handle& Handle::operator=(Handle&& o) noexcept {
+  if (this != &o) {
+    reset();
+    id_ = std::exchange(o.id_, -1);
+    close_ = o.close_;
+  }
+  return *this;
+}
+
+void Handle::reset() {
+  if (id_ >= 0 && close_ != nullptr) close_(id_);
+  id_ = -1;
+}
+
+// ---------------------------------------------------------------- Object: attributes
+
+void Object::set_attribute(std::string_view name, double value) const {
+  Handle space = scalar_space();
+  replace_attribute(id(), std::string(name), H5T_IEEE_F64LE, space.get(), H5T_NATIVE_DOUBLE,
+                    &value);
+}
+
+void Object::set_attribute(std::string_view name, long long value) const {
+  Handle space = scalar_space();
+  replace_attribute(id(), std::string(name), H5T_STD_I64LE, space.get(), H5T_NATIVE_LLONG, &value);
+}
+
+void Object::set_attribute(std::string_view name, std::string_view value) const {
+  Handle space = scalar_space();
+  Handle type = string_type();
+  const std::string text(value);
+  const char* data = text.c_str();
+  replace_attribute(id(), std::string(name), type.get(), space.get(), type.get(), &data);
+}
+
+void Object::set_attribute(std::string_view name, std::span<const double> values) const {
+  const hsize_t n[1] = {values.size()};
+  Handle space = simple_space(n);
+  replace_attribute(id(), std::string(name), H5T_IEEE_F64LE, space.get(), H5T_NATIVE_DOUBLE,
+                    values.data());
+}
+
+void Object::set_attribute(std::string_view name, const std::vector<std::string>& values) const {
+  const hsize_t n[1] = {values.size()};
+  Handle space = simple_space(n);
+  Handle type = string_type();
+  std::vector<const char*> data;
+  for (const auto& v : values) data.push_back(v.c_str());
+  replace_attribute(id(), std::string(name), type.get(), space.get(), type.get(), data.data());
+}
+
+bool Object::has_attribute(std::string_view name) const {
+  const htri_t exists = H5Aexists(id(), std::string(name).c_str());
+  if (exists < 0) fail("check attribute '" + std::string(name) + "'");
+  return exists > 0;
+}
+
+std::vector<std::string> Object::attribute_names() const {
+  std::vector<std::string> names;
+  auto visit = [](hid_t loc, const char* name, const H5A_info_t* info, void* data) -> herr_t {
+    return collect_name(loc, name, info, data);
+  };
+  if (H5Aiterate2(id(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, visit, &names) < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    names.clear();
+    check(H5Aiterate2(id(), H5_INDEX_NAME, H5_ITER_INC, nullptr, visit, &names), "list attributes");
+  }
+  return names;
+}
+
+double Object::attribute_double(std::string_view name) const {
+  const auto v = read_attribute_numbers<double>(id(), name, H5T_NATIVE_DOUBLE);
+  if (v.size() != 1) throw Error("HDF5: attribute '" + std::string(name) + "' is not a scalar");
+  return v.front();
+}
+
+long long Object::attribute_int(std::string_view name) const {
+  const auto v = read_attribute_numbers<long long>(id(), name, H5T_NATIVE_LLONG);
+  if (v.size() != 1) throw Error("HDF5: attribute '" + std::string(name) + "' is not a scalar");
+  return v.front();
+}
+
+std::vector<double> Object::attribute_doubles(std::string_view name) const {
+  return read_attribute_numbers<double>(id(), name, H5T_NATIVE_DOUBLE);
+}
+
+std::vector<std::string> Object::attribute_strings(std::string_view name) const {
+  Handle attr = open_attribute(id(), name);
+  Handle type = own(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  if (H5Tget_class(type.get()) != H5T_STRING) {
+    throw Error("HDF5: attribute '" + std::string(name) + "' is not a string");
+  }
+  Handle space = own(H5Aget_space(attr.get()), H5Sclose, "attribute space");
+  const auto count = static_cast<std::size_t>(element_count(space.get()));
+  return read_strings(type.get(), count,
+                      [&](hid_t memory, void* buf) { return H5Aread(attr.get(), memory, buf); });
+}
+
+std::string Object::attribute_string(std::string_view name) const {
+  const auto v = attribute_strings(name);
+  if (v.size() != 1) throw Error("HDF5: attribute '" + std::string(name) + "' is not a scalar");
+  return v.front();
+}
+
+// ---------------------------------------------------------------- Dataset
+
+std::vector<std::size_t> Dataset::shape() const {
+  Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0) fail("dataset rank");
+  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  return {dims.begin(), dims.end()};
+}
+
+std::vector<double> Dataset::read_doubles() const {
+  Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  std::vector<double> out(static_cast<std::size_t>(element_count(space.get())));
+  if (!out.empty()) {
+    check(H5Dread(id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
+          "read dataset");
+  }
+  return out;
+}
+
+std::vector<long long> Dataset::read_ints() const {
+  Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  std::vector<long long> out(static_cast<std::size_t>(element_count(space.get())));
+  if (!out.empty()) {
+    check(H5Dread(id(), H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
+          "read dataset");
+  }
+  return out;
+}
+
+std::string Dataset::read_string() const {
+  Handle type = own(H5Dget_type(id()), H5Tclose, "dataset type");
+  if (H5Tget_class(type.get()) != H5T_STRING) throw Error("HDF5: dataset is not a string");
+  const auto v = read_strings(type.get(), 1, [&](hid_t memory, void* buf) {
+    return H5Dread(id(), memory, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf);
+  });
+  return v.front();
+}
+
+std::vector<std::size_t> Dataset::chunk_shape() const {
+  Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
+  if (H5Pget_layout(plist.get()) != H5D_CHUNKED) return {};
+  hsize_t dims[H5S_MAX_RANK];
+  const int rank = H5Pget_chunk(plist.get(), H5S_MAX_RANK, dims);
+  if (rank < 0) fail("chunk shape");
+  return {dims, dims + rank};
+}
+
+std::vector<std::string> Dataset::filters() const {
+  Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
+  const int n = H5Pget_nfilters(plist.get());
+  std::vector<std::string> out;
+  for (int i = 0; i < n; ++i) {
+    unsigned flags = 0, config = 0;
+    std::size_t n_values = 0;
+    char name[64] = {};
+    const H5Z_filter_t f = H5Pget_filter2(plist.get(), static_cast<unsigned>(i), &flags, &n_values,
+                                          nullptr, sizeof name, name, &config);
+    if (f == H5Z_FILTER_SHUFFLE)
+      out.emplace_back("shuffle");
+    else if (f == H5Z_FILTER_DEFLATE)
+      out.emplace_back("deflate");
+    else
+      out.emplace_back(name);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------- Series
+
+Series::Series(Dataset dataset, std::size_t columns, Type type, std::size_t block_rows)
+    : dataset_(std::move(dataset)),
+      columns_(columns),
+      type_(type),
+      block_rows_(std::max<std::size_t>(block_rows, 1)) {
+  committed_ = dataset_.shape().front();
+  if (type_ == Type::float64) {
+    block_.resize(block_rows_ * std::max<std::size_t>(columns_, 1));
+  } else {
+    int_block_.resize(block_rows_);
+  }
+}
+
+Series::~Series() {
+  try {
+    if (dataset_.id() >= 0) commit();
+  } catch (...) {
+    // A destructor must not throw; commit() explicitly to see errors.
+  }
+}
+
+void Series::append(std::span<const double> row) {
+  const std::size_t width = std::max<std::size_t>(columns_, 1);
+  if (type_ != Type::float64 || row.size() != width) {
+    throw Error("HDF5: row does not match the series' type or width");
+  }
+  std::copy(row.begin(), row.end(), block_.begin() + static_cast<std::ptrdiff_t>(pending_ * width));
+  if (++pending_ == block_rows_) commit();
+}
+
+void Series::append_int(int value) {
+  if (type_ != Type::int32 || columns_ > 1) throw Error("HDF5: not a 1-D int32 series");
+  int_block_[pending_] = value;
+  if (++pending_ == block_rows_) commit();
+}
+
+void Series::commit() {
+  if (pending_ == 0) return;
+  const hsize_t width = std::max<hsize_t>(columns_, 1);
+  const int rank = columns_ == 0 ? 1 : 2;
+  const hsize_t extent[2] = {committed_ + pending_, width};
+  check(H5Dset_extent(dataset_.id(), extent), "extend dataset");
+  Handle file_space = own(H5Dget_space(dataset_.id()), H5Sclose, "dataset space");
+  const hsize_t start[2] = {committed_, 0};
+  const hsize_t count[2] = {pending_, width};
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
+        "select rows");
+  Handle memory_space = simple_space(std::span<const hsize_t>(count, rank));
+  const hid_t memory_type = type_ == Type::float64 ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT;
+  const void* data = type_ == Type::float64 ? static_cast<const void*>(block_.data())
+                                            : static_cast<const void*>(int_block_.data());
+  check(
+      H5Dwrite(dataset_.id(), memory_type, memory_space.get(), file_space.get(), H5P_DEFAULT, data),
+      "append rows");
+  committed_ += pending_;
+  pending_ = 0;
+}
+
+// ---------------------------------------------------------------- Group
+
+Group Group::create_group(std::string_view name) const {
+  const std::string n(name);
+  Handle gcpl = make_property_list(H5P_GROUP_CREATE);
+  track_creation_order(gcpl.get());
+  return Group(own(H5Gcreate2(id(), n.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose,
+                   "create group '" + n + "'"));
+}
+
+Group Group::open_group(std::string_view name) const {
+  const std::string n(name);
+  return Group(own(H5Gopen2(id(), n.c_str(), H5P_DEFAULT), H5Gclose, "open group '" + n + "'"));
+}
+
+Dataset Group::open_dataset(std::string_view name) const {
+  const std::string n(name);
+  return Dataset(own(H5Dopen2(id(), n.c_str(), H5P_DEFAULT), H5Dclose, "open dataset '" + n + "'"));
+}
+
+bool Group::has(std::string_view name) const {
+  const htri_t exists = H5Lexists(id(), std::string(name).c_str(), H5P_DEFAULT);
+  if (exists < 0) fail("check member '" + std::string(name) + "'");
+  return exists > 0;
+}
+
+std::vector<std::string> Group::members() const {
+  std::vector<std::string> names;
+  auto visit = [](hid_t loc, const char* name, const H5L_info_t* info, void* data) -> herr_t {
+    return collect_name(loc, name, info, data);
+  };
+  if (H5Literate(id(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, visit, &names) < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    names.clear();
+    check(H5Literate(id(), H5_INDEX_NAME, H5_ITER_INC, nullptr, visit, &names), "list members");
+  }
+  return names;
+}
+
+Dataset Group::write_text(std::string_view name, std::string_view text,
+                          std::string_view description) const {
+  const std::string n(name);
+  Handle type = string_type();
+  Handle space = scalar_space();
+  Dataset ds(own(
+      H5Dcreate2(id(), n.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+      H5Dclose, "create dataset '" + n + "'"));
+  const std::string copy(text);
+  const char* data = copy.c_str();
+  check(H5Dwrite(ds.id(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &data), "write '" + n + "'");
+  ds.set_attribute("description", description);
+  return ds;
+}
+
+Series Group::create_series(const SeriesSpec& spec) const {
+  const int rank = spec.columns == 0 ? 1 : 2;
+  const hsize_t dims[2] = {0, spec.columns};
+  const hsize_t max_dims[2] = {H5S_UNLIMITED, spec.columns};
+  const hsize_t chunk[2] = {std::max<hsize_t>(spec.chunk_rows, 1), spec.columns};
+  Handle space = simple_space(std::span<const hsize_t>(dims, rank), max_dims);
+  Handle dcpl = make_property_list(H5P_DATASET_CREATE);
+  check(H5Pset_chunk(dcpl.get(), rank, chunk), "set chunk");
+  check(H5Pset_shuffle(dcpl.get()), "set shuffle filter");
+  check(H5Pset_deflate(dcpl.get(), 4), "set gzip filter");
+  const hid_t stored = spec.type == Type::float64 ? H5T_IEEE_F64LE : H5T_STD_I32LE;
+  Dataset ds(own(H5Dcreate2(id(), spec.name.c_str(), stored, space.get(), H5P_DEFAULT, dcpl.get(),
+                            H5P_DEFAULT),
+                 H5Dclose, "create dataset '" + spec.name + "'"));
+  ds.set_attribute("unit", spec.unit);
+  ds.set_attribute("description", spec.description);
+  return Series(std::move(ds), spec.columns, spec.type, spec.block_rows);
+}
+
+// ---------------------------------------------------------------- File
+
+File::File(Handle h, std::filesystem::path path)
+    : handle_(std::move(h)),
+      path_(std::move(path)),
+      last_flush_(std::chrono::steady_clock::now()) {}
+
+File File::create(const std::filesystem::path& path, bool overwrite) {
+  quiet_hdf5();
+  Handle fcpl = make_property_list(H5P_FILE_CREATE);
+  track_creation_order(fcpl.get());
+  const hid_t id =
+      H5Fcreate(path.c_str(), overwrite ? H5F_ACC_TRUNC : H5F_ACC_EXCL, fcpl.get(), H5P_DEFAULT);
+  return File(own(id, H5Fclose, "create file " + path.string()), path);
+}
+
+File File::open_read(const std::filesystem::path& path) {
+  quiet_hdf5();
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  return File(own(id, H5Fclose, "open file " + path.string()), path);
+}
+
+Group File::root() const {
+  return Group(own(H5Gopen2(handle_.get(), "/", H5P_DEFAULT), H5Gclose, "open root group"));
+}
+
+void File::flush() {
+  check(H5Fflush(handle_.get(), H5F_SCOPE_LOCAL), "flush file");
+  last_flush_ = std::chrono::steady_clock::now();
+}
+
+bool File::flush_due() const {
+  return flush_interval_.count() <= 0.0 ||
+         std::chrono::steady_clock::now() - last_flush_ >= flush_interval_;
+}
+
+void File::close() {
+  handle_.reset();
+}
+
+// ---------------------------------------------------------------- result header
+
+void write_result_header(File& file, const ResultHeader& header) {
+  const Group root = file.root();
+  root.set_attribute("format", "subslip");
+  root.set_attribute("format_version", kFormatVersion);
+  root.set_attribute("program_version", SUBSLIP_VERSION);
+  root.set_attribute("scene_kind", header.scene_kind);
+  root.set_attribute("scene_file", header.scene_file);
+  root.set_attribute("title", header.title);
+  root.set_attribute("created", iso8601_utc_now());
+  root.set_attribute("completed", 0);
+  root.write_text("scene", header.scene_text, "the scene file, verbatim");
+  const Group units = root.create_group("units");
+  for (const auto& [name, unit] : header.units) units.set_attribute(name, unit);
+  file.flush();
+}
+
+void mark_completed(File& file) {
+  file.root().set_attribute("completed", 1);
+  file.flush();
+}
+
+}  // namespace subslip::io::h5

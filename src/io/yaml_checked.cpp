@@ -1,0 +1,496 @@
+#include "subslip/io/yaml_checked.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+namespace subslip::io {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string format_number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.15g", x);
+  return buf;
+}
+
+std::string in_quotes(std::string_view s) {
+  return "'" + std::string(s) + "'";
+}
+
+std::string join(std::span<const std::string_view> names, std::string_view separator) {
+  std::string out;
+  for (const auto& n : names) {
+    if (!out.empty()) out += separator;
+    out += n;
+  }
+  return out;
+}
+
+// YAML marks are 0-based and -1 when the node has no position (created in memory).
+int line_of(const YAML::Node& node) {
+  if (!node.IsDefined()) return 0;
+  const int line = node.Mark().line;
+  return line >= 0 ? line + 1 : 0;
+}
+
+// A quoted scalar ("1.5") carries the non-specific tag "!"; we do not read it as a number so
+// that a string meant as a string is never silently accepted as one.
+bool is_quoted(const YAML::Node& node) {
+  return node.Tag() == "!";
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
+  return s;
+}
+
+// The YAML 1.2 core-schema spellings of infinity and NaN, which from_chars does not know.
+std::optional<double> yaml_special_float(std::string_view s) {
+  static const std::pair<std::string_view, double> kSpecial[] = {
+      {".inf", kInf},
+      {"+.inf", kInf},
+      {".Inf", kInf},
+      {"+.Inf", kInf},
+      {".INF", kInf},
+      {"-.inf", -kInf},
+      {"-.Inf", -kInf},
+      {"-.INF", -kInf},
+      {".nan", std::numeric_limits<double>::quiet_NaN()},
+      {".NaN", std::numeric_limits<double>::quiet_NaN()},
+      {".NAN", std::numeric_limits<double>::quiet_NaN()}};
+  for (const auto& [name, value] : kSpecial) {
+    if (s == name) return value;
+  }
+  return std::nullopt;
+}
+
+std::optional<double> parse_double(std::string_view text) {
+  std::string_view s = trim(text);
+  if (auto special = yaml_special_float(s)) return special;
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  double value = 0.0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
+  if (ec != std::errc() || end != s.data() + s.size() || s.empty()) return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- Range
+
+Range::Range(double lo, bool lo_open, double hi, bool hi_open)
+    : lo_(lo), hi_(hi), lo_open_(lo_open), hi_open_(hi_open) {}
+
+Range Range::any() {
+  return {-kInf, false, kInf, false};
+}
+Range Range::positive() {
+  return {0.0, true, kInf, false};
+}
+Range Range::non_negative() {
+  return {0.0, false, kInf, false};
+}
+Range Range::at_least(double lo) {
+  return {lo, false, kInf, false};
+}
+Range Range::greater_than(double lo) {
+  return {lo, true, kInf, false};
+}
+Range Range::at_most(double hi) {
+  return {-kInf, false, hi, false};
+}
+Range Range::in_open_interval(double lo, double hi) {
+  return {lo, true, hi, true};
+}
+Range Range::in_closed_interval(double lo, double hi) {
+  return {lo, false, hi, false};
+}
+
+bool Range::contains(double x) const {
+  const bool above = lo_open_ ? x > lo_ : x >= lo_;
+  const bool below = hi_open_ ? x < hi_ : x <= hi_;
+  return above && below;
+}
+
+std::string Range::describe() const {
+  const bool has_lo = lo_ > -kInf, has_hi = hi_ < kInf;
+  if (has_lo && has_hi) {
+    return std::string("in ") + (lo_open_ ? "(" : "[") + format_number(lo_) + ", " +
+           format_number(hi_) + (hi_open_ ? ")" : "]");
+  }
+  if (has_lo) return std::string(lo_open_ ? "> " : ">= ") + format_number(lo_);
+  if (has_hi) return std::string(hi_open_ ? "< " : "<= ") + format_number(hi_);
+  return {};
+}
+
+// ---------------------------------------------------------------- suggestions
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  // One row of the dynamic-programming table at a time.
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      const std::size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + cost});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+std::optional<std::string_view> nearest_name(std::string_view word,
+                                             std::span<const std::string_view> candidates) {
+  std::optional<std::string_view> best;
+  std::size_t best_distance = std::numeric_limits<std::size_t>::max();
+  for (const auto& c : candidates) {
+    const std::size_t d = edit_distance(word, c);
+    if (d < best_distance) {
+      best = c;
+      best_distance = d;
+    }
+  }
+  if (!best) return std::nullopt;
+  // A plausible typo: a couple of edits (more for long names), and not a complete rewrite.
+  const std::size_t allowed = std::max<std::size_t>(2, word.size() / 3);
+  const std::size_t longest = std::max(word.size(), best->size());
+  if (best_distance <= allowed && best_distance < longest) return best;
+  return std::nullopt;
+}
+
+std::string suggestion(std::string_view word, std::span<const std::string_view> candidates) {
+  if (auto near = nearest_name(word, candidates)) return "did you mean " + in_quotes(*near) + "?";
+  return "expected one of: " + join(candidates, ", ");
+}
+
+// ---------------------------------------------------------------- YamlDocument
+
+YamlDocument::YamlDocument(std::shared_ptr<const std::string> file, std::string text,
+                           YAML::Node root)
+    : file_(std::move(file)), text_(std::move(text)), root_(std::move(root)) {}
+
+YamlDocument YamlDocument::from_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw InputError(path.string(), 0, "", "is a directory");
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(path.string(), 0, "",
+                     "cannot read file: " + std::string(std::strerror(errno)));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return from_string(text.str(), path.string());
+}
+
+YamlDocument YamlDocument::from_string(std::string text, std::string file_name) {
+  auto file = std::make_shared<const std::string>(std::move(file_name));
+  try {
+    YAML::Node root = YAML::Load(text);
+    return YamlDocument(file, std::move(text), std::move(root));
+  } catch (const YAML::Exception& e) {
+    // e.msg is the bare message; e.what() repeats the position in yaml-cpp's own words.
+    const int line = e.mark.is_null() ? 0 : e.mark.line + 1;
+    throw InputError(*file, line, "", "YAML syntax error: " + e.msg);
+  }
+}
+
+CheckedNode YamlDocument::root() const {
+  return CheckedNode(root_, file_, "", 0);
+}
+
+// ---------------------------------------------------------------- CheckedNode: basics
+
+CheckedNode::CheckedNode(YAML::Node node, std::shared_ptr<const std::string> file, std::string path,
+                         int key_line)
+    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)), key_line_(key_line) {}
+
+int CheckedNode::line() const {
+  // An empty value is positioned by yaml-cpp after its key, often on the next line.
+  if (is_null()) return key_line_;
+  const int own = line_of(node_);
+  return own > 0 ? own : key_line_;
+}
+
+CheckedNode CheckedNode::renamed(std::string path) const {
+  return CheckedNode(node_, file_, std::move(path), key_line_);
+}
+
+InputError CheckedNode::error(const std::string& message) const {
+  return InputError(*file_, line(), path_, message);
+}
+
+void CheckedNode::fail(const std::string& message) const {
+  throw error(message);
+}
+
+bool CheckedNode::is_null() const {
+  return !node_.IsDefined() || node_.IsNull();
+}
+bool CheckedNode::is_scalar() const {
+  return node_.IsDefined() && node_.IsScalar();
+}
+bool CheckedNode::is_sequence() const {
+  return node_.IsDefined() && node_.IsSequence();
+}
+bool CheckedNode::is_map() const {
+  return node_.IsDefined() && node_.IsMap();
+}
+
+std::string CheckedNode::kind_name() const {
+  if (is_null()) return "nothing (an empty value)";
+  if (is_map()) return "a mapping";
+  if (is_sequence()) return "a sequence";
+  if (is_quoted(node_)) return "the quoted string \"" + node_.Scalar() + "\"";
+  return in_quotes(node_.Scalar());
+}
+
+void CheckedNode::expect_map() const {
+  if (!is_map()) fail("expected a mapping (key: value), got " + kind_name());
+}
+
+void CheckedNode::expect_sequence() const {
+  if (!is_sequence()) fail("expected a sequence ([a, b, ...] or a '- ' list), got " + kind_name());
+}
+
+void CheckedNode::expect_scalar(std::string_view expected) const {
+  if (!is_scalar()) fail("expected " + std::string(expected) + ", got " + kind_name());
+}
+
+std::string CheckedNode::child_path(std::string_view key) const {
+  return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+}
+
+CheckedNode CheckedNode::child(const YAML::Node& key, const YAML::Node& value) const {
+  return CheckedNode(value, file_, child_path(key.Scalar()), line_of(key));
+}
+
+// ---------------------------------------------------------------- mappings
+
+void CheckedNode::allow_keys(std::initializer_list<std::string_view> allowed) const {
+  allow_keys(std::span<const std::string_view>(allowed.begin(), allowed.size()));
+}
+
+void CheckedNode::allow_keys(std::span<const std::string_view> allowed) const {
+  expect_map();
+  std::set<std::string, std::less<>> seen;
+  for (const auto& kv : node_) {
+    const YAML::Node& key = kv.first;
+    if (!key.IsScalar()) {
+      throw InputError(*file_, line_of(key), path_, "mapping keys must be plain names");
+    }
+    const std::string& name = key.Scalar();
+    if (std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
+      throw InputError(*file_, line_of(key), child_path(name),
+                       "unknown key " + in_quotes(name) + "; " + suggestion(name, allowed));
+    }
+    if (!seen.insert(name).second) {
+      throw InputError(*file_, line_of(key), child_path(name), "duplicate key");
+    }
+  }
+}
+
+bool CheckedNode::has(std::string_view key) const {
+  return optional(key).has_value();
+}
+
+std::optional<CheckedNode> CheckedNode::optional(std::string_view key) const {
+  expect_map();
+  for (const auto& kv : node_) {
+    if (kv.first.IsScalar() && kv.first.Scalar() == key) return child(kv.first, kv.second);
+  }
+  return std::nullopt;
+}
+
+CheckedNode CheckedNode::required(std::string_view key) const {
+  if (auto found = optional(key)) return *found;
+  throw missing(key);
+}
+
+InputError CheckedNode::missing(std::string_view key, const std::string& message) const {
+  // Located at the key that opened this mapping; the root mapping has no such line.
+  const int at = path_.empty() ? 0 : line();
+  return InputError(*file_, at, child_path(key), message);
+}
+
+std::vector<std::string> CheckedNode::keys() const {
+  expect_map();
+  std::vector<std::string> out;
+  for (const auto& kv : node_) out.push_back(kv.first.Scalar());
+  return out;
+}
+
+int CheckedNode::key_line(std::string_view key) const {
+  if (!is_map()) return 0;
+  for (const auto& kv : node_) {
+    if (kv.first.IsScalar() && kv.first.Scalar() == key) return line_of(kv.first);
+  }
+  return 0;
+}
+
+std::optional<std::string> CheckedNode::one_of(std::initializer_list<std::string_view> group,
+                                               bool required) const {
+  std::optional<std::string> present;
+  for (const auto& name : group) {
+    if (!has(name)) continue;
+    if (present) {
+      throw InputError(
+          *file_, key_line(name), child_path(name),
+          "give either " + in_quotes(*present) + " or " + in_quotes(name) + ", not both");
+    }
+    present = std::string(name);
+  }
+  if (!present && required) {
+    std::vector<std::string_view> names(group);
+    fail("needs one of: " + join(names, ", "));
+  }
+  return present;
+}
+
+// ---------------------------------------------------------------- sequences
+
+std::size_t CheckedNode::size() const {
+  expect_sequence();
+  return node_.size();
+}
+
+CheckedNode CheckedNode::element(std::size_t i) const {
+  expect_sequence();
+  const YAML::Node item = node_[i];
+  const int at = line_of(item);
+  return CheckedNode(item, file_, path_ + "[" + std::to_string(i) + "]", at > 0 ? at : line());
+}
+
+std::vector<CheckedNode> CheckedNode::elements() const {
+  std::vector<CheckedNode> out;
+  const std::size_t n = size();
+  out.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) out.push_back(element(i));
+  return out;
+}
+
+// ---------------------------------------------------------------- scalars
+
+double CheckedNode::as_double(const Range& range) const {
+  expect_scalar("a number");
+  const auto value = is_quoted(node_) ? std::nullopt : parse_double(node_.Scalar());
+  if (!value) {
+    fail("expected a number, got " + kind_name() +
+         (is_quoted(node_) ? " (remove the quotes)" : ""));
+  }
+  if (!std::isfinite(*value)) fail("must be a finite number, got " + node_.Scalar());
+  if (!range.contains(*value)) fail("must be " + range.describe() + ", got " + node_.Scalar());
+  return *value;
+}
+
+int CheckedNode::as_int(const Range& range) const {
+  expect_scalar("an integer");
+  const auto value = is_quoted(node_) ? std::nullopt : parse_double(node_.Scalar());
+  // 1e4 is accepted as an integer: only the value matters, not its spelling.
+  const bool integral = value && std::isfinite(*value) && std::trunc(*value) == *value &&
+                        std::abs(*value) <= std::numeric_limits<int>::max();
+  if (!integral) fail("expected an integer, got " + kind_name());
+  if (!range.contains(*value)) fail("must be " + range.describe() + ", got " + node_.Scalar());
+  return static_cast<int>(*value);
+}
+
+std::string CheckedNode::as_string() const {
+  expect_scalar("a string");
+  return node_.Scalar();
+}
+
+bool CheckedNode::as_bool() const {
+  expect_scalar("true or false");
+  const std::string& s = node_.Scalar();
+  if (!is_quoted(node_)) {
+    if (s == "true" || s == "True" || s == "TRUE") return true;
+    if (s == "false" || s == "False" || s == "FALSE") return false;
+  }
+  fail("expected true or false, got " + kind_name());
+}
+
+std::string CheckedNode::as_choice(std::span<const std::string_view> choices) const {
+  expect_scalar("one of: " + join(choices, ", "));
+  const std::string& s = node_.Scalar();
+  if (std::find(choices.begin(), choices.end(), s) != choices.end()) return s;
+  fail("unknown value " + in_quotes(s) + "; " + suggestion(s, choices));
+}
+
+std::string CheckedNode::as_choice(std::initializer_list<std::string_view> choices) const {
+  return as_choice(std::span<const std::string_view>(choices.begin(), choices.size()));
+}
+
+std::vector<double> CheckedNode::as_doubles(const Range& range, std::size_t size) const {
+  expect_sequence();
+  const std::size_t n = node_.size();
+  if (size > 0 && n != size) {
+    fail("expected " + std::to_string(size) + " numbers, got " + std::to_string(n));
+  }
+  if (n == 0) fail("expected at least one number, got an empty sequence");
+  std::vector<double> out;
+  out.reserve(n);
+  for (const auto& e : elements()) out.push_back(e.as_double(range));
+  return out;
+}
+
+std::vector<std::string> CheckedNode::as_strings() const {
+  std::vector<std::string> out;
+  for (const auto& e : elements()) out.push_back(e.as_string());
+  return out;
+}
+
+// ---------------------------------------------------------------- key shorthands
+
+double CheckedNode::get_double(std::string_view key, const Range& range) const {
+  return required(key).as_double(range);
+}
+
+double CheckedNode::get_double(std::string_view key, double fallback, const Range& range) const {
+  const auto found = optional(key);
+  return found ? found->as_double(range) : fallback;
+}
+
+int CheckedNode::get_int(std::string_view key, const Range& range) const {
+  return required(key).as_int(range);
+}
+
+int CheckedNode::get_int(std::string_view key, int fallback, const Range& range) const {
+  const auto found = optional(key);
+  return found ? found->as_int(range) : fallback;
+}
+
+std::string CheckedNode::get_string(std::string_view key) const {
+  return required(key).as_string();
+}
+
+std::string CheckedNode::get_string(std::string_view key, std::string fallback) const {
+  const auto found = optional(key);
+  return found ? found->as_string() : fallback;
+}
+
+std::string CheckedNode::get_choice(std::string_view key,
+                                    std::initializer_list<std::string_view> choices) const {
+  return required(key).as_choice(choices);
+}
+
+std::string CheckedNode::get_choice(std::string_view key, std::string fallback,
+                                    std::initializer_list<std::string_view> choices) const {
+  const auto found = optional(key);
+  return found ? found->as_choice(choices) : fallback;
+}
+
+}  // namespace subslip::io
