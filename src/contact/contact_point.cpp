@@ -67,7 +67,8 @@ std::vector<double> increment_lengths(const Segment& seg) {
 
 double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start,
                           double t) {
-  if (seg.normal_control == NormalControl::velocity) return fn_start + c.alpha_n * seg.normal_velocity * t;
+  if (seg.normal_control == NormalControl::velocity)
+    return fn_start + c.alpha_n * seg.normal_velocity * t;
   if (seg.duration <= 0.0) return seg.normal_traction;
   return fn_start + (seg.normal_traction - fn_start) * (t / seg.duration);
 }
@@ -91,7 +92,7 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
     const double numerator = (c.alpha_t * v_t - r * mu * fn_rate) / fn0 - law.creep_modulus(r, mu);
     const double denominator = law.plastic_modulus(r, mu) + c.alpha_t / fn0;
     ds = (fn0 > 0.0 && numerator > 0.0 && std::isfinite(denominator)) ? numerator / denominator * dt
-                                                                        : 0.0;
+                                                                      : 0.0;
   } else {
     ds = dt * law.slip_rate(s0.r, s0.law.r_s);
   }
@@ -169,9 +170,9 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   if (!(guess > 0.0 && guess < ds_max)) {
     guess = (ft_trial - s0.law.r_s * fn1 * mu_elastic.value) / c.alpha_t;
   }
-  const auto root = safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p),
-                                       std::pow(guess, 1.0 / p), residual_tolerance,
-                                       4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
+  const auto root =
+      safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p), std::pow(guess, 1.0 / p),
+                         residual_tolerance, 4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
   if (!root.converged) return {s, root.iterations, false, "flow rule did not converge"};
 
   const double ds = slip_of(root.x);

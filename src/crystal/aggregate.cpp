@@ -101,7 +101,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     double total = 0.0;
     for (double w : weights_) total += w;
     for (double& w : weights_) w /= total;
-    for (size_t g = 0; g < n; ++g) committed_[g].reset(phase_.slip_count, orientations[g], initial_mu);
+    for (size_t g = 0; g < n; ++g)
+      committed_[g].reset(phase_.slip_count, orientations[g], initial_mu);
   }
 
   int grain_count() const override { return static_cast<int>(committed_.size()); }
@@ -116,7 +117,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     stats_ = {};
     macro_ = {};
     observe(macro_, *this);
-    for (size_t k = 0; k < segments.size(); ++k) run_segment(segments[k], static_cast<int>(k), opt, observe);
+    for (size_t k = 0; k < segments.size(); ++k)
+      run_segment(segments[k], static_cast<int>(k), opt, observe);
     stats_.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return stats_;
@@ -129,7 +131,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const Mat3 stress_start = macro_.stress;
     Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
     // Start the free components from the previous step's values where they are free too.
-    for (size_t k = 0; k < fc.size(); ++k) u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    for (size_t k = 0; k < fc.size(); ++k)
+      u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
     const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
     double t_local = 0.0;
     for (size_t i = 0; i < dts.size(); ++i) {
@@ -179,16 +182,18 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   bool solve_grains(const Mat3& l, double dt, bool want_tangent, const AggregateOptions& opt,
                     std::string& why) {
     const long n = static_cast<long>(committed_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > 1)
     for (long g = 0; g < n; ++g) {
       const auto gi = static_cast<size_t>(g);
       Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
-      reports_[gi] = opt.method == CrystalMethod::implicit
-                         ? implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t)
-                         : explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+      reports_[gi] =
+          opt.method == CrystalMethod::implicit
+              ? implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t)
+              : explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
     }
     stats_.grain_solves += n;
-    for (size_t g = 0; g < committed_.size(); ++g) {  // serial: the first failure, deterministically
+    for (size_t g = 0; g < committed_.size();
+         ++g) {  // serial: the first failure, deterministically
       stats_.newton_iterations += reports_[g].iterations;
       if (!reports_[g].ok) {
         why = describe_failure(g, reports_[g]);
@@ -201,8 +206,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::string describe_failure(size_t g, const GrainStepReport& rep) const {
     std::ostringstream msg;
     const auto& s = committed_[g];
-    msg << "grain " << g << ", slip system " << rep.system << ": " << rep.why
-        << " (after " << rep.iterations << " iterations)";
+    msg << "grain " << g << ", slip system " << rep.system << ": " << rep.why << " (after "
+        << rep.iterations << " iterations)";
     if (rep.system >= 0) {
       const VecN r = loading_ratio(phase_, s);
       msg << "; start state: mu = " << s.mu(rep.system) << ", r = " << r(rep.system)
@@ -222,8 +227,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
                 double dt, Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
     if (fc.empty()) return solve_grains(seg.velocity_gradient, dt, false, opt, why);
     const int k = static_cast<int>(fc.size());
-    const double scale = std::max(target.cwiseAbs().maxCoeff(),
-                                  std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff()));
+    const double scale =
+        std::max(target.cwiseAbs().maxCoeff(),
+                 std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff()));
     Eigen::VectorXd u_try = u;
     for (int it = 0; it < opt.max_mixed_iterations; ++it) {
       ++stats_.mixed_iterations;
@@ -231,7 +237,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       if (!solve_grains(l, dt, true, opt, why)) return false;
       const Vec6 sigma = average_stress();
       Eigen::VectorXd residual(k);
-      for (int a = 0; a < k; ++a) residual(a) = component(sigma, fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
+      for (int a = 0; a < k; ++a)
+        residual(a) = component(sigma, fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
       if (residual.cwiseAbs().maxCoeff() <= opt.stress_tolerance * scale) {
         u = u_try;
         return true;
@@ -252,22 +259,26 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     return false;
   }
 
-  void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Eigen::VectorXd& u,
-              double dt) {
+  void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+              const Eigen::VectorXd& u, double dt) {
     std::swap(committed_, trial_);
     stats_.grain_steps += static_cast<long>(committed_.size());
-    const Mat3 l = fc.empty() ? seg.velocity_gradient : assemble_velocity_gradient(seg.velocity_gradient, fc, u);
+    const Mat3 l = fc.empty() ? seg.velocity_gradient
+                              : assemble_velocity_gradient(seg.velocity_gradient, fc, u);
     // Deformation gradient by the Cayley (midpoint) map: exact for a pure rotation.
     const Mat3 half = 0.5 * dt * l;
     macro_.deformation_gradient =
-        (Mat3::Identity() - half).lu().solve((Mat3::Identity() + half) * macro_.deformation_gradient);
+        (Mat3::Identity() - half)
+            .lu()
+            .solve((Mat3::Identity() + half) * macro_.deformation_gradient);
     if (phase_.kinematics == Kinematics::small_strain) {
       macro_.strain += 0.5 * (l + l.transpose()) * dt;
     } else {
       macro_.strain = log_strain(macro_.deformation_gradient);
     }
     Vec6 sum = Vec6::Zero();
-    for (size_t g = 0; g < committed_.size(); ++g) sum += weights_[g] * committed_[g].sample_stress();
+    for (size_t g = 0; g < committed_.size(); ++g)
+      sum += weights_[g] * committed_[g].sample_stress();
     macro_.stress = symmetric_from_mandel(sum);
     macro_.velocity_gradient = l;
     macro_.time += dt;
@@ -276,7 +287,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // GrainFields
   template <class F>
   void per_grain(double* out, int width, F&& f) const {
-    for (size_t g = 0; g < committed_.size(); ++g) f(committed_[g], out + g * static_cast<size_t>(width));
+    for (size_t g = 0; g < committed_.size(); ++g)
+      f(committed_[g], out + g * static_cast<size_t>(width));
   }
   void stress(double* out) const override {
     per_grain(out, 6, [](const GrainState<N>& s, double* row) {
@@ -297,8 +309,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       for (int a = 0; a < n; ++a) row[a] = f(s, a);
     });
   }
-  void slip(double* out) const override { per_system(out, [](const auto& s, int a) { return s.slip(a); }); }
-  void slip_rate(double* out) const override { per_system(out, [](const auto& s, int a) { return s.rate(a); }); }
+  void slip(double* out) const override {
+    per_system(out, [](const auto& s, int a) { return s.slip(a); });
+  }
+  void slip_rate(double* out) const override {
+    per_system(out, [](const auto& s, int a) { return s.rate(a); });
+  }
   void crss(double* out) const override {
     per_system(out, [this](const auto& s, int a) { return s.mu(a) * phase_.tau0(a); });
   }
@@ -309,7 +325,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       for (int a = 0; a < n; ++a) row[a] = r(a);
     });
   }
-  void subloading_ratio(double* out) const override { per_system(out, [](const auto& s, int a) { return s.r_s(a); }); }
+  void subloading_ratio(double* out) const override {
+    per_system(out, [](const auto& s, int a) { return s.r_s(a); });
+  }
 
   Phase<N> phase_;
   std::vector<GrainState<N>> committed_, trial_;
@@ -323,15 +341,16 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 }  // namespace
 
 template <int N>
-std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase, const std::vector<Mat3>& orientations,
+std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,
+                                                 const std::vector<Mat3>& orientations,
                                                  const std::vector<double>& weights,
                                                  const typename SlipTypes<N>::VecN& initial_mu) {
   return std::make_unique<TaylorAggregate<N>>(std::move(phase), orientations, weights, initial_mu);
 }
 
-#define SUBSLIP_INSTANTIATE_AGGREGATE(N)                                         \
-  template std::unique_ptr<Aggregate> make_taylor_aggregate<N>(                  \
-      Phase<N>, const std::vector<Mat3>&, const std::vector<double>&,            \
+#define SUBSLIP_INSTANTIATE_AGGREGATE(N)                              \
+  template std::unique_ptr<Aggregate> make_taylor_aggregate<N>(       \
+      Phase<N>, const std::vector<Mat3>&, const std::vector<double>&, \
       const typename SlipTypes<N>::VecN&);
 
 SUBSLIP_INSTANTIATE_AGGREGATE(1)

@@ -4,6 +4,7 @@
 #include "subslip/integrators/scalar_root.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -12,9 +13,13 @@ namespace subslip::crystal {
 
 namespace {
 
-Vec3 axial(const Mat3& w) { return Vec3(w(2, 1), w(0, 2), w(1, 0)); }
+Vec3 axial(const Mat3& w) {
+  return Vec3(w(2, 1), w(0, 2), w(1, 0));
+}
 
-double sign_of(double v) { return v >= 0.0 ? 1.0 : -1.0; }
+double sign_of(double v) {
+  return v >= 0.0 ? 1.0 : -1.0;
+}
 
 // Velocity gradient split and expressed in the lattice frame at the start of the step.
 struct StepKinematics {
@@ -76,11 +81,15 @@ class ImplicitSolver {
     for (int a = 0; a < n_; ++a) {
       scale_(a) = ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a));
       exponent_(a) = ph.laws[static_cast<size_t>(a)].slip_exponent();
+      start_[static_cast<size_t>(a)] = ph.laws[static_cast<size_t>(a)].subloading_start(s0.r_s(a));
     }
+    unit_exponents_ = (exponent_.array() == 1.0).all();
   }
 
   // Slip magnitude of an unknown z and back.
-  double slip_of(int a, double z) const { return exponent_(a) == 1.0 ? z : std::pow(z, exponent_(a)); }
+  double slip_of(int a, double z) const {
+    return exponent_(a) == 1.0 ? z : std::pow(z, exponent_(a));
+  }
   double unknown_of(int a, double slip) const {
     return exponent_(a) == 1.0 ? slip : std::pow(slip, 1.0 / exponent_(a));
   }
@@ -112,7 +121,7 @@ class ImplicitSolver {
     for (int a = 0; a < n_; ++a) {
       const auto& law = ph_.laws[static_cast<size_t>(a)];
       const auto mu = law.friction_coefficient_after(s0_.mu(a), effective(a), dt_);
-      const auto rs = law.subloading_ratio_after(s0_.r_s(a), it.slip(a));
+      const auto rs = law.subloading_ratio_after(start_[static_cast<size_t>(a)], it.slip(a));
       it.mu(a) = mu.value, it.d_mu(a) = mu.d_slip, it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
       if (!(it.fn(a) > 0.0) || !(mu.value > 0.0)) {
         it.admissible = false, it.bad_system = a;
@@ -127,29 +136,35 @@ class ImplicitSolver {
       it.merit_rows(a) = it.active(a) ? -g.value : inactive_row;
       if (!g.admissible) it.admissible = false, it.bad_system = a;
     }
-    it.merit = it.admissible ? 0.5 * it.merit_rows.squaredNorm()
-                             : std::numeric_limits<double>::infinity();
+    it.merit =
+        it.admissible ? 0.5 * it.merit_rows.squaredNorm() : std::numeric_limits<double>::infinity();
   }
 
-  // d(rows)/dx at an iterate (semismooth Newton: each row differentiated on its branch).
+  // d(rows)/dx at an iterate (semismooth Newton: each row differentiated on its branch), as
+  // diagonal scalings of the phase's constant matrices:
+  //   dr_a/dslip_b = -s_a A_ab s_b/(mu_a fn_a) - (r_a/mu_a) dmu_a q_ab - (r_a/fn_a) N_ab s_b,
+  //   row_a = -G_a, so J_ab = -dG_a/dr_a dr_a/dslip_b - delta_ab (dG_a/dr_s dr_s/dslip +
+  //   dG_a/dslip).
   MatNN jacobian(const Iterate<N>& it) const {
-    MatNN j = MatNN::Zero(n_, n_);
+    const VecN g_dr_over_mu = it.g_dr.cwiseQuotient(it.mu);
+    const VecN elastic_row = g_dr_over_mu.cwiseProduct(it.sign).cwiseQuotient(it.fn);
+    MatNN j = elastic_row.asDiagonal() * ph_.interaction * it.sign.asDiagonal();
+    const VecN hardening_row = g_dr_over_mu.cwiseProduct(it.r).cwiseProduct(it.d_mu);
+    if (ph_.has_latent) {
+      j.noalias() += hardening_row.asDiagonal() * ph_.latent;
+    } else {
+      j.diagonal() += hardening_row;
+    }
+    if (ph_.pressure_sensitive) {
+      const VecN pressure_row = it.g_dr.cwiseProduct(it.r).cwiseQuotient(it.fn);
+      j.noalias() += pressure_row.asDiagonal() * ph_.normal_interaction * it.sign.asDiagonal();
+    }
+    j.diagonal() -= it.g_drs.cwiseProduct(it.d_rs) + it.g_dslip;
+    if (!unit_exponents_) j = j * it.dslip_dx.asDiagonal();  // d/dslip -> d/dx
     for (int a = 0; a < n_; ++a) {
-      if (!it.active(a)) {
-        j(a, a) = scale_(a);
-        continue;
-      }
-      const double inv = 1.0 / (it.mu(a) * it.fn(a));
-      for (int b = 0; b < n_; ++b) {
-        double dr = -it.sign(a) * ph_.interaction(a, b) * it.sign(b) * inv;
-        const double q = ph_.has_latent ? ph_.latent(a, b) : (a == b ? 1.0 : 0.0);
-        dr -= it.r(a) / it.mu(a) * it.d_mu(a) * q;
-        if (ph_.pressure_sensitive)
-          dr -= it.r(a) / it.fn(a) * ph_.normal_interaction(a, b) * it.sign(b);
-        j(a, b) = -it.g_dr(a) * dr;
-      }
-      j(a, a) -= it.g_drs(a) * it.d_rs(a) + it.g_dslip(a);
-      j.row(a) = j.row(a).cwiseProduct(it.dslip_dx.transpose());  // d/dslip -> d/dx
+      if (it.active(a)) continue;
+      j.row(a).setZero();
+      j(a, a) = scale_(a);
     }
     return j;
   }
@@ -161,8 +176,7 @@ class ImplicitSolver {
       if (!it.active(a)) continue;
       Eigen::Matrix<double, 1, 6> dr =
           it.sign(a) * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
-      if (ph_.pressure_sensitive)
-        dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
+      if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
       j.row(a) = -it.g_dr(a) * dr;
     }
     return j;
@@ -190,7 +204,7 @@ class ImplicitSolver {
     auto residual = [&](double z) {
       const double slip = slip_of(a, z);
       const auto mu = law.friction_coefficient_after(s0_.mu(a), effective_other + slip, dt_);
-      const auto rs = law.subloading_ratio_after(s0_.r_s(a), slip);
+      const auto rs = law.subloading_ratio_after(start_[static_cast<size_t>(a)], slip);
       const double r = (tau_free - stiffness * slip) / (mu.value * fn);
       const double dr = -stiffness / (mu.value * fn) - r / mu.value * mu.d_slip;
       const auto g = law.flow_residual(r, rs.value, slip, dt_);
@@ -209,9 +223,10 @@ class ImplicitSolver {
   // r_s = 0, where dr_s/dslip = U(0) is infinite) and admissible (every r_a < r_hat). Offending
   // systems get their own scalar solution (a Jacobi sweep); a few sweeps suffice since slip on
   // one system only relaxes the others (A is positive semi-definite).
-  bool make_admissible(VecN& x, VecN& sign, Iterate<N>& it, double tolerance, int rounds = 8) const {
+  bool make_admissible(VecN& x, VecN& sign, Iterate<N>& it, double tolerance,
+                       int rounds = 8) const {
+    evaluate(x, sign, it);
     for (int round = 0; round < rounds; ++round) {
-      evaluate(x, sign, it);
       bool changed = false;
       for (int a = 0; a < n_; ++a) {
         const bool infinite_slope = it.active(a) && !std::isfinite(it.d_rs(a));
@@ -222,8 +237,8 @@ class ImplicitSolver {
         x(a) = z;
       }
       if (!changed) break;
+      evaluate(x, sign, it);
     }
-    evaluate(x, sign, it);
     return it.admissible;
   }
 
@@ -242,7 +257,8 @@ class ImplicitSolver {
         if (o.form == law::OverstressForm::rate_independent || it.r(a) < o.r_hat) continue;
         const double target = 0.5 * (it.rs(a) + o.r_hat);
         if (x(a) == 0.0) sign(a) = sign_of(it.tau(a));
-        const double more = (sign(a) * it.tau(a) - target * it.mu(a) * it.fn(a)) / ph_.interaction(a, a);
+        const double more =
+            (sign(a) * it.tau(a) - target * it.mu(a) * it.fn(a)) / ph_.interaction(a, a);
         x(a) = unknown_of(a, it.slip(a) + more);
       }
     }
@@ -256,11 +272,14 @@ class ImplicitSolver {
   double dt_;
   int n_;
   VecN tau_trial_, fn_trial_, scale_, exponent_;
+  std::array<law::SubloadingFrictionLaw::SubloadingStart, T::MaxN> start_;
+  bool unit_exponents_ = true;
 };
 
 template <int N>
-bool admissible_state(const Phase<N>& ph, const GrainState<N>& s, const typename SlipTypes<N>::VecN& r,
-                      const typename SlipTypes<N>::VecN& fn, GrainStepReport& rep) {
+bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
+                      const typename SlipTypes<N>::VecN& r, const typename SlipTypes<N>::VecN& fn,
+                      GrainStepReport& rep) {
   if (!s.stress.allFinite() || !s.orientation.allFinite()) {
     rep.why = "non-finite stress or orientation";
     return false;
@@ -300,7 +319,8 @@ void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, 
   for (int a = 0; a < n; ++a) {
     const Mat3 sm = s[static_cast<size_t>(a)] * m[static_cast<size_t>(a)].transpose();
     schmid.col(a) = mandel_from_symmetric(0.5 * (sm + sm.transpose()));
-    plane_normal_dyad.col(a) = mandel_from_symmetric(m[static_cast<size_t>(a)] * m[static_cast<size_t>(a)].transpose());
+    plane_normal_dyad.col(a) =
+        mandel_from_symmetric(m[static_cast<size_t>(a)] * m[static_cast<size_t>(a)].transpose());
     slip_spin.col(a) = 0.5 * m[static_cast<size_t>(a)].cross(s[static_cast<size_t>(a)]);
   }
   c_schmid = c * schmid;
@@ -323,7 +343,8 @@ void GrainState<N>::reset(int n, const Mat3& g, const typename SlipTypes<N>::Vec
 
 template <int N>
 Vec6 GrainState<N>::sample_stress() const {
-  return mandel_from_symmetric(orientation.transpose() * symmetric_from_mandel(stress) * orientation);
+  return mandel_from_symmetric(orientation.transpose() * symmetric_from_mandel(stress) *
+                               orientation);
 }
 
 template <int N>
@@ -381,8 +402,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
       // slope dr_s/dslip = U(r_s) can be infinite, while a system that should stop is switched
       // to the x_a = 0 row by the semismooth branch and then lands on zero exactly.
       VecN xt = it.x + alpha * step;
-      for (int a = 0; a < n; ++a)
-        xt(a) = std::max(xt(a), it.active(a) ? 0.01 * it.x(a) : 0.0);
+      for (int a = 0; a < n; ++a) xt(a) = std::max(xt(a), it.active(a) ? 0.01 * it.x(a) : 0.0);
       solver.evaluate(xt, it.sign, trial);
       if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) {
         accepted = true;
@@ -398,6 +418,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   }
   if (!converged) {
     rep.why = "slip increments did not converge";
+    it.merit_rows.cwiseAbs().maxCoeff(&rep.system);  // the system with the largest residual
     return rep;
   }
 
@@ -413,12 +434,27 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
 
   if (tangent) {
     const typename T::MatNN j = solver.jacobian(it);
-    const typename T::MatN6 dx = -Eigen::PartialPivLU<typename T::MatNN>(j).solve(
-        solver.strain_jacobian(it));
-    const Mat6 lattice_tangent =
-        ph.stiffness - ph.c_schmid * it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
-    *tangent = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent *
-               mandel_rotation_operator(s0.orientation);
+    const typename T::MatN6 dx =
+        -Eigen::PartialPivLU<typename T::MatNN>(j).solve(solver.strain_jacobian(it));
+    const typename T::MatN6 dgamma_de = it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
+    const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
+    Mat6 sample_tangent = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
+    if (ph.kinematics == Kinematics::finite_rotation) {
+      // The end orientation depends on the slip through the plastic spin: d(omega dt) =
+      // -W_p d(dgamma), dg1 = -[d(omega dt)]x g1 (first order in the step's rotation), and
+      // sigma_sample = g1^T sigma_lattice g1 changes by dg1^T sigma g1 + g1^T sigma dg1.
+      const Mat3& g1 = s1.orientation;
+      const Mat3 sigma = symmetric_from_mandel(s1.stress);
+      for (int k = 0; k < 6; ++k) {
+        const Vec3 dw = -ph.slip_spin * dgamma_de.col(k);
+        Mat3 skew;
+        skew << 0.0, -dw.z(), dw.y(), dw.z(), 0.0, -dw.x(), -dw.y(), dw.x(), 0.0;
+        const Mat3 dg1 = -skew * g1;
+        sample_tangent.col(k) +=
+            mandel_from_symmetric(dg1.transpose() * sigma * g1 + g1.transpose() * sigma * dg1);
+      }
+    }
+    *tangent = sample_tangent * mandel_rotation_operator(s0.orientation);
   }
   rep.ok = true;
   return rep;
@@ -454,7 +490,8 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     const auto& law = ph.laws[static_cast<size_t>(a)];
     const auto& f = law.parameters().friction;
     const double mu0 = s0.mu(a), rs0 = s0.r_s(a);
-    s1.mu(a) = mu0 + f.kappa * (1.0 - mu0 / f.mu_k) * effective(a) + f.xi * (1.0 - mu0 / f.mu_s) * dt;
+    s1.mu(a) =
+        mu0 + f.kappa * (1.0 - mu0 / f.mu_k) * effective(a) + f.xi * (1.0 - mu0 / f.mu_s) * dt;
     double rs1 = rs0;
     if (magnitude(a) > 0.0) {
       // Method 2: forward Euler of (3.11); U(0) is infinite, so slip from r_s = 0 uses (2.28).
@@ -476,13 +513,13 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   return rep;
 }
 
-#define SUBSLIP_INSTANTIATE_KERNEL(N)                                                           \
-  template struct Phase<N>;                                                                     \
-  template struct GrainState<N>;                                                                \
-  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
-                                                  const Mat3&, double, const GrainStepOptions&, \
-                                                  GrainState<N>&, Tangent*);                    \
-  template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
+#define SUBSLIP_INSTANTIATE_KERNEL(N)                                                             \
+  template struct Phase<N>;                                                                       \
+  template struct GrainState<N>;                                                                  \
+  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,          \
+                                                  const Mat3&, double, const GrainStepOptions&,   \
+                                                  GrainState<N>&, Tangent*);                      \
+  template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,          \
                                                   const Mat3&, double, GrainState<N>&, Tangent*); \
   template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);
 

@@ -49,7 +49,8 @@ typename SlipTypes<N>::MatNN latent_matrix(const PhaseDescription& d,
 }
 
 template <int N>
-std::unique_ptr<Aggregate> build(const PhaseDescription& d, const std::vector<DescribedSystem>& systems,
+std::unique_ptr<Aggregate> build(const PhaseDescription& d,
+                                 const std::vector<DescribedSystem>& systems,
                                  const std::vector<Orientation>& grains) {
   const int n = static_cast<int>(systems.size());
   Phase<N> ph;
@@ -62,8 +63,9 @@ std::unique_ptr<Aggregate> build(const PhaseDescription& d, const std::vector<De
   std::vector<Vec3> s, m;
   for (int a = 0; a < n; ++a) {
     const auto& sys = systems[static_cast<size_t>(a)];
-    const SlipGroupSettings& g =
-        d.custom_systems.empty() ? d.family_settings[static_cast<size_t>(sys.group)] : d.custom_settings;
+    const SlipGroupSettings& g = d.custom_systems.empty()
+                                     ? d.family_settings[static_cast<size_t>(sys.group)]
+                                     : d.custom_settings;
     ph.laws.emplace_back(g.law);
     ph.tau0(a) = g.tau0;
     mu0(a) = g.initial_mu > 0.0 ? g.initial_mu : g.law.friction.mu_s;
@@ -88,12 +90,18 @@ std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
     throw std::invalid_argument("one settings entry per slip family is required");
   const auto systems = described_systems(d);
   switch (systems.size()) {
-    case 1: return build<1>(d, systems, grains);
-    case 3: return build<3>(d, systems, grains);
-    case 6: return build<6>(d, systems, grains);
-    case 12: return build<12>(d, systems, grains);
-    case 24: return build<24>(d, systems, grains);
-    case 48: return build<48>(d, systems, grains);
+    case 1:
+      return build<1>(d, systems, grains);
+    case 3:
+      return build<3>(d, systems, grains);
+    case 6:
+      return build<6>(d, systems, grains);
+    case 12:
+      return build<12>(d, systems, grains);
+    case 24:
+      return build<24>(d, systems, grains);
+    case 48:
+      return build<48>(d, systems, grains);
     default:
       if (systems.empty() || systems.size() > static_cast<size_t>(kMaxSlipSystems))
         throw std::invalid_argument("a phase needs 1 to " + std::to_string(kMaxSlipSystems) +

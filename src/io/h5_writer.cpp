@@ -369,14 +369,33 @@ std::vector<std::string> Dataset::filters() const {
 
 // ---------------------------------------------------------------- Series
 
+namespace {
+
+std::vector<std::size_t> shape_of_columns(std::size_t columns) {
+  return columns == 0 ? std::vector<std::size_t>{} : std::vector<std::size_t>{columns};
+}
+
+std::size_t product(std::span<const std::size_t> shape) {
+  std::size_t n = 1;
+  for (std::size_t d : shape) n *= d;
+  return n;
+}
+
+}  // namespace
+
 Series::Series(Dataset dataset, std::size_t columns, Type type, std::size_t block_rows)
+    : Series(std::move(dataset), shape_of_columns(columns), type, block_rows) {}
+
+Series::Series(Dataset dataset, std::vector<std::size_t> row_shape, Type type,
+               std::size_t block_rows)
     : dataset_(std::move(dataset)),
-      columns_(columns),
+      row_shape_(std::move(row_shape)),
+      width_(product(row_shape_)),
       type_(type),
       block_rows_(std::max<std::size_t>(block_rows, 1)) {
   committed_ = dataset_.shape().front();
   if (type_ == Type::float64) {
-    block_.resize(block_rows_ * std::max<std::size_t>(columns_, 1));
+    block_.resize(block_rows_ * width_);
   } else {
     int_block_.resize(block_rows_);
   }
@@ -391,32 +410,35 @@ Series::~Series() {
 }
 
 void Series::append(std::span<const double> row) {
-  const std::size_t width = std::max<std::size_t>(columns_, 1);
-  if (type_ != Type::float64 || row.size() != width) {
+  if (type_ != Type::float64 || row.size() != width_) {
     throw Error("HDF5: row does not match the series' type or width");
   }
-  std::copy(row.begin(), row.end(), block_.begin() + static_cast<std::ptrdiff_t>(pending_ * width));
+  std::copy(row.begin(), row.end(),
+            block_.begin() + static_cast<std::ptrdiff_t>(pending_ * width_));
   if (++pending_ == block_rows_) commit();
 }
 
 void Series::append_int(int value) {
-  if (type_ != Type::int32 || columns_ > 1) throw Error("HDF5: not a 1-D int32 series");
+  if (type_ != Type::int32 || width_ > 1) throw Error("HDF5: not a 1-D int32 series");
   int_block_[pending_] = value;
   if (++pending_ == block_rows_) commit();
 }
 
 void Series::commit() {
   if (pending_ == 0) return;
-  const hsize_t width = std::max<hsize_t>(columns_, 1);
-  const int rank = columns_ == 0 ? 1 : 2;
-  const hsize_t extent[2] = {committed_ + pending_, width};
-  check(H5Dset_extent(dataset_.id(), extent), "extend dataset");
+  // [rows, row_shape...]: the extent, the selection and the memory block share the trailing dims.
+  std::vector<hsize_t> extent{committed_ + pending_};
+  extent.insert(extent.end(), row_shape_.begin(), row_shape_.end());
+  check(H5Dset_extent(dataset_.id(), extent.data()), "extend dataset");
   Handle file_space = own(H5Dget_space(dataset_.id()), H5Sclose, "dataset space");
-  const hsize_t start[2] = {committed_, 0};
-  const hsize_t count[2] = {pending_, width};
-  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
+  std::vector<hsize_t> start(extent.size(), 0);
+  start[0] = committed_;
+  std::vector<hsize_t> count = extent;
+  count[0] = pending_;
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
+                            nullptr),
         "select rows");
-  Handle memory_space = simple_space(std::span<const hsize_t>(count, rank));
+  Handle memory_space = simple_space(count);
   const hid_t memory_type = type_ == Type::float64 ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT;
   const void* data = type_ == Type::float64 ? static_cast<const void*>(block_.data())
                                             : static_cast<const void*>(int_block_.data());
@@ -482,13 +504,19 @@ Dataset Group::write_text(std::string_view name, std::string_view text,
 }
 
 Series Group::create_series(const SeriesSpec& spec) const {
-  const int rank = spec.columns == 0 ? 1 : 2;
-  const hsize_t dims[2] = {0, spec.columns};
-  const hsize_t max_dims[2] = {H5S_UNLIMITED, spec.columns};
-  const hsize_t chunk[2] = {std::max<hsize_t>(spec.chunk_rows, 1), spec.columns};
-  Handle space = simple_space(std::span<const hsize_t>(dims, rank), max_dims);
+  const std::vector<std::size_t> row_shape =
+      spec.row_shape.empty() ? shape_of_columns(spec.columns) : spec.row_shape;
+  const int rank = 1 + static_cast<int>(row_shape.size());
+  std::vector<hsize_t> dims{0}, max_dims{H5S_UNLIMITED};
+  std::vector<hsize_t> chunk{std::max<hsize_t>(spec.chunk_rows, 1)};
+  for (std::size_t d : row_shape) {
+    dims.push_back(d);
+    max_dims.push_back(d);
+    chunk.push_back(std::max<hsize_t>(d, 1));
+  }
+  Handle space = simple_space(dims, max_dims.data());
   Handle dcpl = make_property_list(H5P_DATASET_CREATE);
-  check(H5Pset_chunk(dcpl.get(), rank, chunk), "set chunk");
+  check(H5Pset_chunk(dcpl.get(), rank, chunk.data()), "set chunk");
   check(H5Pset_shuffle(dcpl.get()), "set shuffle filter");
   check(H5Pset_deflate(dcpl.get(), 4), "set gzip filter");
   const hid_t stored = spec.type == Type::float64 ? H5T_IEEE_F64LE : H5T_STD_I32LE;
@@ -497,7 +525,26 @@ Series Group::create_series(const SeriesSpec& spec) const {
                  H5Dclose, "create dataset '" + spec.name + "'"));
   ds.set_attribute("unit", spec.unit);
   ds.set_attribute("description", spec.description);
-  return Series(std::move(ds), spec.columns, spec.type, spec.block_rows);
+  return Series(std::move(ds), row_shape, spec.type, spec.block_rows);
+}
+
+Dataset Group::write_array(std::string_view name, std::span<const std::size_t> shape,
+                           std::span<const double> values, std::string_view unit,
+                           std::string_view description) const {
+  const std::string n(name);
+  if (product(shape) != values.size()) throw Error("HDF5: '" + n + "': values do not fit shape");
+  const std::vector<hsize_t> dims(shape.begin(), shape.end());
+  Handle space = simple_space(dims);
+  Dataset ds(own(H5Dcreate2(id(), n.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                            H5P_DEFAULT),
+                 H5Dclose, "create dataset '" + n + "'"));
+  if (!values.empty()) {
+    check(H5Dwrite(ds.id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+          "write '" + n + "'");
+  }
+  ds.set_attribute("unit", unit);
+  ds.set_attribute("description", description);
+  return ds;
 }
 
 // ---------------------------------------------------------------- File

@@ -6,13 +6,28 @@ std::vector<std::pair<std::string, std::string>> Units::entries() const {
   return {{"stress", stress}, {"length", length}, {"time", time}};
 }
 
-Units parse_units(const CheckedNode& node) {
+namespace {
+
+// `length_required == false`: a missing length is left empty (scene kinds without lengths).
+Units read_units(const CheckedNode& node, bool length_required) {
   node.allow_keys({"stress", "length", "time"});
   Units u;
   u.stress = node.get_choice("stress", {"Pa", "kPa", "MPa", "GPa"});
-  u.length = node.get_choice("length", {"m", "mm", "um", "nm"});
+  u.length = length_required || node.has("length")
+                 ? node.get_choice("length", {"m", "mm", "um", "nm"})
+                 : std::string();
   u.time = node.get_choice("time", {"s", "ms", "min", "h"});
   return u;
+}
+
+}  // namespace
+
+Units parse_units(const CheckedNode& node) {
+  return read_units(node, true);
+}
+
+Units parse_units_without_length(const CheckedNode& node) {
+  return read_units(node, false);
 }
 
 std::string scene_kind(const YamlDocument& document,

@@ -138,11 +138,18 @@ struct SweepEntry {
   CheckedNode values;     // the value list, for error locations
 };
 
+// The path from its last key on: "speed" for "loading[0].slide.speed", and "L[0][1]" for
+// "loading[0].L[0][1]" (indices after the last key say which element of it is swept).
 std::string last_key(const std::vector<PathStep>& steps) {
+  std::string label;
   for (auto it = steps.rbegin(); it != steps.rend(); ++it) {
-    if (it->kind == PathStep::Kind::key) return it->key;
+    if (it->kind == PathStep::Kind::key) return it->key + label;
+    // Built with append: GCC 12 gives a false -Wrestrict warning on "literal" + std::string&&.
+    std::string step("[");
+    step.append(it->kind == PathStep::Kind::all ? "*" : std::to_string(it->index)).append("]");
+    label.insert(0, step);
   }
-  return {};
+  return label;
 }
 
 std::vector<SweepEntry> read_entries(const CheckedNode& root, const CheckedNode& sweep,

@@ -23,25 +23,31 @@ Phi1 phi1(double b) {
     return {1.0 - b / 2.0 + b * b / 6.0 - b * b * b / 24.0, -0.5 + b / 3.0 - b * b / 8.0};
   }
   const double one_minus_exp = -std::expm1(-b);
-  return {one_minus_exp / b, (std::exp(-b) * b - one_minus_exp) / (b * b)};
+  return {one_minus_exp / b, ((1.0 - one_minus_exp) * b - one_minus_exp) / (b * b)};
 }
 
 }  // namespace
 
 std::string_view to_string(SubloadingFunction f) {
   switch (f) {
-    case SubloadingFunction::cot: return "cot";
-    case SubloadingFunction::neg_log: return "neg_log";
-    case SubloadingFunction::reciprocal: return "reciprocal";
+    case SubloadingFunction::cot:
+      return "cot";
+    case SubloadingFunction::neg_log:
+      return "neg_log";
+    case SubloadingFunction::reciprocal:
+      return "reciprocal";
   }
   return "?";
 }
 
 std::string_view to_string(OverstressForm f) {
   switch (f) {
-    case OverstressForm::exponential: return "exponential";
-    case OverstressForm::power: return "power";
-    case OverstressForm::rate_independent: return "rate_independent";
+    case OverstressForm::exponential:
+      return "exponential";
+    case OverstressForm::power:
+      return "power";
+    case OverstressForm::rate_independent:
+      return "rate_independent";
   }
   return "?";
 }
@@ -68,9 +74,12 @@ double SubloadingFrictionLaw::subloading_rate(double r) const {
   const double u = p_.subloading.u_tilde;
   if (r <= 0.0) return kInf;
   switch (p_.subloading.function) {
-    case SubloadingFunction::cot: return u / std::tan(0.5 * kPi * r);
-    case SubloadingFunction::neg_log: return -u * std::log(r);
-    case SubloadingFunction::reciprocal: return u * (1.0 / r - 1.0);
+    case SubloadingFunction::cot:
+      return u / std::tan(0.5 * kPi * r);
+    case SubloadingFunction::neg_log:
+      return -u * std::log(r);
+    case SubloadingFunction::reciprocal:
+      return u * (1.0 / r - 1.0);
   }
   return 0.0;
 }
@@ -133,30 +142,56 @@ double SubloadingFrictionLaw::subloading_inverse_integral(double h) const {
     const double slope = 1.0 / subloading_rate(r);
     return std::pair{value, slope};
   };
-  const auto root = safeguarded_newton(eval, 0.0, 1.0, 0.5, 1e-15 * std::max(h, 1e-300), 1e-15,
-                                       1e-300, 400);
+  const auto root =
+      safeguarded_newton(eval, 0.0, 1.0, 0.5, 1e-15 * std::max(h, 1e-300), 1e-15, 1e-300, 400);
   return root.x;
 }
 
 ValueAndSlope SubloadingFrictionLaw::subloading_ratio_after(double r_s0, double slip) const {
-  r_s0 = std::clamp(r_s0, 0.0, 1.0);
-  if (slip <= 0.0 || r_s0 >= 1.0) return {r_s0, subloading_rate(r_s0)};
-  double r1;
+  return subloading_ratio_after(subloading_start(r_s0), slip);
+}
+
+SubloadingFrictionLaw::SubloadingStart SubloadingFrictionLaw::subloading_start(double r_s0) const {
+  const double r0 = std::clamp(r_s0, 0.0, 1.0);
   if (p_.subloading.function == SubloadingFunction::cot) {
-    // (2.28): cos(pi r1/2) = cos(pi r0/2) exp(-pi u s/2). Written through 1 - cos so that small
-    // r0 and small s keep their digits (acos is ill-conditioned next to 1).
-    const double a = 0.5 * kPi * p_.subloading.u_tilde * slip;
-    const double c0 = std::sin(0.5 * kPi * (1.0 - r_s0));
-    const double s0 = std::sin(0.25 * kPi * r_s0);
-    const double one_minus_x = 2.0 * s0 * s0 - c0 * std::expm1(-a);
-    const double x = c0 * std::exp(-a);
-    r1 = (x > 0.5) ? (4.0 / kPi) * std::asin(std::sqrt(0.5 * one_minus_x))
-                   : (2.0 / kPi) * std::acos(x);
-  } else {
-    r1 = subloading_inverse_integral(subloading_slip_integral(r_s0) + slip);
+    // One sine, taken where it keeps the digits: 1 - cos through sin(pi r/4) for small r,
+    // cos through the sine of the distance to 1 otherwise. U(r0) = u cos/sin needs no tangent.
+    double cos0, one_minus_cos0;
+    if (r0 < 0.5) {
+      const double h = std::sin(0.25 * kPi * r0);
+      one_minus_cos0 = 2.0 * h * h;
+      cos0 = 1.0 - one_minus_cos0;
+    } else {
+      cos0 = std::sin(0.5 * kPi * (1.0 - r0));
+      one_minus_cos0 = 1.0 - cos0;
+    }
+    const double sin0 = std::sqrt(one_minus_cos0 * (1.0 + cos0));
+    const double rate0 = p_.subloading.u_tilde * cos0 / sin0;  // +inf at r0 = 0, as U(0)
+    return {r0, cos0, one_minus_cos0, 0.0, rate0};
   }
-  r1 = std::clamp(r1, r_s0, 1.0);
-  return {r1, subloading_rate(r1)};
+  return {r0, 0.0, 0.0, subloading_slip_integral(r0), subloading_rate(r0)};
+}
+
+ValueAndSlope SubloadingFrictionLaw::subloading_ratio_after(const SubloadingStart& st,
+                                                            double slip) const {
+  if (slip <= 0.0 || st.r0 >= 1.0) return {st.r0, st.rate0};
+  if (p_.subloading.function != SubloadingFunction::cot) {
+    const double r1 = std::clamp(subloading_inverse_integral(st.integral0 + slip), st.r0, 1.0);
+    return {r1, subloading_rate(r1)};
+  }
+  // (2.28): x = cos(pi r1/2) = cos(pi r0/2) exp(-pi u s/2), carried with 1 - x so that small r0
+  // and small s keep their digits (acos is ill-conditioned next to 1). The slope
+  // U(r1) = u cot(pi r1/2) = u x / sqrt((1 - x)(1 + x)) needs no further trigonometry.
+  const double u = p_.subloading.u_tilde;
+  const double a = 0.5 * kPi * u * slip;
+  const double decay = std::expm1(-a);
+  const double x = st.cos0 * (1.0 + decay);
+  const double one_minus_x = st.one_minus_cos0 - st.cos0 * decay;
+  const double r1 = (x > 0.5) ? (4.0 / kPi) * std::asin(std::sqrt(0.5 * one_minus_x))
+                              : (2.0 / kPi) * std::acos(x);
+  if (r1 <= st.r0) return {st.r0, st.rate0};
+  if (r1 >= 1.0) return {1.0, 0.0};
+  return {r1, u * x / std::sqrt(one_minus_x * (1.0 + x))};
 }
 
 ValueAndSlope SubloadingFrictionLaw::friction_coefficient_after(double mu0, double slip,
@@ -166,6 +201,7 @@ ValueAndSlope SubloadingFrictionLaw::friction_coefficient_after(double mu0, doub
   //   mu1 = mu0 + (A - B mu0) (1 - e^{-B}) / B,  A = a dt, B = b dt,
   // which is unconditionally stable and never crosses mu_s or mu_k.
   const auto& f = p_.friction;
+  if (f.kappa == 0.0 && f.xi == 0.0) return {mu0, 0.0};
   const double A = f.kappa * slip + f.xi * dt;
   const double B = f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s;
   const Phi1 ph = phi1(B);
@@ -199,9 +235,8 @@ FlowResidual SubloadingFrictionLaw::flow_residual(double r, double r_s, double s
   }
   const double dy_dr = -o.eta_v * rate;
   const double dy_dslip = o.eta_v * gap / dt;
-  const double d_slip = (y > 0.0 || o.form == OverstressForm::exponential)
-                            ? -d_inv_dy * dy_dslip
-                            : -kInf;
+  const double d_slip =
+      (y > 0.0 || o.form == OverstressForm::exponential) ? -d_inv_dy * dy_dslip : -kInf;
   const double d_r = 1.0 - (y > 0.0 ? d_inv_dy * dy_dr : 0.0);
   return {(r - r_s) - inv, d_r, -1.0, d_slip, true};
 }
@@ -216,8 +251,8 @@ SubloadingFrictionLaw::SteadyState SubloadingFrictionLaw::steady_state(double v)
     return std::pair{phi - v, slip_rate_slope(r, 1.0)};
   };
   const double r_hat = p_.overstress.r_hat;
-  const auto root = safeguarded_newton(eval, 1.0, r_hat, 1.0 + 1e-3 * (r_hat - 1.0),
-                                       1e-14 * v, 1e-16, 1.0, 1000);
+  const auto root =
+      safeguarded_newton(eval, 1.0, r_hat, 1.0 + 1e-3 * (r_hat - 1.0), 1e-14 * v, 1e-16, 1.0, 1000);
   return {mu, root.x, root.x * mu};
 }
 

@@ -46,14 +46,14 @@ std::vector<double> increment_lengths(const Segment& s);
 
 struct ContactState {
   double time = 0.0;
-  Vec2 slip = Vec2::Zero();      // total tangential sliding displacement
-  double slip_path = 0.0;        // accumulated |du_t|
-  double vp_slip = 0.0;          // accumulated viscoplastic sliding |du_vp|
-  double vp_rate = 0.0;          // viscoplastic sliding rate of the last increment
+  Vec2 slip = Vec2::Zero();  // total tangential sliding displacement
+  double slip_path = 0.0;    // accumulated |du_t|
+  double vp_slip = 0.0;      // accumulated viscoplastic sliding |du_vp|
+  double vp_rate = 0.0;      // viscoplastic sliding rate of the last increment
   Vec2 traction_t = Vec2::Zero();
-  double traction_n = 0.0;       // f_n, compression positive
+  double traction_n = 0.0;  // f_n, compression positive
   law::LawState law;
-  double r = 0.0;                // dynamic loading ratio f_t / (f_n mu)
+  double r = 0.0;  // dynamic loading ratio f_t / (f_n mu)
 
   double traction_ratio() const { return traction_n > 0.0 ? traction_t.norm() / traction_n : 0.0; }
 };
@@ -62,7 +62,7 @@ enum class Method { forward_euler, implicit };
 
 struct IntegratorOptions {
   Method method = Method::implicit;
-  int max_cutbacks = 40;         // halvings of one increment before giving up
+  int max_cutbacks = 40;              // halvings of one increment before giving up
   double residual_tolerance = 1e-12;  // implicit: |G| in traction-ratio units
 };
 
@@ -103,8 +103,7 @@ ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffne
                      double fn_start, double t_in_segment, double dt, StepStats& stats);
 
 // The normal traction at time t into a segment that started with fn_start.
-double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start,
-                          double t);
+double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start, double t);
 
 struct ContactModel {
   law::LawParameters law;

@@ -25,11 +25,11 @@ using Mask3 = Eigen::Matrix<bool, 3, 3>;
 
 struct LoadSegment {
   Mat3 velocity_gradient = Mat3::Zero();  // prescribed components of L [1/time]
-  Mask3 free = Mask3::Constant(false);     // true: L_ij free, stress_ij prescribed
-  Mat3 stress_target = Mat3::Zero();       // Cauchy stress reached at the segment end (free comps)
-  double duration = 1.0;                   // [time]
+  Mask3 free = Mask3::Constant(false);    // true: L_ij free, stress_ij prescribed
+  Mat3 stress_target = Mat3::Zero();      // Cauchy stress reached at the segment end (free comps)
+  double duration = 1.0;                  // [time]
   int increments = 1;
-  double growth = 1.0;                     // ratio of successive increments
+  double growth = 1.0;  // ratio of successive increments
   int output_every = 1;
 };
 
@@ -41,15 +41,15 @@ enum class CrystalMethod { implicit, forward_euler };
 struct AggregateOptions {
   CrystalMethod method = CrystalMethod::implicit;
   GrainStepOptions grain;
-  int max_cutbacks = 20;          // halvings of one increment
-  double stress_tolerance = 1e-8; // mixed control: |sigma_free - target| relative to stress scale
+  int max_cutbacks = 20;           // halvings of one increment
+  double stress_tolerance = 1e-8;  // mixed control: |sigma_free - target| relative to stress scale
   int max_mixed_iterations = 25;
 };
 
 // What an observer sees at an output step.
 struct MacroState {
   double time = 0.0;
-  int segment = -1;        // -1 for the initial state
+  int segment = -1;  // -1 for the initial state
   Mat3 velocity_gradient = Mat3::Zero();
   Mat3 deformation_gradient = Mat3::Identity();
   Mat3 strain = Mat3::Zero();  // log strain ln V (finite rotation) or the integral of D

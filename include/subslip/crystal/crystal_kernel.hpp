@@ -61,16 +61,16 @@ template <int N>
 struct Phase {
   using T = SlipTypes<N>;
   int slip_count = N == Eigen::Dynamic ? 0 : N;
-  Mat6 stiffness;                 // C
-  typename T::Mat6N schmid;       // P_a = sym(s_a (x) m_a)
-  typename T::Mat6N c_schmid;     // C P_a
-  typename T::MatNN interaction;  // A_ab = P_a : C : P_b
-  typename T::Mat6N plane_normal_dyad;  // M_a = m_a (x) m_a (pressure-sensitive reading)
-  typename T::Mat6N c_normal_dyad;      // C M_a
-  typename T::MatNN normal_interaction; // M_a : C : P_b
-  typename T::Mat3N slip_spin;    // axial vector of skew(s_a (x) m_a): lattice spin per unit slip
-  typename T::VecN tau0;          // reference stress per system (plays f_n)
-  typename T::MatNN latent;       // q_ab (used only when has_latent)
+  Mat6 stiffness;                        // C
+  typename T::Mat6N schmid;              // P_a = sym(s_a (x) m_a)
+  typename T::Mat6N c_schmid;            // C P_a
+  typename T::MatNN interaction;         // A_ab = P_a : C : P_b
+  typename T::Mat6N plane_normal_dyad;   // M_a = m_a (x) m_a (pressure-sensitive reading)
+  typename T::Mat6N c_normal_dyad;       // C M_a
+  typename T::MatNN normal_interaction;  // M_a : C : P_b
+  typename T::Mat3N slip_spin;  // axial vector of skew(s_a (x) m_a): lattice spin per unit slip
+  typename T::VecN tau0;        // reference stress per system (plays f_n)
+  typename T::MatNN latent;     // q_ab (used only when has_latent)
   bool has_latent = false;
   bool pressure_sensitive = false;
   Kinematics kinematics = Kinematics::finite_rotation;
@@ -84,12 +84,12 @@ struct Phase {
 template <int N>
 struct GrainState {
   using T = SlipTypes<N>;
-  Vec6 stress;              // Cauchy stress, lattice frame (Mandel)
-  Mat3 orientation;         // g: v_crystal = g v_sample (passive, Rowenhorst P = -1)
-  typename T::VecN mu;      // friction coefficient per system (CRSS = mu tau0)
-  typename T::VecN r_s;     // subloading ratio per system
-  typename T::VecN slip;    // accumulated signed slip per system
-  typename T::VecN rate;    // slip rate of the last step (signed), warm start and output
+  Vec6 stress;            // Cauchy stress, lattice frame (Mandel)
+  Mat3 orientation;       // g: v_crystal = g v_sample (passive, Rowenhorst P = -1)
+  typename T::VecN mu;    // friction coefficient per system (CRSS = mu tau0)
+  typename T::VecN r_s;   // subloading ratio per system
+  typename T::VecN slip;  // accumulated signed slip per system
+  typename T::VecN rate;  // slip rate of the last step (signed), warm start and output
 
   void reset(int n, const Mat3& g, const typename T::VecN& mu0);
   Vec6 sample_stress() const;
@@ -104,7 +104,7 @@ struct GrainStepOptions {
 struct GrainStepReport {
   bool ok = false;
   int iterations = 0;
-  int system = -1;           // the slip system that failed, when known
+  int system = -1;  // the slip system that failed, when known
   const char* why = "";
 };
 

@@ -36,7 +36,7 @@ struct LatentHardening {
 };
 
 struct PhaseDescription {
-  std::vector<SlipFamily> families;             // in this order in every per-system output
+  std::vector<SlipFamily> families;                // in this order in every per-system output
   std::vector<SlipGroupSettings> family_settings;  // one per family
   std::vector<CustomSlipSystem> custom_systems;    // used instead of families when non-empty
   SlipGroupSettings custom_settings;

@@ -14,7 +14,7 @@
 namespace subslip {
 
 struct ScalarRoot {
-  double x;          // the root (the bracket end on the negative side when it collapses)
+  double x;  // the root (the bracket end on the negative side when it collapses)
   int iterations;
   bool converged;
 };
@@ -36,7 +36,8 @@ ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, d
     auto [f, df] = eval(x);
     // Converged when |F| is within tolerance or within what double precision can resolve at x
     // (F changes by |dF/dx| ulp(x) between neighbouring doubles: very steep F stop there).
-    const double resolution = 4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x);
+    const double resolution =
+        4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x);
     if (std::isfinite(f) && std::abs(f) <= std::max(f_tol, resolution)) return {x, it, true};
     // Shrink the bracket with the sign of F at x.
     if ((f < 0.0) == increasing) {

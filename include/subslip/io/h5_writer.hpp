@@ -111,7 +111,8 @@ class Dataset : public Object {
   std::vector<std::string> filters() const;      // e.g. {"shuffle", "deflate"}
 };
 
-// An extendible dataset, [n] (columns == 0) or [n, columns], that grows one row at a time.
+// An extendible dataset, [n] (columns == 0), [n, columns] or [n, d1, d2, ...] (a row shape), that
+// grows one row at a time; a row is row-major, of the row shape's size.
 // Rows are gathered in a preallocated block and written by commit() (or when the block is
 // full): one H5Dset_extent + H5Dwrite per block instead of per row, which is what HDF5 makes
 // cheap. A writer commits its series before each File::flush(), so a flushed file holds every
@@ -119,11 +120,14 @@ class Dataset : public Object {
 class Series {
  public:
   Series(Dataset dataset, std::size_t columns, Type type, std::size_t block_rows);
+  // A series whose rows have `row_shape` (empty: scalar rows); float64 only when rank > 2.
+  Series(Dataset dataset, std::vector<std::size_t> row_shape, Type type, std::size_t block_rows);
   Series(Series&&) noexcept = default;
   Series& operator=(Series&&) = delete;  // would drop the target's uncommitted rows
   ~Series();  // commits what is left (errors are swallowed: commit() explicitly to see them)
 
-  // Appends one row: `row.size()` must be max(columns, 1). No allocation.
+  // Appends one row: `row.size()` must be the row width (columns, or the product of the row
+  // shape; 1 for a 1-D series). No allocation.
   void append(std::span<const double> row);
   void append(double value) { append(std::span<const double>(&value, 1)); }
   void append_int(int value);  // an int32 series
@@ -134,7 +138,8 @@ class Series {
 
  private:
   Dataset dataset_;
-  std::size_t columns_;
+  std::vector<std::size_t> row_shape_;  // {} for [n], {k} for [n, k], {d1, d2} for [n, d1, d2]
+  std::size_t width_;                   // elements per row
   Type type_;
   std::size_t block_rows_;
   std::size_t committed_ = 0;
@@ -151,6 +156,9 @@ struct SeriesSpec {
   std::string description;  // attribute `description`
   std::size_t chunk_rows = 1024;
   std::size_t block_rows = 256;  // rows gathered in memory between writes
+  // When non-empty, replaces `columns`: the dataset is [n, row_shape...] (e.g. [n, grains, k]
+  // for per-grain fields), chunked as [chunk_rows, row_shape...].
+  std::vector<std::size_t> row_shape = {};
 };
 
 class Group : public Object {
@@ -165,6 +173,11 @@ class Group : public Object {
   Dataset write_text(std::string_view name, std::string_view text,
                      std::string_view description) const;
   Series create_series(const SeriesSpec& spec) const;
+  // A fixed float64 array of `shape` (row-major `values`, size = product of shape) with `unit`
+  // and `description` attributes; for data that do not change during a run.
+  Dataset write_array(std::string_view name, std::span<const std::size_t> shape,
+                      std::span<const double> values, std::string_view unit,
+                      std::string_view description) const;
 };
 
 class File {

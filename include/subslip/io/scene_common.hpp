@@ -31,6 +31,9 @@ inline constexpr std::string_view kDimensionless = "1";
 
 // Reads `units: {stress: MPa, length: mm, time: min}` (all three required).
 Units parse_units(const CheckedNode& node);
+// The same for a scene kind without lengths (crystals: slip is dimensionless): `length` is
+// accepted and checked when given, else left empty.
+Units parse_units_without_length(const CheckedNode& node);
 
 // The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
 std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);

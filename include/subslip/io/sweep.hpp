@@ -31,7 +31,8 @@ struct SweepOverride {
 };
 
 struct SweepCase {
-  std::string name;  // "speed=10,eta_v=950" (the full path when two paths share a last key);
+  std::string name;  // "speed=10,eta_v=950": each path from its last key on ("L[0][1]=10"
+                     // for "loading[0].L[0][1]"), the full path when two paths share that;
                      // "base" when the scene has no sweep
   std::vector<SweepOverride> overrides;
   YamlDocument document;  // the scene with this case's values in place

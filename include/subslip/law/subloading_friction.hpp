@@ -18,7 +18,7 @@ namespace subslip::law {
 
 // U(r) of the subloading evolution dr_s = U(r_s) |du_vp| (2.25, 3.11).
 enum class SubloadingFunction {
-  cot,         // U = u_tilde cot(pi r / 2)        (2.27), the paper's choice; closed-form integral (2.28)
+  cot,  // U = u_tilde cot(pi r / 2)        (2.27), the paper's choice; closed-form integral (2.28)
   neg_log,     // U = -u_tilde ln r                (2.29)_1
   reciprocal,  // U = u_tilde (1/r - 1)            (2.29)_2
 };
@@ -93,7 +93,9 @@ class SubloadingFrictionLaw {
   explicit SubloadingFrictionLaw(const LawParameters& p);
 
   const LawParameters& parameters() const { return p_; }
-  bool is_rate_independent() const { return p_.overstress.form == OverstressForm::rate_independent; }
+  bool is_rate_independent() const {
+    return p_.overstress.form == OverstressForm::rate_independent;
+  }
 
   // U(r): rate of change of the subloading ratio per unit viscoplastic slip.
   double subloading_rate(double r) const;
@@ -108,6 +110,18 @@ class SubloadingFrictionLaw {
   // two forms are integrated exactly too, by inverting their closed-form integrals). The slope is
   // U(r_s1). Regular at r_s0 = 0.
   ValueAndSlope subloading_ratio_after(double r_s0, double slip) const;
+
+  // The same update split in two: what depends only on r_s0 is prepared once per step, so an
+  // implicit solver that evaluates many trial slips pays for it once.
+  struct SubloadingStart {
+    double r0;
+    double cos0;            // cot form: cos(pi r0/2)
+    double one_minus_cos0;  // cot form: 1 - cos(pi r0/2), kept accurate for small r0
+    double integral0;       // other forms: the slip integral H(r0)
+    double rate0;           // U(r0), the slope at zero slip
+  };
+  SubloadingStart subloading_start(double r_s0) const;
+  ValueAndSlope subloading_ratio_after(const SubloadingStart& start, double slip) const;
 
   // Exact integral of the mu evolution over a step of length dt with slip ds at constant rate.
   // `slip` is the effective slip driving mu (crystal: sum_b q_ab |dgamma_b|).

@@ -1,0 +1,84 @@
+// Crystal scene files (`scene: crystal`): a crystal phase (slip systems, elasticity, the
+// subloading-overstress law on every slip system), a set of grain orientations, and a loading
+// history of velocity gradients under DAMASK-style mixed control, run as a Taylor aggregate.
+// The format is documented in docs/scenes.md ("Crystal scenes"); this is its only parser.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/crystal/rotation.hpp"
+#include "subslip/io/scene_common.hpp"
+#include "subslip/io/sweep.hpp"
+#include "subslip/io/yaml_checked.hpp"
+
+namespace subslip::io {
+
+// Aggregate (macroscopic) time series, in output order.
+enum class MacroField { time, L, F, strain, stress, segment };
+inline constexpr std::array<MacroField, 6> kAllMacroFields = {
+    MacroField::time,   MacroField::L,      MacroField::F,
+    MacroField::strain, MacroField::stress, MacroField::segment};
+std::string_view to_string(MacroField f);
+
+// Per-grain time series, in output order.
+enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s };
+inline constexpr std::array<GrainField, 7> kAllGrainFields = {
+    GrainField::stress, GrainField::orientation, GrainField::slip, GrainField::slip_rate,
+    GrainField::crss,   GrainField::r,           GrainField::r_s};
+std::string_view to_string(GrainField f);
+
+struct CrystalOutputSelection {
+  std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
+  std::vector<GrainField> grains;  // in kAllGrainFields order; empty: no /grains group
+};
+
+// How the orientations were given, for the case attributes.
+struct OrientationSource {
+  std::string kind;         // file | euler_deg | random | component
+  std::string description;  // the file path as resolved, or the request
+};
+
+// One case of a crystal scene (the whole scene when it has no sweep).
+struct CrystalCase {
+  std::string name;                      // "base", or built from the sweep overrides
+  std::vector<SweepOverride> overrides;  // this case's swept values
+  crystal::PhaseDescription phase;
+  std::string elasticity_type;  // cubic | hexagonal | isotropic (for the attributes)
+  std::vector<crystal::Orientation> orientations;
+  OrientationSource orientation_source;
+  std::vector<crystal::LoadSegment> segments;
+  crystal::AggregateOptions options;
+  CrystalOutputSelection output;
+};
+
+struct CrystalScene {
+  std::string file;                // as given
+  std::string text;                // the YAML text, verbatim
+  std::string title;               // "" when the scene has none
+  Units units;                     // stress and time; length is not used (slip is dimensionless)
+  std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
+};
+
+// Top-level keys a sweep may reach into.
+inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
+    "phase", "orientations", "loading", "integrator", "output"};
+
+// Reads, sweeps and checks a crystal scene. Every problem is an InputError with file, line and
+// key path. Orientation files are read relative to the scene file's directory.
+CrystalScene load_crystal_scene(const std::filesystem::path& path);
+CrystalScene parse_crystal_scene(const YamlDocument& document);
+
+// The unit pairs of a crystal result file's /units group: ("stress", ...), ("time", ...).
+std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units);
+
+// The number of states the aggregate reports for `segments` (the initial state included).
+std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments);
+
+}  // namespace subslip::io

@@ -1,0 +1,522 @@
+#include "subslip/io/crystal_output.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+#include "subslip/crystal/rotation.hpp"
+
+namespace subslip::io {
+
+namespace {
+
+using crystal::Mat3;
+
+constexpr const char* kMatrixLayout = "row-major 3x3: 11 12 13 21 22 23 31 32 33";
+constexpr std::size_t kMacroBlockRows = 256;
+// Per-grain rows can be large (grains x slip systems): chunks of about 1 MiB, and about 4 MiB
+// gathered in memory between writes.
+constexpr std::size_t kGrainChunkBytes = std::size_t{1} << 20;
+constexpr std::size_t kGrainBlockBytes = std::size_t{4} << 20;
+
+struct FieldSpec {
+  std::size_t width;  // values per row (macro) or per grain (grains); 0: a 1-D macro series
+  h5::Type type;
+  std::string unit;
+  std::string description;
+  std::string components;  // the meaning of the last axis ("" for scalars)
+};
+
+FieldSpec macro_spec(MacroField f, const Units& u) {
+  const std::string one(kDimensionless);
+  switch (f) {
+    case MacroField::time:
+      return {0, h5::Type::float64, u.time, "time since the start of the loading history", ""};
+    case MacroField::L:
+      return {9, h5::Type::float64, "1/" + u.time,
+              "velocity gradient L of the last increment (free components as solved)",
+              kMatrixLayout};
+    case MacroField::F:
+      return {9, h5::Type::float64, one, "deformation gradient F", kMatrixLayout};
+    case MacroField::strain:
+      return {9, h5::Type::float64, one,
+              "strain: logarithmic ln V (finite_rotation) or the integral of D (small_strain)",
+              kMatrixLayout};
+    case MacroField::stress:
+      return {9, h5::Type::float64, u.stress,
+              "volume-averaged Cauchy stress (Taylor aggregate, sample frame)", kMatrixLayout};
+    case MacroField::segment:
+      return {0, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)",
+              ""};
+  }
+  return {0, h5::Type::float64, one, "", ""};
+}
+
+FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
+  const std::string one(kDimensionless);
+  const std::string per_system = "one value per slip system, in the order of slip_systems";
+  switch (f) {
+    case GrainField::stress:
+      return {6, h5::Type::float64, u.stress, "Cauchy stress of each grain, sample frame",
+              "11 22 33 23 13 12"};
+    case GrainField::orientation:
+      return {4, h5::Type::float64, one,
+              "orientation of each grain (passive, Rowenhorst P=-1, w>=0; maps sample to crystal)",
+              "w x y z"};
+    case GrainField::slip:
+      return {slip_count, h5::Type::float64, one, "accumulated signed slip", per_system};
+    case GrainField::slip_rate:
+      return {slip_count, h5::Type::float64, "1/" + u.time,
+              "signed slip rate over the last increment", per_system};
+    case GrainField::crss:
+      return {slip_count, h5::Type::float64, u.stress, "critical resolved shear stress mu tau0",
+              per_system};
+    case GrainField::r:
+      return {slip_count, h5::Type::float64, one, "dynamic loading ratio r = |tau| / (mu f_n)",
+              per_system};
+    case GrainField::r_s:
+      return {slip_count, h5::Type::float64, one, "subloading ratio r_s", per_system};
+  }
+  return {0, h5::Type::float64, one, "", ""};
+}
+
+// An attribute with its unit in a sibling attribute "<name>.unit".
+template <class Value>
+void set_with_unit(const h5::Group& g, const std::string& name, const Value& value,
+                   std::string_view unit) {
+  g.set_attribute(name, value);
+  g.set_attribute(name + ".unit", unit);
+}
+
+std::array<double, 9> row_major(const Mat3& m) {
+  std::array<double, 9> v{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) v[static_cast<std::size_t>(3 * i + j)] = m(i, j);
+  return v;
+}
+
+void write_overrides(const h5::Group& g, const CrystalCase& c) {
+  for (const SweepOverride& o : c.overrides) {
+    if (o.number) {
+      g.set_attribute("sweep:" + o.path, *o.number);
+    } else {
+      g.set_attribute("sweep:" + o.path, o.value);
+    }
+  }
+}
+
+// The settings of every slip system, in output order.
+std::vector<crystal::SlipGroupSettings> system_settings(const CrystalCase& c) {
+  std::vector<crystal::SlipGroupSettings> out;
+  for (const auto& sys : crystal::described_systems(c.phase)) {
+    out.push_back(c.phase.custom_systems.empty()
+                      ? c.phase.family_settings[static_cast<std::size_t>(sys.group)]
+                      : c.phase.custom_settings);
+  }
+  return out;
+}
+
+template <class Get>
+std::vector<double> per_system(const std::vector<crystal::SlipGroupSettings>& s, Get&& get) {
+  std::vector<double> v;
+  for (const auto& x : s) v.push_back(get(x));
+  return v;
+}
+
+template <class Get>
+std::vector<std::string> per_system_names(const std::vector<crystal::SlipGroupSettings>& s,
+                                          Get&& get) {
+  std::vector<std::string> v;
+  for (const auto& x : s) v.emplace_back(get(x));
+  return v;
+}
+
+// Law constants as arrays over slip systems (families may differ): the same names as a contact
+// case, in the crystal reading's units (slip is dimensionless).
+void write_law_parameters(const h5::Group& g, const CrystalCase& c, const Units& u) {
+  const auto s = system_settings(c);
+  const std::string_view one = kDimensionless;
+  const std::string per_time = "1/" + u.time;
+  set_with_unit(g, "tau0", per_system(s, [](const auto& x) { return x.tau0; }), u.stress);
+  set_with_unit(g, "initial_mu", per_system(s, [](const auto& x) { return x.initial_mu; }), one);
+  set_with_unit(g, "mu_s", per_system(s, [](const auto& x) { return x.law.friction.mu_s; }), one);
+  set_with_unit(g, "mu_k", per_system(s, [](const auto& x) { return x.law.friction.mu_k; }), one);
+  set_with_unit(g, "kappa", per_system(s, [](const auto& x) { return x.law.friction.kappa; }), one);
+  set_with_unit(g, "xi", per_system(s, [](const auto& x) { return x.law.friction.xi; }), per_time);
+  g.set_attribute("subloading_function", per_system_names(s, [](const auto& x) {
+                    return law::to_string(x.law.subloading.function);
+                  }));
+  set_with_unit(g, "u_tilde", per_system(s, [](const auto& x) { return x.law.subloading.u_tilde; }),
+                one);
+  g.set_attribute("overstress_form", per_system_names(s, [](const auto& x) {
+                    return law::to_string(x.law.overstress.form);
+                  }));
+  // NaN for rate-independent systems, which have no overstress constants.
+  auto overstress = [](double law::Overstress::*member) {
+    return [member](const crystal::SlipGroupSettings& x) {
+      return x.law.overstress.form == law::OverstressForm::rate_independent
+                 ? std::nan("")
+                 : x.law.overstress.*member;
+    };
+  };
+  set_with_unit(g, "eta_v", per_system(s, overstress(&law::Overstress::eta_v)), u.time);
+  set_with_unit(g, "n", per_system(s, overstress(&law::Overstress::n)), one);
+  set_with_unit(g, "r_hat", per_system(s, overstress(&law::Overstress::r_hat)), one);
+}
+
+std::string_view latent_kind(const crystal::LatentHardening& l) {
+  switch (l.kind) {
+    case crystal::LatentHardening::Kind::none:
+      return "none";
+    case crystal::LatentHardening::Kind::ratio:
+      return "ratio";
+    case crystal::LatentHardening::Kind::coplanar:
+      return "coplanar";
+  }
+  return "?";
+}
+
+void write_phase_parameters(const h5::Group& g, const CrystalCase& c, const Units& u) {
+  const crystal::PhaseDescription& d = c.phase;
+  std::vector<std::string> families;
+  for (auto f : d.families) families.emplace_back(crystal::to_string(f));
+  if (families.empty()) families.emplace_back("custom");
+  g.set_attribute("slip_families", families);
+  g.set_attribute("slip_count", static_cast<long long>(crystal::described_systems(d).size()));
+  const bool hexagonal =
+      !d.families.empty() && crystal::lattice_of(d.families.front()) == crystal::LatticeKind::hcp;
+  if (hexagonal) set_with_unit(g, "c_over_a", d.c_over_a, kDimensionless);
+  g.set_attribute("elasticity", c.elasticity_type);
+  const std::vector<double> c_mandel(d.stiffness.data(), d.stiffness.data() + 36);
+  set_with_unit(g, "stiffness_mandel", c_mandel, u.stress);
+  g.set_attribute("latent", latent_kind(d.latent));
+  if (d.latent.kind == crystal::LatentHardening::Kind::ratio)
+    set_with_unit(g, "latent_ratio", d.latent.ratio, kDimensionless);
+  if (d.latent.kind == crystal::LatentHardening::Kind::coplanar) {
+    set_with_unit(g, "latent_coplanar", d.latent.coplanar, kDimensionless);
+    set_with_unit(g, "latent_non_coplanar", d.latent.non_coplanar, kDimensionless);
+  }
+  g.set_attribute("pressure_sensitive", d.pressure_sensitive ? 1 : 0);
+  g.set_attribute("kinematics", d.kinematics == crystal::Kinematics::finite_rotation
+                                    ? "finite_rotation"
+                                    : "small_strain");
+}
+
+void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
+  g.set_attribute("grains", static_cast<long long>(c.orientations.size()));
+  g.set_attribute("orientations", c.orientation_source.kind);
+  g.set_attribute("orientations_source", c.orientation_source.description);
+  const auto& o = c.options;
+  g.set_attribute("integrator",
+                  o.method == crystal::CrystalMethod::implicit ? "implicit" : "forward_euler");
+  g.set_attribute("tolerance", o.grain.tolerance);
+  g.set_attribute("max_iterations", o.grain.max_iterations);
+  g.set_attribute("max_cutbacks", o.max_cutbacks);
+  g.set_attribute("stress_tolerance", o.stress_tolerance);
+  g.set_attribute("max_mixed_iterations", o.max_mixed_iterations);
+}
+
+std::vector<double> normalised_weights(const std::vector<crystal::Orientation>& grains) {
+  double total = 0.0;
+  for (const auto& o : grains) total += o.weight;
+  std::vector<double> w;
+  for (const auto& o : grains) w.push_back(o.weight / total);
+  return w;
+}
+
+void write_grain_statics(const h5::Group& g, const CrystalCase& c,
+                         const std::vector<crystal::DescribedSystem>& systems) {
+  const std::size_t n = c.orientations.size();
+  const std::size_t w_shape[1] = {n};
+  g.write_array("weight", w_shape, normalised_weights(c.orientations), kDimensionless,
+                "volume fraction of each grain (orientation weights normalised to sum 1)");
+  std::vector<double> q;
+  for (const auto& o : c.orientations) {
+    const auto v = o.q.canonical().as_vector();
+    q.insert(q.end(), v.data(), v.data() + 4);
+  }
+  const std::size_t q_shape[2] = {n, 4};
+  g.write_array("initial_orientation", q_shape, q, kDimensionless,
+                "initial orientation quaternion (w, x, y, z) of each grain")
+      .set_attribute("convention", "passive, Rowenhorst P=-1, w>=0");
+  std::vector<double> sm;
+  std::vector<std::string> labels;
+  for (const auto& sys : systems) {
+    sm.insert(sm.end(), sys.s.data(), sys.s.data() + 3);
+    sm.insert(sm.end(), sys.m.data(), sys.m.data() + 3);
+    labels.push_back(sys.label);
+  }
+  const std::size_t s_shape[2] = {systems.size(), 6};
+  g.write_array("slip_systems", s_shape, sm, kDimensionless,
+                "unit slip direction s (columns 0-2) and slip-plane normal m (columns 3-5), "
+                "lattice frame")
+      .set_attribute("labels", labels);
+}
+
+std::size_t rows_within(std::size_t bytes, std::size_t row_bytes, std::size_t most) {
+  return std::clamp<std::size_t>(bytes / std::max<std::size_t>(row_bytes, 1), 1, most);
+}
+
+// The per-grain values of `f` for the current state, [grains x k] row-major, in `out`.
+void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matrices,
+          std::vector<double>& out) {
+  switch (f) {
+    case GrainField::stress:
+      g.stress(out.data());
+      return;
+    case GrainField::orientation: {
+      g.orientation(matrices.data());
+      for (int k = 0; k < g.grain_count(); ++k) {
+        const auto base = static_cast<std::size_t>(k);
+        const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> m(matrices.data() +
+                                                                               9 * base);
+        const auto v = crystal::matrix_to_quaternion(m).canonical().as_vector();
+        std::copy(v.data(), v.data() + 4, out.begin() + static_cast<std::ptrdiff_t>(4 * base));
+      }
+      return;
+    }
+    case GrainField::slip:
+      g.slip(out.data());
+      return;
+    case GrainField::slip_rate:
+      g.slip_rate(out.data());
+      return;
+    case GrainField::crss:
+      g.crss(out.data());
+      return;
+    case GrainField::r:
+      g.ratio(out.data());
+      return;
+    case GrainField::r_s:
+      g.subloading_ratio(out.data());
+      return;
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- summary helpers
+
+std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& segments) {
+  std::pair<int, int> best{2, 2};
+  double largest = 0.0;
+  for (const auto& s : segments) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        const double v = s.free(i, j) ? 0.0 : std::abs(s.velocity_gradient(i, j));
+        if (v > largest) {
+          largest = v;
+          best = {i, j};
+        }
+      }
+    }
+  }
+  return best;
+}
+
+double von_mises_stress(const Eigen::Matrix3d& stress) {
+  const Mat3 sym = 0.5 * (stress + stress.transpose());
+  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
+  return std::sqrt(1.5 * dev.squaredNorm());
+}
+
+double von_mises_strain(const Eigen::Matrix3d& strain) {
+  const Mat3 sym = 0.5 * (strain + strain.transpose());
+  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
+  return std::sqrt(2.0 / 3.0 * dev.squaredNorm());
+}
+
+// ---------------------------------------------------------------- CrystalCaseWriter
+
+CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
+                                     const Units& units)
+    : group_(cases.create_group(c.name)), units_(units) {
+  group_.set_attribute("name", c.name);
+  group_.set_attribute("index", index);
+  write_overrides(group_, c);
+  write_phase_parameters(group_, c, units);
+  write_law_parameters(group_, c, units);
+  write_run_parameters(group_, c);
+  create_macro(c);
+  if (!c.output.grains.empty()) create_grains(c);
+}
+
+void CrystalCaseWriter::create_macro(const CrystalCase& c) {
+  const h5::Group macro = group_.create_group("macro");
+  const std::size_t rows = crystal_output_count(c.segments);
+  const std::size_t chunk_rows = std::clamp<std::size_t>(rows, 16, 4096);
+  for (MacroField f : c.output.macro) {
+    const FieldSpec spec = macro_spec(f, units_);
+    auto& series = macro_[static_cast<std::size_t>(f)];
+    series.emplace(macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
+                                        spec.description, chunk_rows, kMacroBlockRows}));
+    if (!spec.components.empty()) series->dataset().set_attribute("layout", spec.components);
+  }
+}
+
+void CrystalCaseWriter::create_grains(const CrystalCase& c) {
+  const h5::Group grains = group_.create_group("grains");
+  const auto systems = crystal::described_systems(c.phase);
+  write_grain_statics(grains, c, systems);
+  const std::size_t n_grains = c.orientations.size();
+  const std::size_t rows = crystal_output_count(c.segments);
+  std::size_t widest = 9;  // the orientation matrices are read before conversion
+  for (GrainField f : c.output.grains) {
+    const FieldSpec spec = grain_spec(f, units_, systems.size());
+    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    h5::SeriesSpec s{std::string(to_string(f)),
+                     0,
+                     spec.type,
+                     spec.unit,
+                     spec.description,
+                     rows_within(kGrainChunkBytes, row_bytes, rows),
+                     rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
+                     {n_grains, spec.width}};
+    auto& series = grains_[static_cast<std::size_t>(f)];
+    series.emplace(grains.create_series(s));
+    series->dataset().set_attribute("components", spec.components);
+    grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
+    widest = std::max(widest, spec.width);
+  }
+  matrices_.resize(n_grains * 9);
+  row_.resize(n_grains * widest);
+}
+
+void CrystalCaseWriter::append(const crystal::MacroState& m, const crystal::GrainFields& grains) {
+  last_ = m;
+  for (std::size_t k = 0; k < macro_.size(); ++k) {
+    if (!macro_[k]) continue;
+    h5::Series& out = *macro_[k];
+    switch (kAllMacroFields[k]) {
+      case MacroField::time:
+        out.append(m.time);
+        break;
+      case MacroField::L:
+        out.append(row_major(m.velocity_gradient));
+        break;
+      case MacroField::F:
+        out.append(row_major(m.deformation_gradient));
+        break;
+      case MacroField::strain:
+        out.append(row_major(m.strain));
+        break;
+      case MacroField::stress:
+        out.append(row_major(m.stress));
+        break;
+      case MacroField::segment:
+        out.append_int(m.segment);
+        break;
+    }
+  }
+  for (std::size_t k = 0; k < grains_.size(); ++k) {
+    if (!grains_[k]) continue;
+    fill(kAllGrainFields[k], grains, matrices_, row_);
+    grains_[k]->append(std::span<const double>(row_.data(), grain_width_[k]));
+  }
+}
+
+void CrystalCaseWriter::commit() {
+  for (auto& s : macro_) {
+    if (s) s->commit();
+  }
+  for (auto& s : grains_) {
+    if (s) s->commit();
+  }
+}
+
+void CrystalCaseWriter::finish(const CrystalSummary& summary) {
+  commit();
+  const std::string_view one = kDimensionless;
+  const auto& st = summary.stats;
+  group_.set_attribute("increments", st.increments);
+  group_.set_attribute("substeps", st.substeps);
+  group_.set_attribute("grain_steps", st.grain_steps);
+  group_.set_attribute("grain_solves", st.grain_solves);
+  group_.set_attribute("newton_iterations", st.newton_iterations);
+  group_.set_attribute("cutbacks", st.cutbacks);
+  group_.set_attribute("mixed_iterations", st.mixed_iterations);
+  set_with_unit(group_, "wall_seconds", st.wall_seconds, "s");
+  set_with_unit(group_, "grain_steps_per_second", summary.grain_steps_per_second, "1/s");
+  set_with_unit(group_, "final_time", summary.final_state.time, units_.time);
+  set_with_unit(group_, "final_stress", row_major(summary.final_state.stress), units_.stress);
+  set_with_unit(group_, "final_strain", row_major(summary.final_state.strain), one);
+  set_with_unit(group_, "final_von_mises_stress", summary.final_von_mises_stress, units_.stress);
+  set_with_unit(group_, "final_von_mises_strain", summary.final_von_mises_strain, one);
+}
+
+void CrystalCaseWriter::mark_failed(const std::string& why) {
+  commit();
+  group_.set_attribute("failed", why);
+}
+
+// ---------------------------------------------------------------- the run
+
+namespace {
+
+CrystalSummary summarise(const CrystalCase& c, const crystal::MacroState& last,
+                         const crystal::AggregateStats& stats) {
+  CrystalSummary s;
+  s.final_state = last;
+  s.axis = loading_component(c.segments);
+  s.final_von_mises_stress = von_mises_stress(last.stress);
+  s.final_von_mises_strain = von_mises_strain(last.strain);
+  s.stats = stats;
+  if (stats.wall_seconds > 0.0)
+    s.grain_steps_per_second = static_cast<double>(stats.grain_steps) / stats.wall_seconds;
+  if (stats.grain_solves > 0) {
+    s.newton_per_grain_solve =
+        static_cast<double>(stats.newton_iterations) / static_cast<double>(stats.grain_solves);
+  }
+  return s;
+}
+
+CrystalCaseResult run_case(const CrystalScene& scene, std::size_t index, const h5::Group& cases,
+                           h5::File& file, const CrystalRunOptions& options) {
+  const CrystalCase& c = scene.cases[index];
+  CrystalCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
+  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  CrystalCaseResult result{c.name, {}, {}};
+  try {
+    const auto stats = aggregate->run(
+        c.segments, c.options, [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
+          writer.append(m, g);
+          if (options.on_state) options.on_state(index, m, g);
+          if (file.flush_due()) {
+            writer.commit();
+            file.flush();
+          }
+        });
+    result.summary = summarise(c, writer.last_state(), stats);
+    writer.finish(result.summary);
+  } catch (const crystal::CrystalStepFailure& e) {
+    result.failure = "case '" + c.name + "': " + e.what();
+    result.summary = summarise(c, writer.last_state(), {});
+    writer.mark_failed(e.what());
+  }
+  file.flush();
+  return result;
+}
+
+}  // namespace
+
+std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,
+                                                 const CrystalRunOptions& options) {
+  h5::write_result_header(
+      file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
+  const h5::Group cases = file.root().create_group("cases");
+  std::vector<std::string> names;
+  for (const auto& c : scene.cases) names.push_back(c.name);
+  cases.set_attribute("names", names);
+  file.set_flush_interval(options.flush_interval);
+  std::vector<CrystalCaseResult> results;
+  for (std::size_t k = 0; k < scene.cases.size(); ++k) {
+    results.push_back(run_case(scene, k, cases, file, options));
+    if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
+  }
+  const bool all_ok = std::all_of(results.begin(), results.end(),
+                                  [](const CrystalCaseResult& r) { return r.failure.empty(); });
+  if (all_ok) h5::mark_completed(file);
+  return results;
+}
+
+}  // namespace subslip::io

@@ -1,0 +1,695 @@
+#include "subslip/io/crystal_scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+
+#include "subslip/crystal/elasticity.hpp"
+#include "subslip/crystal/slip_systems.hpp"
+#include "subslip/crystal/texture.hpp"
+#include "subslip/io/orientation_file.hpp"
+
+namespace subslip::io {
+
+namespace {
+
+using crystal::LatticeKind;
+using crystal::SlipFamily;
+using law::OverstressForm;
+using law::SubloadingFunction;
+
+// ln(growth^(n-1)) beyond this would overflow the increment lengths.
+constexpr double kMaxLogGrowth = 600.0;
+// |s . m| / (|s| |m|) above this: a custom slip direction that does not lie in its plane.
+constexpr double kMaxSlipPlaneCosine = 1e-6;
+
+// The message of an InputError without its "FILE:LINE: KEY: " prefix.
+std::string bare_message(const InputError& e) {
+  const std::string prefix = InputError::format(e.file, e.line, e.key, "");
+  return std::string(e.what()).substr(prefix.size());
+}
+
+// ---------------------------------------------------------------- law blocks
+//
+// The phase law is complete (every key required, as in a contact scene); a per-family law is
+// partial: each key it gives replaces the phase value, the others are inherited.
+
+double read_number(const CheckedNode& node, std::string_view key, double inherited, bool partial,
+                   const Range& range) {
+  return partial ? node.get_double(key, inherited, range) : node.get_double(key, range);
+}
+
+// Applies `read` to the block `key` of `node`: required for a complete law, optional (and then
+// left as inherited) for a partial one.
+template <class Read>
+void read_block(const CheckedNode& node, std::string_view key, bool partial, Read&& read) {
+  if (partial) {
+    if (auto block = node.optional(key)) read(*block);
+  } else {
+    read(node.required(key));
+  }
+}
+
+void parse_friction(const CheckedNode& node, law::FrictionCoefficientEvolution& f, bool partial) {
+  node.allow_keys({"mu_s", "mu_k", "kappa", "xi"});
+  f.mu_s = read_number(node, "mu_s", f.mu_s, partial, Range::positive());
+  f.mu_k = read_number(node, "mu_k", f.mu_k, partial, Range::positive());
+  f.kappa = read_number(node, "kappa", f.kappa, partial, Range::non_negative());
+  f.xi = read_number(node, "xi", f.xi, partial, Range::non_negative());
+}
+
+void parse_subloading(const CheckedNode& node, law::SubloadingEvolution& s, bool partial) {
+  node.allow_keys({"function", "u_tilde"});
+  if (auto f = node.optional("function")) {
+    s.function = f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
+                                                 {"neg_log", SubloadingFunction::neg_log},
+                                                 {"reciprocal", SubloadingFunction::reciprocal}});
+  }
+  s.u_tilde = read_number(node, "u_tilde", s.u_tilde, partial, Range::positive());
+}
+
+void parse_overstress(const CheckedNode& node, law::Overstress& o, bool partial) {
+  node.allow_keys({"form", "eta_v", "n", "r_hat"});
+  const OverstressForm inherited_form = o.form;
+  if (auto f = node.optional("form")) {
+    o.form = f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
+                                         {"power", OverstressForm::power},
+                                         {"rate_independent", OverstressForm::rate_independent}});
+  }
+  if (o.form == OverstressForm::rate_independent) {
+    // Silently ignoring them would let a reader believe they act.
+    for (const char* unused : {"eta_v", "n", "r_hat"}) {
+      if (auto v = node.optional(unused))
+        v->fail("not used by the rate_independent form; remove it");
+    }
+    return;
+  }
+  // A rate-dependent form over an inherited rate-independent one has nothing to inherit.
+  const bool own = !partial || inherited_form == OverstressForm::rate_independent;
+  o.eta_v = read_number(node, "eta_v", o.eta_v, !own, Range::positive());
+  o.n = read_number(node, "n", o.n, !own, Range::positive());
+  o.r_hat = read_number(node, "r_hat", o.r_hat, !own, Range::greater_than(1.0));
+}
+
+law::LawParameters parse_law(const CheckedNode& node, law::LawParameters base, bool partial) {
+  node.allow_keys({"friction", "subloading", "overstress"});
+  read_block(node, "friction", partial,
+             [&](const CheckedNode& n) { parse_friction(n, base.friction, partial); });
+  read_block(node, "subloading", partial,
+             [&](const CheckedNode& n) { parse_subloading(n, base.subloading, partial); });
+  read_block(node, "overstress", partial,
+             [&](const CheckedNode& n) { parse_overstress(n, base.overstress, partial); });
+  return base;
+}
+
+// ---------------------------------------------------------------- slip systems
+
+std::vector<std::string_view> family_names() {
+  std::vector<std::string_view> names;
+  for (SlipFamily f : crystal::all_slip_families()) names.push_back(crystal::to_string(f));
+  return names;
+}
+
+std::string_view lattice_name(LatticeKind k) {
+  switch (k) {
+    case LatticeKind::fcc:
+      return "fcc";
+    case LatticeKind::bcc:
+      return "bcc";
+    case LatticeKind::hcp:
+      return "hcp";
+  }
+  return "?";
+}
+
+std::vector<SlipFamily> parse_families(const CheckedNode& node) {
+  if (node.size() == 0) node.fail("needs at least one slip family");
+  const auto names = family_names();
+  std::vector<SlipFamily> families;
+  for (const CheckedNode& element : node.elements()) {
+    const SlipFamily f = crystal::parse_slip_family(element.as_choice(names));
+    if (std::find(families.begin(), families.end(), f) != families.end())
+      element.fail("slip family '" + std::string(crystal::to_string(f)) + "' listed twice");
+    if (!families.empty() && crystal::lattice_of(f) != crystal::lattice_of(families.front())) {
+      element.fail("'" + std::string(crystal::to_string(f)) + "' is a " +
+                   std::string(lattice_name(crystal::lattice_of(f))) + " family but '" +
+                   std::string(crystal::to_string(families.front())) + "' is " +
+                   std::string(lattice_name(crystal::lattice_of(families.front()))) +
+                   "; a phase has one lattice");
+    }
+    families.push_back(f);
+  }
+  return families;
+}
+
+crystal::Vec3 read_vec3(const CheckedNode& node) {
+  const auto v = node.as_doubles(Range::any(), 3);
+  const crystal::Vec3 out(v[0], v[1], v[2]);
+  if (!(out.norm() > 0.0)) node.fail("must be non-zero");
+  return out;
+}
+
+std::vector<crystal::CustomSlipSystem> parse_custom_systems(const CheckedNode& node) {
+  const std::size_t n = node.size();
+  if (n == 0 || n > static_cast<std::size_t>(crystal::kMaxSlipSystems)) {
+    node.fail("needs 1 to " + std::to_string(crystal::kMaxSlipSystems) + " slip systems, got " +
+              std::to_string(n));
+  }
+  std::vector<crystal::CustomSlipSystem> systems;
+  for (const CheckedNode& element : node.elements()) {
+    element.allow_keys({"s", "m"});
+    const crystal::Vec3 s = read_vec3(element.required("s"));
+    const crystal::Vec3 m = read_vec3(element.required("m"));
+    const double cosine = std::abs(s.dot(m)) / (s.norm() * m.norm());
+    if (cosine > kMaxSlipPlaneCosine) {
+      element.fail(
+          "the slip direction s must lie in the slip plane (s . m = 0); the angle "
+          "between s and m is " +
+          std::to_string(std::acos(std::min(cosine, 1.0)) * 180.0 / std::numbers::pi) + " deg");
+    }
+    systems.push_back({s, m});
+  }
+  return systems;
+}
+
+// ---------------------------------------------------------------- elasticity
+
+// Reads the constants of `type`; the constructors check positive definiteness.
+crystal::Mat6 stiffness_of(const CheckedNode& node, const std::string& type) {
+  if (type == "cubic") {
+    node.allow_keys({"type", "C11", "C12", "C44"});
+    return crystal::cubic_stiffness(node.get_double("C11"), node.get_double("C12"),
+                                    node.get_double("C44"));
+  }
+  if (type == "hexagonal") {
+    node.allow_keys({"type", "C11", "C12", "C13", "C33", "C44"});
+    return crystal::hexagonal_stiffness(node.get_double("C11"), node.get_double("C12"),
+                                        node.get_double("C13"), node.get_double("C33"),
+                                        node.get_double("C44"));
+  }
+  node.allow_keys({"type", "E", "G", "nu"});
+  const double nu = node.get_double("nu");
+  if (*node.one_of({"E", "G"}, true) == "E")
+    return crystal::isotropic_from_E_nu(node.get_double("E"), nu);
+  return crystal::isotropic_from_G_nu(node.get_double("G"), nu);
+}
+
+// A cubic stiffness on a hexagonal crystal (or the reverse) is a mistake; custom systems and
+// isotropic elasticity go with anything.
+void check_elastic_symmetry(const CheckedNode& type_node, const std::string& type,
+                            const std::vector<SlipFamily>& families) {
+  if (families.empty() || type == "isotropic") return;
+  const bool hexagonal = crystal::lattice_of(families.front()) == LatticeKind::hcp;
+  if ((type == "hexagonal") != hexagonal) {
+    type_node.fail("'" + type + "' elasticity does not fit the " +
+                   std::string(lattice_name(crystal::lattice_of(families.front()))) +
+                   " slip families; use " + (hexagonal ? "hexagonal" : "cubic") + " or isotropic");
+  }
+}
+
+crystal::Mat6 parse_elasticity(const CheckedNode& node, const std::vector<SlipFamily>& families,
+                               std::string& type) {
+  node.expect_map();
+  const CheckedNode type_node = node.required("type");
+  type = type_node.as_choice({"cubic", "hexagonal", "isotropic"});
+  check_elastic_symmetry(type_node, type, families);
+  try {
+    return stiffness_of(node, type);
+  } catch (const std::invalid_argument& e) {
+    node.fail(e.what());
+  }
+}
+
+// ---------------------------------------------------------------- phase
+
+crystal::LatentHardening parse_latent(const CheckedNode& node) {
+  node.allow_keys({"ratio", "coplanar", "non_coplanar"});
+  crystal::LatentHardening latent;
+  if (node.has("ratio")) {
+    for (const char* other : {"coplanar", "non_coplanar"}) {
+      if (auto v = node.optional(other))
+        v->fail("give either 'ratio' or 'coplanar' and 'non_coplanar', not both");
+    }
+    latent.kind = crystal::LatentHardening::Kind::ratio;
+    latent.ratio = node.get_double("ratio", Range::non_negative());
+    return latent;
+  }
+  if (!node.has("coplanar") && !node.has("non_coplanar"))
+    throw node.missing("ratio", "needs 'ratio', or 'coplanar' and 'non_coplanar'");
+  latent.kind = crystal::LatentHardening::Kind::coplanar;
+  latent.coplanar = node.get_double("coplanar", Range::non_negative());
+  latent.non_coplanar = node.get_double("non_coplanar", Range::non_negative());
+  return latent;
+}
+
+void parse_c_over_a(const CheckedNode& phase, crystal::PhaseDescription& d) {
+  const bool hexagonal =
+      !d.families.empty() && crystal::lattice_of(d.families.front()) == LatticeKind::hcp;
+  if (hexagonal) {
+    d.c_over_a = phase.get_double("c_over_a", Range::positive());
+  } else if (auto c = phase.optional("c_over_a")) {
+    c->fail("c_over_a is used by hcp slip families only; remove it");
+  }
+}
+
+// The settings of one family: the phase settings with the family's overrides.
+crystal::SlipGroupSettings family_settings(const std::optional<CheckedNode>& node,
+                                           const crystal::SlipGroupSettings& phase,
+                                           bool phase_initial_mu) {
+  crystal::SlipGroupSettings s = phase;
+  bool own_initial_mu = phase_initial_mu;
+  if (node) {
+    node->allow_keys({"tau0", "initial_mu", "law"});
+    s.tau0 = node->get_double("tau0", phase.tau0, Range::positive());
+    if (auto l = node->optional("law")) s.law = parse_law(*l, phase.law, true);
+    if (auto mu = node->optional("initial_mu")) {
+      s.initial_mu = mu->as_double(Range::positive());
+      own_initial_mu = true;
+    }
+  }
+  // Resolved here (not left 0 for the builder) so that the result file records the value.
+  if (!own_initial_mu) s.initial_mu = s.law.friction.mu_s;
+  return s;
+}
+
+void parse_per_family(const CheckedNode& phase, const crystal::SlipGroupSettings& settings,
+                      bool phase_initial_mu, crystal::PhaseDescription& d) {
+  const auto per_family = phase.optional("per_family");
+  if (per_family && !d.custom_systems.empty())
+    per_family->fail("per_family needs slip families; custom slip systems share the phase law");
+  std::vector<std::string_view> listed;
+  for (SlipFamily f : d.families) listed.push_back(crystal::to_string(f));
+  if (per_family) per_family->allow_keys(listed);
+  for (SlipFamily f : d.families) {
+    const auto node = per_family ? per_family->optional(crystal::to_string(f)) : std::nullopt;
+    d.family_settings.push_back(family_settings(node, settings, phase_initial_mu));
+  }
+  if (!d.custom_systems.empty())
+    d.custom_settings = family_settings({}, settings, phase_initial_mu);
+}
+
+void parse_phase(const CheckedNode& node, CrystalCase& c) {
+  node.allow_keys({"families", "slip_systems", "c_over_a", "elasticity", "tau0", "law",
+                   "initial_mu", "per_family", "latent", "pressure_sensitive", "kinematics"});
+  crystal::PhaseDescription& d = c.phase;
+  if (*node.one_of({"families", "slip_systems"}, true) == "families") {
+    d.families = parse_families(node.required("families"));
+  } else {
+    d.custom_systems = parse_custom_systems(node.required("slip_systems"));
+  }
+  parse_c_over_a(node, d);
+  d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type);
+  crystal::SlipGroupSettings settings;
+  settings.tau0 = node.get_double("tau0", Range::positive());
+  settings.law = parse_law(node.required("law"), {}, false);
+  const auto initial_mu = node.optional("initial_mu");
+  if (initial_mu) settings.initial_mu = initial_mu->as_double(Range::positive());
+  parse_per_family(node, settings, initial_mu.has_value(), d);
+  if (auto latent = node.optional("latent")) d.latent = parse_latent(*latent);
+  if (auto p = node.optional("pressure_sensitive")) d.pressure_sensitive = p->as_bool();
+  if (auto k = node.optional("kinematics")) {
+    d.kinematics =
+        k->as_enum<crystal::Kinematics>({{"finite_rotation", crystal::Kinematics::finite_rotation},
+                                         {"small_strain", crystal::Kinematics::small_strain}});
+  }
+}
+
+// ---------------------------------------------------------------- orientations
+
+std::filesystem::path resolve_relative(const std::string& file, const std::string& scene_file) {
+  const std::filesystem::path p(file);
+  if (p.is_absolute()) return p;
+  return std::filesystem::path(scene_file).parent_path() / p;
+}
+
+// Errors inside the orientation file keep its file and line and say which scene key read it;
+// a missing or empty file has no line of its own and is reported at the scene key.
+std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node,
+                                                         OrientationSource& source) {
+  const std::filesystem::path path = resolve_relative(node.as_string(), node.file());
+  source = {"file", path.string()};
+  try {
+    return read_orientation_file(path.string());
+  } catch (const InputError& e) {
+    if (e.line == 0) node.fail(e.what());
+    throw InputError(e.file, e.line, e.key,
+                     bare_message(e) + " (orientation file given at " +
+                         InputError::format(node.file(), node.line(), node.path(), "") + ")");
+  }
+}
+
+std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
+  if (node.size() == 0) node.fail("needs at least one orientation");
+  std::vector<crystal::Orientation> out;
+  for (const CheckedNode& element : node.elements()) {
+    const auto v = element.as_doubles();
+    if (v.size() != 3 && v.size() != 4)
+      element.fail("expected [phi1, Phi, phi2] or [phi1, Phi, phi2, weight] in degrees");
+    if (!(v[1] >= 0.0 && v[1] <= 180.0)) element.fail("Phi must be in [0, 180] degrees");
+    if (v.size() == 4 && !(v[3] > 0.0)) element.fail("the weight must be > 0");
+    const crystal::Vec3 euler = crystal::degrees_to_radians(crystal::Vec3(v[0], v[1], v[2]));
+    out.push_back(crystal::Orientation::from_euler(euler, v.size() == 4 ? v[3] : 1.0));
+  }
+  source = {"euler_deg", std::to_string(out.size()) + " inline Bunge Euler angle sets"};
+  return out;
+}
+
+std::uint64_t read_seed(const CheckedNode& node) {
+  return static_cast<std::uint64_t>(node.get_int("seed", 1, Range::non_negative()));
+}
+
+std::vector<crystal::Orientation> generated(const CheckedNode& node, bool component,
+                                            OrientationSource& source) {
+  crystal::OrientationRequest request;
+  if (component) {
+    node.allow_keys({"name", "count", "spread_deg", "seed"});
+    request.component = crystal::parse_texture_component(
+        node.required("name").as_choice({"cube", "goss", "brass", "copper", "s"}));
+    request.spread_deg = node.get_double("spread_deg", 0.0, Range::in_closed_interval(0, 180));
+  } else {
+    node.allow_keys({"count", "seed"});
+  }
+  request.count = static_cast<std::size_t>(node.get_int("count", Range::at_least(1)));
+  request.seed = read_seed(node);
+  source = {component ? "component" : "random", crystal::describe(request)};
+  return crystal::generate_orientations(request);
+}
+
+std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
+                                                     OrientationSource& source) {
+  node.allow_keys({"file", "euler_deg", "random", "component"});
+  const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
+  const CheckedNode value = node.required(kind);
+  if (kind == "file") return read_orientations_from(value, source);
+  if (kind == "euler_deg") return inline_euler(value, source);
+  return generated(value, kind == "component", source);
+}
+
+// ---------------------------------------------------------------- loading
+
+// A 3x3 matrix of numbers and `x` (free), rows i and columns j as written.
+struct MatrixInput {
+  crystal::Mat3 value = crystal::Mat3::Zero();
+  crystal::Mask3 free = crystal::Mask3::Constant(false);
+  std::vector<CheckedNode> entries;  // row-major, for error locations
+};
+
+bool is_free_marker(const CheckedNode& entry) {
+  return entry.is_scalar() && entry.yaml().Scalar() == "x";
+}
+
+MatrixInput read_matrix(const CheckedNode& node) {
+  const char* shape = "expected 3 rows of 3 entries, [[a, b, c], [d, e, f], [g, h, i]]";
+  if (!node.is_sequence() || node.size() != 3) node.fail(shape);
+  MatrixInput m;
+  for (int i = 0; i < 3; ++i) {
+    const CheckedNode row = node.element(static_cast<std::size_t>(i));
+    if (!row.is_sequence() || row.size() != 3) row.fail(shape);
+    for (int j = 0; j < 3; ++j) {
+      const CheckedNode entry = row.element(static_cast<std::size_t>(j));
+      m.entries.push_back(entry);
+      if (is_free_marker(entry)) {
+        m.free(i, j) = true;
+      } else {
+        m.value(i, j) = entry.as_double();
+      }
+    }
+  }
+  return m;
+}
+
+std::string component_name(int i, int j) {
+  return std::to_string(i + 1) + std::to_string(j + 1);
+}
+
+// Every component is prescribed either through L or through the stress, never both; a free
+// pair L_ij, L_ji has one unknown (D_ij), so its two stress targets must agree.
+void check_mixed_control(const MatrixInput& l, const std::optional<MatrixInput>& stress) {
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      const std::string ij = component_name(i, j);
+      const std::size_t k = static_cast<std::size_t>(3 * i + j);
+      if (!stress) {
+        if (l.free(i, j))
+          l.entries[k].fail("L_" + ij +
+                            " is free (x) but the segment has no 'stress' to "
+                            "prescribe stress_" +
+                            ij);
+        continue;
+      }
+      if (l.free(i, j) == stress->free(i, j)) {
+        stress->entries[k].fail("component " + ij + ": " +
+                                (l.free(i, j)
+                                     ? "L_" + ij + " and stress_" + ij + " are both x"
+                                     : "L_" + ij + " and stress_" + ij + " are both given") +
+                                "; exactly one of them must be x");
+      }
+    }
+  }
+  if (!stress) return;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i + 1; j < 3; ++j) {
+      if (l.free(i, j) && l.free(j, i) && stress->value(i, j) != stress->value(j, i)) {
+        stress->entries[static_cast<std::size_t>(3 * j + i)].fail(
+            "L_" + component_name(i, j) + " and L_" + component_name(j, i) +
+            " are both free, so stress_" + component_name(j, i) + " must equal stress_" +
+            component_name(i, j) + " (the Cauchy stress is symmetric)");
+      }
+    }
+  }
+}
+
+// The largest |L_ij| among the prescribed components (0 when none is non-zero).
+double driving_rate(const crystal::LoadSegment& seg) {
+  double rate = 0.0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (!seg.free(i, j)) rate = std::max(rate, std::abs(seg.velocity_gradient(i, j)));
+  return rate;
+}
+
+// `duration`, or `strain`: the integral of the largest prescribed |L_ij| over the segment, so
+// that a swept rate keeps the amount of deformation (duration = strain / rate).
+void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg) {
+  if (*node.one_of({"duration", "strain"}, true) == "duration") {
+    seg.duration = node.get_double("duration", Range::positive());
+    return;
+  }
+  const CheckedNode strain = node.required("strain");
+  const double amount = strain.as_double(Range::positive());
+  const double rate = driving_rate(seg);
+  if (!(rate > 0.0))
+    strain.fail("needs a non-zero prescribed component of L to reach it; give a duration");
+  seg.duration = amount / rate;
+}
+
+void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg) {
+  parse_duration(node, seg);
+  seg.increments = node.get_int("increments", Range::at_least(1));
+  seg.growth = node.get_double("growth", 1.0, Range::positive());
+  seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
+  if (std::abs(std::log(seg.growth)) * (seg.increments - 1) > kMaxLogGrowth) {
+    node.required("growth").fail("growth^(increments - 1) overflows; use a growth closer to 1");
+  }
+}
+
+crystal::LoadSegment parse_segment(const CheckedNode& node) {
+  node.allow_keys({"L", "stress", "duration", "strain", "increments", "growth", "output_every"});
+  const MatrixInput l = read_matrix(node.required("L"));
+  std::optional<MatrixInput> stress;
+  if (auto s = node.optional("stress")) stress = read_matrix(*s);
+  check_mixed_control(l, stress);
+  crystal::LoadSegment seg;
+  seg.velocity_gradient = l.value;
+  seg.free = l.free;
+  if (stress) seg.stress_target = stress->value;
+  parse_stepping(node, seg);
+  return seg;
+}
+
+std::vector<crystal::LoadSegment> parse_loading(const CheckedNode& node) {
+  if (node.size() == 0) node.fail("needs at least one segment");
+  std::vector<crystal::LoadSegment> segments;
+  for (const CheckedNode& element : node.elements()) segments.push_back(parse_segment(element));
+  return segments;
+}
+
+// ---------------------------------------------------------------- integrator and output
+
+bool uses_rate_independent(const crystal::PhaseDescription& d) {
+  auto ri = [](const crystal::SlipGroupSettings& s) {
+    return s.law.overstress.form == OverstressForm::rate_independent;
+  };
+  if (!d.custom_systems.empty()) return ri(d.custom_settings);
+  return std::any_of(d.family_settings.begin(), d.family_settings.end(), ri);
+}
+
+crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& node,
+                                           const crystal::PhaseDescription& phase) {
+  crystal::AggregateOptions opt;
+  if (!node) return opt;
+  node->allow_keys({"method", "tolerance", "max_iterations", "max_cutbacks", "stress_tolerance",
+                    "max_mixed_iterations"});
+  if (auto m = node->optional("method")) {
+    opt.method = m->as_enum<crystal::CrystalMethod>(
+        {{"implicit", crystal::CrystalMethod::implicit},
+         {"forward_euler", crystal::CrystalMethod::forward_euler}});
+    if (opt.method == crystal::CrystalMethod::forward_euler && uses_rate_independent(phase))
+      m->fail("forward_euler cannot integrate the rate_independent form; use implicit");
+  }
+  opt.grain.tolerance = node->get_double("tolerance", opt.grain.tolerance, Range::positive());
+  opt.grain.max_iterations =
+      node->get_int("max_iterations", opt.grain.max_iterations, Range::in_closed_interval(1, 1000));
+  opt.max_cutbacks =
+      node->get_int("max_cutbacks", opt.max_cutbacks, Range::in_closed_interval(0, 200));
+  opt.stress_tolerance =
+      node->get_double("stress_tolerance", opt.stress_tolerance, Range::positive());
+  opt.max_mixed_iterations = node->get_int("max_mixed_iterations", opt.max_mixed_iterations,
+                                           Range::in_closed_interval(1, 1000));
+  return opt;
+}
+
+// The fields of `all` named in `node`, in the order of `all`; each may appear once.
+template <class Field, std::size_t K>
+std::vector<Field> parse_field_list(const CheckedNode& node, const std::array<Field, K>& all) {
+  std::vector<std::string_view> names;
+  for (Field f : all) names.push_back(to_string(f));
+  std::vector<bool> wanted(K, false);
+  for (const CheckedNode& element : node.elements()) {
+    const std::string name = element.as_choice(names);
+    const auto k =
+        static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+    if (wanted[k]) element.fail("field '" + name + "' listed twice");
+    wanted[k] = true;
+  }
+  std::vector<Field> out;
+  for (std::size_t k = 0; k < K; ++k) {
+    if (wanted[k]) out.push_back(all[k]);
+  }
+  return out;
+}
+
+CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
+  CrystalOutputSelection out;
+  out.macro.assign(kAllMacroFields.begin(), kAllMacroFields.end());
+  if (!node) return out;
+  node->allow_keys({"macro", "grains"});
+  if (auto macro = node->optional("macro")) {
+    if (macro->size() == 0) macro->fail("needs at least 'time'");
+    out.macro = parse_field_list(*macro, kAllMacroFields);
+    if (out.macro.front() != MacroField::time) macro->fail("must include 'time'");
+  }
+  if (auto grains = node->optional("grains")) {
+    grains->expect_sequence();
+    out.grains = parse_field_list(*grains, kAllGrainFields);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------- the scene
+
+void check_top_level(const CheckedNode& root) {
+  root.allow_keys({"scene", "title", "units", "phase", "orientations", "loading", "integrator",
+                   "output", "sweep"});
+  root.get_choice("scene", {"crystal"});
+}
+
+CrystalCase parse_case(SweepCase swept) {
+  const CheckedNode root = swept.document.root();
+  check_top_level(root);
+  CrystalCase c;
+  c.name = std::move(swept.name);
+  c.overrides = std::move(swept.overrides);
+  parse_phase(root.required("phase"), c);
+  c.orientations = parse_orientations(root.required("orientations"), c.orientation_source);
+  c.segments = parse_loading(root.required("loading"));
+  c.options = parse_integrator(root.optional("integrator"), c.phase);
+  c.output = parse_output(root.optional("output"));
+  return c;
+}
+
+}  // namespace
+
+std::string_view to_string(MacroField f) {
+  switch (f) {
+    case MacroField::time:
+      return "time";
+    case MacroField::L:
+      return "L";
+    case MacroField::F:
+      return "F";
+    case MacroField::strain:
+      return "strain";
+    case MacroField::stress:
+      return "stress";
+    case MacroField::segment:
+      return "segment";
+  }
+  return "?";
+}
+
+std::string_view to_string(GrainField f) {
+  switch (f) {
+    case GrainField::stress:
+      return "stress";
+    case GrainField::orientation:
+      return "orientation";
+    case GrainField::slip:
+      return "slip";
+    case GrainField::slip_rate:
+      return "slip_rate";
+    case GrainField::crss:
+      return "crss";
+    case GrainField::r:
+      return "r";
+    case GrainField::r_s:
+      return "r_s";
+  }
+  return "?";
+}
+
+CrystalScene load_crystal_scene(const std::filesystem::path& path) {
+  return parse_crystal_scene(YamlDocument::from_file(path));
+}
+
+CrystalScene parse_crystal_scene(const YamlDocument& document) {
+  const CheckedNode root = document.root();
+  check_top_level(root);
+  CrystalScene scene;
+  scene.file = document.file();
+  scene.text = document.text();
+  scene.title = root.get_string("title", "");
+  scene.units = parse_units_without_length(root.required("units"));
+  for (SweepCase& swept : expand_sweep(document, kCrystalSweepable)) {
+    const std::string name = swept.name;
+    const bool swept_case = !swept.overrides.empty();
+    try {
+      scene.cases.push_back(parse_case(std::move(swept)));
+    } catch (const InputError& e) {
+      if (!swept_case) throw;
+      // The same problem may come from one swept value only: say which case.
+      throw InputError(e.file, e.line, e.key, bare_message(e) + " (in sweep case '" + name + "')");
+    }
+  }
+  return scene;
+}
+
+std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units) {
+  return {{"stress", units.stress}, {"time", units.time}};
+}
+
+std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments) {
+  std::size_t n = 1;  // the initial state
+  for (const auto& s : segments) {
+    const auto inc = static_cast<std::size_t>(s.increments);
+    const auto every = static_cast<std::size_t>(s.output_every);
+    n += inc / every + (inc % every != 0 ? 1 : 0);
+  }
+  return n;
+}
+
+}  // namespace subslip::io
