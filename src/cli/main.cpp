@@ -7,6 +7,8 @@
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
+
+#include "bench.hpp"
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -279,8 +281,10 @@ int main(int argc, char** argv) {
   add_run_command(app, run_args);
   OrientationArgs orientation_args;
   add_orientations_command(app, orientation_args);
-  // Further subcommands (post, bench, accuracy) register here, each with its own argument
-  // struct and a branch below.
+  cli::BenchArgs bench_args;
+  cli::add_bench_command(app, bench_args);
+  // Further subcommands (post, accuracy) register here, each with its own argument struct and
+  // a branch below.
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -290,6 +294,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("run")) return run_scene(run_args);
     if (app.got_subcommand("orientations")) return run_orientations(orientation_args);
+    if (app.got_subcommand("bench")) return cli::run_bench(bench_args);
   } catch (const InputError& e) {
     return report(e.what(), 2);
   } catch (const io::h5::OutputPathError& e) {

@@ -1,0 +1,20 @@
+// subslip bench: grain-steps per second of the crystal kernel (a benchmark, not a test).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+namespace subslip::cli {
+
+struct BenchArgs {
+  int grains = 20000;
+  int steps = 50;
+  std::vector<int> threads{1, 2};
+  std::vector<std::string> lattices{"fcc", "bcc48", "hcp"};
+};
+
+void add_bench_command(CLI::App& app, BenchArgs& args);
+int run_bench(const BenchArgs& args);
+
+}  // namespace subslip::cli
