@@ -1,5 +1,7 @@
 #include "subslip/io/contact_scene.hpp"
 
+#include "subslip/io/law_block.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -7,64 +9,9 @@ namespace subslip::io {
 
 namespace {
 
-using law::OverstressForm;
-using law::SubloadingFunction;
 
 // ln(growth^(n-1)) beyond this would overflow the increment lengths.
 constexpr double kMaxLogGrowth = 600.0;
-
-law::FrictionCoefficientEvolution parse_friction(const CheckedNode& node) {
-  node.allow_keys({"mu_s", "mu_k", "kappa", "xi"});
-  law::FrictionCoefficientEvolution f;
-  f.mu_s = node.get_double("mu_s", Range::positive());
-  f.mu_k = node.get_double("mu_k", Range::positive());
-  f.kappa = node.get_double("kappa", Range::non_negative());
-  f.xi = node.get_double("xi", Range::non_negative());
-  return f;
-}
-
-law::SubloadingEvolution parse_subloading(const CheckedNode& node) {
-  node.allow_keys({"function", "u_tilde"});
-  law::SubloadingEvolution s;
-  if (auto f = node.optional("function")) {
-    s.function = f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
-                                                 {"neg_log", SubloadingFunction::neg_log},
-                                                 {"reciprocal", SubloadingFunction::reciprocal}});
-  }
-  s.u_tilde = node.get_double("u_tilde", Range::positive());
-  return s;
-}
-
-law::Overstress parse_overstress(const CheckedNode& node) {
-  node.allow_keys({"form", "eta_v", "n", "r_hat"});
-  law::Overstress o;
-  if (auto f = node.optional("form")) {
-    o.form = f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
-                                         {"power", OverstressForm::power},
-                                         {"rate_independent", OverstressForm::rate_independent}});
-  }
-  if (o.form == OverstressForm::rate_independent) {
-    // Silently ignoring them would let a reader believe they act.
-    for (const char* unused : {"eta_v", "n", "r_hat"}) {
-      if (auto v = node.optional(unused))
-        v->fail("not used by the rate_independent form; remove it");
-    }
-    return o;
-  }
-  o.eta_v = node.get_double("eta_v", Range::positive());
-  o.n = node.get_double("n", Range::positive());
-  o.r_hat = node.get_double("r_hat", Range::greater_than(1.0));
-  return o;
-}
-
-law::LawParameters parse_law(const CheckedNode& node) {
-  node.allow_keys({"friction", "subloading", "overstress"});
-  law::LawParameters p;
-  p.friction = parse_friction(node.required("friction"));
-  p.subloading = parse_subloading(node.required("subloading"));
-  p.overstress = parse_overstress(node.required("overstress"));
-  return p;
-}
 
 void parse_contact_block(const CheckedNode& node, contact::ContactModel& model) {
   node.allow_keys({"alpha_n", "alpha_t", "normal_traction"});
@@ -223,7 +170,7 @@ ContactCase parse_case(SweepCase swept) {
   ContactCase c;
   c.name = std::move(swept.name);
   c.overrides = std::move(swept.overrides);
-  c.model.law = parse_law(root.required("law"));
+  c.model.law = parse_law_block(root.required("law"));
   parse_contact_block(root.required("contact"), c.model);
   parse_initial(root.optional("initial"), c.model);
   c.segments = parse_loading(root.required("loading"), c.model);

@@ -1,5 +1,7 @@
 #include "subslip/io/crystal_scene.hpp"
 
+#include "subslip/io/law_block.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -20,7 +22,6 @@ namespace {
 using crystal::LatticeKind;
 using crystal::SlipFamily;
 using law::OverstressForm;
-using law::SubloadingFunction;
 
 // ln(growth^(n-1)) beyond this would overflow the increment lengths.
 constexpr double kMaxLogGrowth = 600.0;
@@ -31,79 +32,6 @@ constexpr double kMaxSlipPlaneCosine = 1e-6;
 std::string bare_message(const InputError& e) {
   const std::string prefix = InputError::format(e.file, e.line, e.key, "");
   return std::string(e.what()).substr(prefix.size());
-}
-
-// ---------------------------------------------------------------- law blocks
-//
-// The phase law is complete (every key required, as in a contact scene); a per-family law is
-// partial: each key it gives replaces the phase value, the others are inherited.
-
-double read_number(const CheckedNode& node, std::string_view key, double inherited, bool partial,
-                   const Range& range) {
-  return partial ? node.get_double(key, inherited, range) : node.get_double(key, range);
-}
-
-// Applies `read` to the block `key` of `node`: required for a complete law, optional (and then
-// left as inherited) for a partial one.
-template <class Read>
-void read_block(const CheckedNode& node, std::string_view key, bool partial, Read&& read) {
-  if (partial) {
-    if (auto block = node.optional(key)) read(*block);
-  } else {
-    read(node.required(key));
-  }
-}
-
-void parse_friction(const CheckedNode& node, law::FrictionCoefficientEvolution& f, bool partial) {
-  node.allow_keys({"mu_s", "mu_k", "kappa", "xi"});
-  f.mu_s = read_number(node, "mu_s", f.mu_s, partial, Range::positive());
-  f.mu_k = read_number(node, "mu_k", f.mu_k, partial, Range::positive());
-  f.kappa = read_number(node, "kappa", f.kappa, partial, Range::non_negative());
-  f.xi = read_number(node, "xi", f.xi, partial, Range::non_negative());
-}
-
-void parse_subloading(const CheckedNode& node, law::SubloadingEvolution& s, bool partial) {
-  node.allow_keys({"function", "u_tilde"});
-  if (auto f = node.optional("function")) {
-    s.function = f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
-                                                 {"neg_log", SubloadingFunction::neg_log},
-                                                 {"reciprocal", SubloadingFunction::reciprocal}});
-  }
-  s.u_tilde = read_number(node, "u_tilde", s.u_tilde, partial, Range::positive());
-}
-
-void parse_overstress(const CheckedNode& node, law::Overstress& o, bool partial) {
-  node.allow_keys({"form", "eta_v", "n", "r_hat"});
-  const OverstressForm inherited_form = o.form;
-  if (auto f = node.optional("form")) {
-    o.form = f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
-                                         {"power", OverstressForm::power},
-                                         {"rate_independent", OverstressForm::rate_independent}});
-  }
-  if (o.form == OverstressForm::rate_independent) {
-    // Silently ignoring them would let a reader believe they act.
-    for (const char* unused : {"eta_v", "n", "r_hat"}) {
-      if (auto v = node.optional(unused))
-        v->fail("not used by the rate_independent form; remove it");
-    }
-    return;
-  }
-  // A rate-dependent form over an inherited rate-independent one has nothing to inherit.
-  const bool own = !partial || inherited_form == OverstressForm::rate_independent;
-  o.eta_v = read_number(node, "eta_v", o.eta_v, !own, Range::positive());
-  o.n = read_number(node, "n", o.n, !own, Range::positive());
-  o.r_hat = read_number(node, "r_hat", o.r_hat, !own, Range::greater_than(1.0));
-}
-
-law::LawParameters parse_law(const CheckedNode& node, law::LawParameters base, bool partial) {
-  node.allow_keys({"friction", "subloading", "overstress"});
-  read_block(node, "friction", partial,
-             [&](const CheckedNode& n) { parse_friction(n, base.friction, partial); });
-  read_block(node, "subloading", partial,
-             [&](const CheckedNode& n) { parse_subloading(n, base.subloading, partial); });
-  read_block(node, "overstress", partial,
-             [&](const CheckedNode& n) { parse_overstress(n, base.overstress, partial); });
-  return base;
 }
 
 // ---------------------------------------------------------------- slip systems
@@ -265,7 +193,7 @@ crystal::SlipGroupSettings family_settings(const std::optional<CheckedNode>& nod
   if (node) {
     node->allow_keys({"tau0", "initial_mu", "law"});
     s.tau0 = node->get_double("tau0", phase.tau0, Range::positive());
-    if (auto l = node->optional("law")) s.law = parse_law(*l, phase.law, true);
+    if (auto l = node->optional("law")) s.law = parse_law_block(*l, phase.law, true);
     if (auto mu = node->optional("initial_mu")) {
       s.initial_mu = mu->as_double(Range::positive());
       own_initial_mu = true;
@@ -305,7 +233,7 @@ void parse_phase(const CheckedNode& node, CrystalCase& c) {
   d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type);
   crystal::SlipGroupSettings settings;
   settings.tau0 = node.get_double("tau0", Range::positive());
-  settings.law = parse_law(node.required("law"), {}, false);
+  settings.law = parse_law_block(node.required("law"), {}, false);
   const auto initial_mu = node.optional("initial_mu");
   if (initial_mu) settings.initial_mu = initial_mu->as_double(Range::positive());
   parse_per_family(node, settings, initial_mu.has_value(), d);
