@@ -9,7 +9,6 @@ namespace subslip::io {
 
 namespace {
 
-
 // ln(growth^(n-1)) beyond this would overflow the increment lengths.
 constexpr double kMaxLogGrowth = 600.0;
 
@@ -221,19 +220,7 @@ ContactScene parse_contact_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units(root.required("units"));
-  for (SweepCase& swept : expand_sweep(document, kContactSweepable)) {
-    const std::string name = swept.name;
-    const bool swept_case = !swept.overrides.empty();
-    try {
-      scene.cases.push_back(parse_case(std::move(swept)));
-    } catch (const InputError& e) {
-      if (!swept_case) throw;
-      // The same problem may come from one swept value only: say which case.
-      const std::string prefix = InputError::format(e.file, e.line, e.key, "");
-      const std::string message = std::string(e.what()).substr(prefix.size());
-      throw InputError(e.file, e.line, e.key, message + " (in sweep case '" + name + "')");
-    }
-  }
+  scene.cases = parse_sweep_cases(document, kContactSweepable, parse_case);
   return scene;
 }
 

@@ -592,17 +592,7 @@ CrystalScene parse_crystal_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units_without_length(root.required("units"));
-  for (SweepCase& swept : expand_sweep(document, kCrystalSweepable)) {
-    const std::string name = swept.name;
-    const bool swept_case = !swept.overrides.empty();
-    try {
-      scene.cases.push_back(parse_case(std::move(swept)));
-    } catch (const InputError& e) {
-      if (!swept_case) throw;
-      // The same problem may come from one swept value only: say which case.
-      throw InputError(e.file, e.line, e.key, bare_message(e) + " (in sweep case '" + name + "')");
-    }
-  }
+  scene.cases = parse_sweep_cases(document, kCrystalSweepable, parse_case);
   return scene;
 }
 

@@ -18,6 +18,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "subslip/io/yaml_checked.hpp"
@@ -43,5 +44,26 @@ struct SweepCase {
 // missing path, an empty value list, or two cases with the same name.
 std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
                                     std::span<const std::string_view> sweepable);
+
+// Parses every case of a scene's sweep with `parse_case(SweepCase)`. An error that only one
+// swept value causes says which case it is in.
+template <class Parse>
+auto parse_sweep_cases(const YamlDocument& scene, std::span<const std::string_view> sweepable,
+                       Parse&& parse_case) {
+  std::vector<decltype(parse_case(std::declval<SweepCase>()))> cases;
+  for (SweepCase& swept : expand_sweep(scene, sweepable)) {
+    const std::string name = swept.name;
+    const bool swept_case = !swept.overrides.empty();
+    try {
+      cases.push_back(parse_case(std::move(swept)));
+    } catch (const InputError& e) {
+      if (!swept_case) throw;
+      const std::string prefix = InputError::format(e.file, e.line, e.key, "");
+      const std::string message = std::string(e.what()).substr(prefix.size());
+      throw InputError(e.file, e.line, e.key, message + " (in sweep case '" + name + "')");
+    }
+  }
+  return cases;
+}
 
 }  // namespace subslip::io
