@@ -26,8 +26,7 @@ struct ScalarRoot {
 template <class Eval>
 ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, double f_tol,
                               double x_tol, double x_floor, int max_iterations = 200) {
-  auto [f_lo, df_lo] = eval(lo);
-  (void)df_lo;
+  const double f_lo = eval(lo).first;
   if (f_lo == 0.0) return {lo, 0, true};
   const bool increasing = f_lo < 0.0;  // sign convention of the bracket
   double x = (guess > lo && guess < hi) ? guess : 0.5 * (lo + hi);
