@@ -6,7 +6,9 @@
 // consistency properties; no number is copied from a run of the code. Measured values are printed
 // with the prefix "[ measured ]".
 #include <gtest/gtest.h>
+
 #include <omp.h>
+#include "grain_recorder.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -75,31 +77,8 @@ LoadSegment uniaxial(double rate, double strain, int increments, double growth =
   return seg;
 }
 
-struct Snapshot {
-  MacroState macro;
-  std::vector<double> stress, orientation, slip, rate, crss, ratio, r_s;
-};
-struct Recorder {
-  std::vector<Snapshot> snaps;
-  MacroObserver observer() {
-    return [this](const MacroState& m, const GrainFields& f) {
-      Snapshot s;
-      s.macro = m;
-      const auto g = static_cast<size_t>(f.grain_count());
-      const auto n = g * static_cast<size_t>(f.slip_count());
-      s.stress.resize(6 * g), s.orientation.resize(9 * g), s.slip.resize(n), s.rate.resize(n),
-          s.crss.resize(n), s.ratio.resize(n), s.r_s.resize(n);
-      f.stress(s.stress.data());
-      f.orientation(s.orientation.data());
-      f.slip(s.slip.data());
-      f.slip_rate(s.rate.data());
-      f.crss(s.crss.data());
-      f.ratio(s.ratio.data());
-      f.subloading_ratio(s.r_s.data());
-      snaps.push_back(std::move(s));
-    };
-  }
-};
+using Snapshot = subslip::testing::GrainSnapshot;
+using Recorder = subslip::testing::GrainRecorder;
 
 double max_abs(const Mat3& m) {
   return m.cwiseAbs().maxCoeff();

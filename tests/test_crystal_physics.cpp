@@ -12,7 +12,9 @@
 // the Schmid-law onset. test_crystal_aggregate.cpp: mixed control, the Taylor factor, thread-count
 // independence, bounds/failure reporting and latent hardening.
 #include <gtest/gtest.h>
+
 #include <omp.h>
+#include "grain_recorder.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -115,30 +117,8 @@ double von_mises(const Mat3& s) {
 }
 
 // Records every output of an aggregate run: the macro state and the per-system fields.
-struct Snapshot {
-  MacroState macro;
-  std::vector<double> stress, slip, rate, crss, ratio, r_s;
-};
-struct Recorder {
-  std::vector<Snapshot> snaps;
-  MacroObserver observer() {
-    return [this](const MacroState& m, const GrainFields& f) {
-      Snapshot s;
-      s.macro = m;
-      const auto g = static_cast<size_t>(f.grain_count());
-      const auto n = g * static_cast<size_t>(f.slip_count());
-      s.stress.resize(6 * g), s.slip.resize(n), s.rate.resize(n), s.crss.resize(n),
-          s.ratio.resize(n), s.r_s.resize(n);
-      f.stress(s.stress.data());
-      f.slip(s.slip.data());
-      f.slip_rate(s.rate.data());
-      f.crss(s.crss.data());
-      f.ratio(s.ratio.data());
-      f.subloading_ratio(s.r_s.data());
-      snaps.push_back(std::move(s));
-    };
-  }
-};
+using Snapshot = subslip::testing::GrainSnapshot;
+using Recorder = subslip::testing::GrainRecorder;
 
 }  // namespace
 
