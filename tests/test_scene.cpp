@@ -168,7 +168,7 @@ TEST(ContactScene, SegmentsTrackNormalTraction) {
     normal: {velocity: -1.0e-6}
   - hold: {duration: 1}
     increments: 1
-integrator: {method: forward_euler, max_cutbacks: 5, tolerance: 1.0e-10}
+integrator: {method: forward_euler, max_cutbacks: 5, residual_tolerance: 1.0e-10}
 output: {fields: [ratio, time, mu]}
 initial: {mu: 0.09}
 )");

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "subslip/integrators/scalar_root.hpp"
+#include "subslip/integrators/step_control.hpp"
 
 namespace subslip::contact {
 
@@ -49,6 +50,22 @@ StepAttempt open_contact(const law::SubloadingFrictionLaw& law, ContactState s, 
   s.r = 0.0;
   s.vp_rate = 0.0;
   return {s, 0, true, {}};
+}
+
+// What a user needs to find a failed step: when, how far it was cut, why, and the state.
+std::string failure_message(const ContactState& s, int cutbacks, double dt,
+                            const std::string& why) {
+  std::ostringstream msg;
+  msg << "contact step failed at time " << s.time << " after " << cutbacks
+      << " cutbacks (dt = " << dt << "): " << why << "; state: mu = " << s.law.mu << ", r = " << s.r
+      << ", r_s = " << s.law.r_s << ", f_t = " << s.traction_t.norm() << ", f_n = " << s.traction_n;
+  return msg.str();
+}
+
+// The viscoplastic sliding velocity of a state, as a vector along its tangential traction.
+Vec2 sliding_velocity(const ContactState& s, double speed) {
+  const double ft = s.traction_t.norm();
+  return ft > 0.0 ? Vec2(s.traction_t * (speed / ft)) : Vec2::Zero();
 }
 
 }  // namespace
@@ -219,12 +236,7 @@ ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffne
       continue;
     }
     if (p.depth >= opt.max_cutbacks) {
-      std::ostringstream msg;
-      msg << "contact step failed at time " << s.time << " after " << p.depth
-          << " cutbacks (dt = " << p.dt << "): " << a.why << "; state: mu = " << s.law.mu
-          << ", r = " << s.r << ", r_s = " << s.law.r_s << ", f_t = " << s.traction_t.norm()
-          << ", f_n = " << s.traction_n;
-      throw StepFailure(msg.str());
+      throw StepFailure(failure_message(s, p.depth, p.dt, a.why));
     }
     ++stats.cutbacks;
     todo.push_back({0.5 * p.dt, p.depth + 1});
@@ -242,6 +254,77 @@ ContactState initial_state(const ContactModel& model) {
   return s;
 }
 
+namespace {
+
+// Local error of one implicit (backward Euler) step from s0 to s1: dt/2 |df_t/dt(end) -
+// df_t/dt(start)|, in units of the yield traction f_n mu (so in units of the loading ratio r).
+// The elastic part alpha_t v of the traction rate is constant within a segment, so only the
+// viscoplastic sliding velocity contributes.
+//
+// Where the start velocity comes from matters. For the rate-dependent forms it is the end
+// velocity ds/dt of the previous implicit step: the law's rate at s0 is the same quantity in
+// exact arithmetic, but near r_hat the rate is so steep in r that the flow-rule residual alone
+// (1e-12 in r) moves it by more than the change being measured, and steady sliding at impact
+// speed would crawl. For the rate-independent form the sliding velocity is set by this step's
+// loading (consistency), and the forward-Euler multiplier at s0 gives it.
+double local_error(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                   const ContactState& s0, const ContactState& s1, const Vec2& du_t, double fn1,
+                   double dt) {
+  const double yield = s1.traction_n * s1.law.mu;
+  if (!(yield > 0.0)) return 0.0;  // open contact: no traction, nothing to resolve
+  const double start_speed = law.is_rate_independent()
+                                 ? forward_euler_step(law, c, s0, du_t, fn1, dt).state.vp_rate
+                                 : s0.vp_rate;
+  const Vec2 change = sliding_velocity(s1, s1.vp_rate) - sliding_velocity(s0, start_speed);
+  return 0.5 * dt * c.alpha_t * change.norm() / yield;
+}
+
+// One segment with adaptive steps. The first step is the segment's first increment; the step
+// then follows the error estimate, and a failed step (no convergence, inadmissible state) is
+// halved like a cutback.
+void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactModel& model,
+                          const IntegratorOptions& opt, const Segment& seg, int index,
+                          ContactState& s, RunStats& stats, const OutputCallback& on_output) {
+  const ContactStiffness& c = model.stiffness;
+  const double fn_start = s.traction_n;
+  double dt = increment_lengths(seg).front();
+  double t = 0.0;
+  long accepted = 0;
+  int refusals = 0;
+  for (;;) {
+    const double remaining = seg.duration - t;
+    const bool last = dt >= remaining;
+    const double h = last ? remaining : dt;
+    const Vec2 du = seg.velocity * h;
+    const double fn1 = normal_traction_at(seg, c, fn_start, last ? seg.duration : t + h);
+    const StepAttempt a = implicit_step(law, c, s, du, fn1, h, opt.residual_tolerance);
+    stats.iterations += a.iterations;
+    const double error = a.ok ? local_error(law, c, s, a.state, du, fn1, h) : 0.0;
+    if (!a.ok || !(error <= opt.tolerance)) {
+      const bool failed = !a.ok;
+      failed ? ++stats.cutbacks : ++stats.rejected;
+      if (++refusals > integrators::kMaxRefusedAttempts || !(h > 0.0) || t + 0.5 * h == t) {
+        throw StepFailure(failure_message(
+            s, refusals, h, failed ? a.why : "local error estimate stays above the tolerance"));
+      }
+      dt = failed ? 0.5 * h
+                  : h * integrators::step_factor(error, opt.tolerance, integrators::kAfterRejected);
+      continue;
+    }
+    refusals = 0;
+    s = a.state;
+    t = last ? seg.duration : t + h;
+    ++accepted;
+    ++stats.increments;
+    ++stats.substeps;
+    dt = h * integrators::step_factor(error, opt.tolerance, integrators::kAfterAccepted);
+    if (last || accepted % seg.output_every == 0) on_output(s, index);
+    if (last) return;
+  }
+}
+
+}  // namespace
+
 RunStats run_history(const ContactModel& model, const std::vector<Segment>& segments,
                      const IntegratorOptions& opt, const OutputCallback& on_output) {
   const auto start = std::chrono::steady_clock::now();
@@ -249,8 +332,13 @@ RunStats run_history(const ContactModel& model, const std::vector<Segment>& segm
   RunStats stats;
   ContactState s = initial_state(model);
   on_output(s, -1);
+  const bool adaptive = opt.tolerance > 0.0 && opt.method == Method::implicit;
   for (size_t k = 0; k < segments.size(); ++k) {
     const Segment& seg = segments[k];
+    if (adaptive) {
+      run_segment_adaptive(law, model, opt, seg, static_cast<int>(k), s, stats, on_output);
+      continue;
+    }
     const double fn_start = s.traction_n;
     const auto dts = increment_lengths(seg);
     double t_local = 0.0;

@@ -1,5 +1,7 @@
 #include "subslip/crystal/aggregate.hpp"
 
+#include "subslip/integrators/step_control.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <chrono>
@@ -127,6 +129,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
  private:
   void run_segment(const LoadSegment& seg, int index, const AggregateOptions& opt,
                    const MacroObserver& observe) {
+    if (opt.tolerance > 0.0 && opt.method == CrystalMethod::implicit) {
+      run_segment_adaptive(seg, index, opt, observe);
+      return;
+    }
     const auto fc = free_components(seg.free);
     const Mat3 stress_start = macro_.stress;
     Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
@@ -143,6 +149,89 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const bool last = i + 1 == dts.size();
       if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) observe(macro_, *this);
     }
+  }
+
+  // One segment with adaptive steps (AggregateOptions::tolerance): the first step is the
+  // segment's first increment; then the step follows the error estimate, and a step that fails
+  // (a grain or the mixed control does not converge) is halved like a cutback.
+  void run_segment_adaptive(const LoadSegment& seg, int index, const AggregateOptions& opt,
+                            const MacroObserver& observe) {
+    const auto fc = free_components(seg.free);
+    const Mat3 stress_start = macro_.stress;
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
+    for (size_t k = 0; k < fc.size(); ++k)
+      u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    double dt = increment_lengths(seg.duration, seg.increments, seg.growth).front();
+    double t = 0.0;
+    long accepted = 0;
+    int refusals = 0;
+    for (;;) {
+      const double remaining = seg.duration - t;
+      const bool last = dt >= remaining;
+      const double h = last ? remaining : dt;
+      const double progress = last ? 1.0 : std::min(1.0, (t + h) / seg.duration);
+      const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
+      Eigen::VectorXd u_try = u;
+      std::string why;
+      const bool solved = try_step(seg, fc, target, h, u_try, opt, why);
+      const ErrorEstimate error = solved ? local_error(h) : ErrorEstimate{};
+      if (!solved || !(error.value <= opt.tolerance)) {
+        solved ? ++stats_.rejected : ++stats_.cutbacks;
+        if (solved) why = describe_error(error);
+        if (++refusals > integrators::kMaxRefusedAttempts || t + 0.5 * h == t) {
+          std::ostringstream msg;
+          msg << "crystal step failed at time " << macro_.time << " after " << refusals
+              << " refused attempts (dt = " << h << "): " << why;
+          throw CrystalStepFailure(msg.str());
+        }
+        dt = solved ? h * integrators::step_factor(error.value, opt.tolerance,
+                                                   integrators::kAfterRejected)
+                    : 0.5 * h;
+        continue;
+      }
+      refusals = 0;
+      u = u_try;
+      commit(seg, fc, u, h);
+      t = last ? seg.duration : t + h;
+      ++accepted;
+      ++stats_.increments;
+      ++stats_.substeps;
+      macro_.segment = index;
+      dt = h * integrators::step_factor(error.value, opt.tolerance, integrators::kAfterAccepted);
+      if (last || accepted % seg.output_every == 0) observe(macro_, *this);
+      if (last) return;
+    }
+  }
+
+  struct ErrorEstimate {
+    double value = 0.0;
+    size_t grain = 0;
+    int system = -1;
+  };
+
+  // The local error estimate of the step just solved (trial_ from committed_): per grain and
+  // slip system, dt/2 |A (gdot_end - gdot_start)| over the CRSS mu tau0, the largest of all.
+  // The start rates are the committed end rates of the previous (backward Euler) step. A NaN
+  // wins, so that a broken step is never accepted.
+  ErrorEstimate local_error(double dt) const {
+    ErrorEstimate worst;
+    for (size_t g = 0; g < committed_.size(); ++g) {
+      const VecN rate_change = trial_[g].rate - committed_[g].rate;
+      const VecN crss = committed_[g].mu.cwiseProduct(phase_.tau0);
+      const VecN error =
+          (0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(crss);
+      for (int a = 0; a < phase_.slip_count; ++a) {
+        if (!(error(a) <= worst.value)) worst = {error(a), g, a};
+      }
+    }
+    return worst;
+  }
+
+  std::string describe_error(const ErrorEstimate& e) const {
+    std::ostringstream msg;
+    msg << "local error estimate " << e.value << " above the tolerance (grain " << e.grain
+        << ", slip system " << e.system << ")";
+    return msg.str();
   }
 
   // Advances the aggregate by dt, halving on failure.

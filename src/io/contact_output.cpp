@@ -96,7 +96,8 @@ void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) 
   set_with_unit(g, "initial_mu", c.model.initial_law_state.mu, one);
   g.set_attribute("integrator",
                   c.integrator.method == contact::Method::implicit ? "implicit" : "forward_euler");
-  g.set_attribute("tolerance", c.integrator.residual_tolerance);
+  g.set_attribute("residual_tolerance", c.integrator.residual_tolerance);
+  g.set_attribute("tolerance", c.integrator.tolerance);  // 0: fixed increments
   g.set_attribute("max_cutbacks", c.integrator.max_cutbacks);
 }
 
@@ -340,6 +341,7 @@ void ContactCaseWriter::finish(const ContactSummary& summary) {
   group_.set_attribute("substeps", summary.stats.substeps);
   group_.set_attribute("newton_iterations", summary.stats.iterations);
   group_.set_attribute("cutbacks", summary.stats.cutbacks);
+  group_.set_attribute("rejected_steps", summary.stats.rejected);
   group_.set_attribute("wall_seconds", summary.stats.wall_seconds);
 }
 

@@ -117,14 +117,20 @@ std::vector<contact::Segment> parse_loading(const CheckedNode& node,
 contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& node) {
   contact::IntegratorOptions opt;
   if (!node) return opt;
-  node->allow_keys({"method", "max_cutbacks", "tolerance"});
+  node->allow_keys({"method", "max_cutbacks", "residual_tolerance", "tolerance"});
   if (auto m = node->optional("method")) {
     opt.method = m->as_enum<contact::Method>({{"implicit", contact::Method::implicit},
                                               {"forward_euler", contact::Method::forward_euler}});
   }
   opt.max_cutbacks =
       node->get_int("max_cutbacks", opt.max_cutbacks, Range::in_closed_interval(0, 200));
-  opt.residual_tolerance = node->get_double("tolerance", opt.residual_tolerance, Range::positive());
+  opt.residual_tolerance =
+      node->get_double("residual_tolerance", opt.residual_tolerance, Range::positive());
+  if (auto tol = node->optional("tolerance")) {
+    if (opt.method != contact::Method::implicit)
+      tol->fail("adaptive stepping needs method: implicit");
+    opt.tolerance = node->get_double("tolerance", 0.0, Range::in_open_interval(0.0, 1.0));
+  }
   return opt;
 }
 

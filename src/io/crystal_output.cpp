@@ -209,7 +209,8 @@ void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
   const auto& o = c.options;
   g.set_attribute("integrator",
                   o.method == crystal::CrystalMethod::implicit ? "implicit" : "forward_euler");
-  g.set_attribute("tolerance", o.grain.tolerance);
+  g.set_attribute("residual_tolerance", o.grain.tolerance);
+  g.set_attribute("tolerance", o.tolerance);  // 0: fixed increments
   g.set_attribute("max_iterations", o.grain.max_iterations);
   g.set_attribute("max_cutbacks", o.max_cutbacks);
   g.set_attribute("stress_tolerance", o.stress_tolerance);
@@ -434,6 +435,7 @@ void CrystalCaseWriter::finish(const CrystalSummary& summary) {
   group_.set_attribute("grain_solves", st.grain_solves);
   group_.set_attribute("newton_iterations", st.newton_iterations);
   group_.set_attribute("cutbacks", st.cutbacks);
+  group_.set_attribute("rejected_steps", st.rejected);
   group_.set_attribute("mixed_iterations", st.mixed_iterations);
   set_with_unit(group_, "wall_seconds", st.wall_seconds, "s");
   set_with_unit(group_, "grain_steps_per_second", summary.grain_steps_per_second, "1/s");

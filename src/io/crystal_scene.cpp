@@ -460,8 +460,8 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
                                            const crystal::PhaseDescription& phase) {
   crystal::AggregateOptions opt;
   if (!node) return opt;
-  node->allow_keys({"method", "tolerance", "max_iterations", "max_cutbacks", "stress_tolerance",
-                    "max_mixed_iterations"});
+  node->allow_keys({"method", "tolerance", "residual_tolerance", "max_iterations", "max_cutbacks",
+                    "stress_tolerance", "max_mixed_iterations"});
   if (auto m = node->optional("method")) {
     opt.method = m->as_enum<crystal::CrystalMethod>(
         {{"implicit", crystal::CrystalMethod::implicit},
@@ -469,7 +469,13 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
     if (opt.method == crystal::CrystalMethod::forward_euler && uses_rate_independent(phase))
       m->fail("forward_euler cannot integrate the rate_independent form; use implicit");
   }
-  opt.grain.tolerance = node->get_double("tolerance", opt.grain.tolerance, Range::positive());
+  if (auto tol = node->optional("tolerance")) {
+    if (opt.method != crystal::CrystalMethod::implicit)
+      tol->fail("adaptive stepping needs method: implicit");
+    opt.tolerance = node->get_double("tolerance", 0.0, Range::in_open_interval(0.0, 1.0));
+  }
+  opt.grain.tolerance =
+      node->get_double("residual_tolerance", opt.grain.tolerance, Range::positive());
   opt.grain.max_iterations =
       node->get_int("max_iterations", opt.grain.max_iterations, Range::in_closed_interval(1, 1000));
   opt.max_cutbacks =

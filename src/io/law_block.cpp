@@ -7,8 +7,8 @@ namespace {
 using law::OverstressForm;
 using law::SubloadingFunction;
 
-// A phase or contact law is complete (every key required, as in a contact scene); a per-family law is
-// partial: each key it gives replaces the phase value, the others are inherited.
+// A phase or contact law is complete (every key required, as in a contact scene); a per-family law
+// is partial: each key it gives replaces the phase value, the others are inherited.
 
 double read_number(const CheckedNode& node, std::string_view key, double inherited, bool partial,
                    const Range& range) {

@@ -64,6 +64,11 @@ struct IntegratorOptions {
   Method method = Method::implicit;
   int max_cutbacks = 40;              // halvings of one increment before giving up
   double residual_tolerance = 1e-12;  // implicit: |G| in traction-ratio units
+  // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated as
+  // dt/2 |rate of f_t at the end - at the start| in units of the yield traction f_n mu, is kept
+  // below `tolerance`; the step grows and shrinks with it. A segment's increments then only
+  // set its first step, and every accepted step is an increment (output_every applies).
+  double tolerance = 0.0;
 };
 
 // Work done by one increment, for reporting.
@@ -118,6 +123,7 @@ ContactState initial_state(const ContactModel& model);
 struct RunStats {
   long increments = 0;
   long substeps = 0;
+  long rejected = 0;  // adaptive steps refused by the error estimate (redone smaller)
   long iterations = 0;
   long cutbacks = 0;
   double wall_seconds = 0.0;

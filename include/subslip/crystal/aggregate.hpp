@@ -41,9 +41,18 @@ enum class CrystalMethod { implicit, forward_euler };
 struct AggregateOptions {
   CrystalMethod method = CrystalMethod::implicit;
   GrainStepOptions grain;
-  int max_cutbacks = 20;           // halvings of one increment
-  double stress_tolerance = 1e-8;  // mixed control: |sigma_free - target| relative to stress scale
+  int max_cutbacks = 20;  // halvings of one increment
+  // Mixed control: |sigma_free - target| relative to the stress scale. The accepted error is a
+  // strain error the next increment starts from, so a run drifts by up to increments x this
+  // (relative): 1e-10 keeps a 1e5-increment run within 1e-5.
+  double stress_tolerance = 1e-10;
   int max_mixed_iterations = 25;
+  // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated per
+  // grain and slip system as dt/2 |A (gdot_end - gdot_start)| (the change of the resolved
+  // shear stress rate over the step, A = P:C:P) in units of the current CRSS mu tau0, is kept
+  // below `tolerance` for every grain; the step grows and shrinks with it. A segment's
+  // increments then only set its first step, and every accepted step is an increment.
+  double tolerance = 0.0;
 };
 
 // What an observer sees at an output step.
@@ -63,6 +72,7 @@ struct AggregateStats {
   long grain_solves = 0;       // grain updates attempted (mixed-control iterations included)
   long newton_iterations = 0;  // summed over grain solves
   long cutbacks = 0;
+  long rejected = 0;  // adaptive steps refused by the error estimate (redone smaller)
   long mixed_iterations = 0;
   double wall_seconds = 0.0;
 };
