@@ -287,38 +287,29 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
                           ContactState& s, RunStats& stats, const OutputCallback& on_output) {
   const ContactStiffness& c = model.stiffness;
   const double fn_start = s.traction_n;
-  double dt = increment_lengths(seg).front();
-  double t = 0.0;
-  long accepted = 0;
-  int refusals = 0;
+  integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance);
   for (;;) {
-    const double remaining = seg.duration - t;
-    const bool last = dt >= remaining;
-    const double h = last ? remaining : dt;
+    const double h = clock.step();
     const Vec2 du = seg.velocity * h;
-    const double fn1 = normal_traction_at(seg, c, fn_start, last ? seg.duration : t + h);
+    const double fn1 = normal_traction_at(seg, c, fn_start, clock.end_time());
     const StepAttempt a = implicit_step(law, c, s, du, fn1, h, opt.residual_tolerance);
     stats.iterations += a.iterations;
     const double error = a.ok ? local_error(law, c, s, a.state, du, fn1, h) : 0.0;
     if (!a.ok || !(error <= opt.tolerance)) {
-      const bool failed = !a.ok;
-      failed ? ++stats.cutbacks : ++stats.rejected;
-      if (++refusals > integrators::kMaxRefusedAttempts || !(h > 0.0) || t + 0.5 * h == t) {
-        throw StepFailure(failure_message(
-            s, refusals, h, failed ? a.why : "local error estimate stays above the tolerance"));
+      a.ok ? ++stats.rejected : ++stats.cutbacks;
+      if (!clock.refuse(!a.ok, error)) {
+        throw StepFailure(
+            failure_message(s, clock.refusals(), h,
+                            a.ok ? "local error estimate stays above the tolerance" : a.why));
       }
-      dt = failed ? 0.5 * h
-                  : h * integrators::step_factor(error, opt.tolerance, integrators::kAfterRejected);
       continue;
     }
-    refusals = 0;
+    const bool last = clock.last();
     s = a.state;
-    t = last ? seg.duration : t + h;
-    ++accepted;
+    clock.accept(error);
     ++stats.increments;
     ++stats.substeps;
-    dt = h * integrators::step_factor(error, opt.tolerance, integrators::kAfterAccepted);
-    if (last || accepted % seg.output_every == 0) on_output(s, index);
+    if (last || clock.accepted() % seg.output_every == 0) on_output(s, index);
     if (last) return;
   }
 }

@@ -30,4 +30,51 @@ inline double step_factor(double error, double tolerance, StepFactorLimits limit
 // Consecutive refused attempts (rejected or failed) of one step before a driver gives up.
 inline constexpr int kMaxRefusedAttempts = 200;
 
+// The clock of one segment [0, duration] walked with adaptive steps: which step to try next,
+// and how an accepted, rejected (error too large) or failed (no solution) attempt moves it. The
+// last step ends exactly on the segment end.
+class AdaptiveSegment {
+ public:
+  AdaptiveSegment(double duration, double first_step, double tolerance)
+      : duration_(duration), dt_(first_step), tolerance_(tolerance) {}
+  // Resuming a segment part-way (a restart): `time` into it, `accepted` steps taken, and the
+  // step planned next.
+  AdaptiveSegment(double duration, double next_step, double tolerance, double time, long accepted)
+      : duration_(duration), dt_(next_step), tolerance_(tolerance), t_(time), accepted_(accepted) {}
+
+  bool last() const { return dt_ >= duration_ - t_; }
+  // The step to try now: the planned one, or what is left of the segment.
+  double step() const { return last() ? duration_ - t_ : dt_; }
+  // Time into the segment at the end of the step tried now.
+  double end_time() const { return last() ? duration_ : t_ + dt_; }
+  double time() const { return t_; }
+  long accepted() const { return accepted_; }
+  int refusals() const { return refusals_; }
+
+  void accept(double error) {
+    const double h = step();
+    t_ = end_time();
+    ++accepted_;
+    refusals_ = 0;
+    dt_ = h * step_factor(error, tolerance_, kAfterAccepted);
+  }
+  // A refused attempt shortens the step: by the error estimate when it was too large, by half
+  // when the step failed outright. False when the driver should give up: too many refusals in
+  // a row, or a step too short to advance the time.
+  bool refuse(bool failed, double error) {
+    const double h = step();
+    dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, kAfterRejected);
+    ++refusals_;
+    return refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+  }
+
+ private:
+  double duration_;
+  double dt_;
+  double tolerance_;
+  double t_ = 0.0;
+  long accepted_ = 0;
+  int refusals_ = 0;
+};
+
 }  // namespace subslip::integrators
