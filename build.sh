@@ -2,12 +2,21 @@
 # The two commands of README.md. Each installs what it needs (Debian packages), builds, and then
 #   ./build.sh run  [SCENE.yaml]  runs a scene (default: inputs/default.yaml, the main job) into
 #                                 results/<scene>.h5 and prints its summary;
-#   ./build.sh test               runs every test (ctest).
+#   ./build.sh test [--quick]     runs every test: the GoogleTest suite (ctest) of the Release
+#                                 build, the suite again built with AddressSanitizer + UBSan
+#                                 (build-asan/), and each fuzz target for FUZZ_SECONDS (default
+#                                 30) on its seed corpus (build-fuzz/, clang + libFuzzer).
+#                                 --quick: the Release suite only. CI runs the full command.
 set -euo pipefail
 cd "$(dirname "$0")"
 
 packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev libcli11-dev
-          libgtest-dev)
+          libgtest-dev
+          python3-h5py python3-matplotlib python3-numpy)  # scripts/subslip_plots.py and its test
+# The sanitizer and fuzz stages of `test` build the fuzz targets with clang (libFuzzer, OpenMP).
+if [ "${1:-}" = test ] && [ "${2:-}" != --quick ]; then
+  packages+=(clang libclang-rt-14-dev libomp-dev)
+fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -23,6 +32,51 @@ fi
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build build -j"$(nproc)"
 
+# Prints how long a stage took (CI must stay under 30 minutes on 2 cores).
+stage_done() {
+  echo "build.sh: $1 took $((SECONDS - $2)) s"
+}
+
+# The whole suite, built with AddressSanitizer + UBSan; any report fails the test that made it.
+sanitizer_tests() {
+  local start=$SECONDS
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSUBSLIP_SANITIZE=ON > /dev/null
+  cmake --build build-asan -j"$(nproc)"
+  ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
+    UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+    ctest --test-dir build-asan --output-on-failure -j"$(nproc)"
+  stage_done "sanitizer build and tests" "$start"
+}
+
+# Runs fuzz target $1 for FUZZ_SECONDS on the seed directories $2...; new inputs it finds go to
+# build-fuzz/corpus/$1, a crashing input to build-fuzz/artifacts/.
+run_fuzzer() {
+  local name=$1 max_len=$2
+  shift 2
+  local log=build-fuzz/$name.log
+  mkdir -p "build-fuzz/corpus/$name" build-fuzz/artifacts
+  if ! "build-fuzz/fuzz/$name" -max_total_time="${FUZZ_SECONDS:-30}" -timeout=10 \
+      -rss_limit_mb=2048 -max_len="$max_len" -dict="fuzz/${name%_fuzzer}.dict" \
+      -artifact_prefix="build-fuzz/artifacts/$name-" -print_final_stats=1 \
+      "build-fuzz/corpus/$name" "$@" > "$log" 2>&1; then
+    tail -n 60 "$log"
+    echo "build.sh: $name found a problem (input in build-fuzz/artifacts/, log in $log)" >&2
+    exit 1
+  fi
+  echo "build.sh: $name: $(grep -E '^stat::number_of_executed_units' "$log" | awk '{print $2}') inputs, no findings"
+}
+
+fuzz_tests() {
+  local start=$SECONDS
+  CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DSUBSLIP_FUZZ=ON -DSUBSLIP_BUILD_TESTS=OFF -DSUBSLIP_WITH_CVODE=OFF > /dev/null
+  cmake --build build-fuzz -j"$(nproc)" --target scene_fuzzer orientation_fuzzer
+  run_fuzzer scene_fuzzer 8192 fuzz/seeds/scene inputs tests/data/scenes tests/data/crystal_scenes \
+    tests/data/bad
+  run_fuzzer orientation_fuzzer 2048 tests/data/orientations orientations
+  stage_done "fuzz build and runs" "$start"
+}
+
 case "${1:-}" in
   run)
     scene="${2:-inputs/default.yaml}"
@@ -31,10 +85,16 @@ case "${1:-}" in
     build/src/subslip run "$scene" -o "$out" --force
     ;;
   test)
+    start=$SECONDS
     ctest --test-dir build --output-on-failure -j"$(nproc)"
+    stage_done "Release tests" "$start"
+    if [ "${2:-}" != --quick ]; then
+      sanitizer_tests
+      fuzz_tests
+    fi
     ;;
   *)
-    echo "usage: ./build.sh run [SCENE.yaml] | ./build.sh test" >&2
+    echo "usage: ./build.sh run [SCENE.yaml] | ./build.sh test [--quick]" >&2
     exit 2
     ;;
 esac

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "child_process.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
@@ -119,7 +120,7 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
     EXPECT_TRUE(ds.has_attribute("unit"));
     EXPECT_FALSE(ds.attribute_string("description").empty());
     EXPECT_EQ(ds.shape().front(), n);
-    EXPECT_EQ(ds.filters(), (std::vector<std::string>{"shuffle", "deflate"}));
+    EXPECT_TRUE(ds.filters().empty());  // live rows are written in place, uncompressed
     EXPECT_FALSE(ds.chunk_shape().empty());
   }
   EXPECT_EQ(g.open_dataset("time").attribute_string("unit"), "min");
@@ -220,20 +221,28 @@ TEST(H5Writer, SeriesAppendInBlocksAndReadBack) {
     h5::Series one = root.create_series({"one", 0, h5::Type::float64, "s", "a 1-D series", 64, 7});
     h5::Series two = root.create_series({"two", 3, h5::Type::float64, "m", "a 2-D series", 64, 7});
     h5::Series ints = root.create_series({"ints", 0, h5::Type::int32, "index", "ints", 64, 7});
+    EXPECT_EQ(one.capacity(), 64u);  // one chunk reserved
     for (int i = 0; i < 100; ++i) {
       one.append(0.5 * i);
       const double row[3] = {1.0 * i, 2.0 * i, 3.0 * i};
       two.append(row);
       ints.append_int(-i);
-      if (i == 50) {  // a mid-run commit, as a flush does
+      if (i == 50) {  // a mid-run commit: the rows are in the reserved extent, the rest is NaN
         one.commit();
-        EXPECT_EQ(one.dataset().shape().front(), 51u);
+        EXPECT_EQ(one.dataset().shape().front(), 64u);
+        const auto v = one.dataset().read_doubles();
+        EXPECT_EQ(v[50], 25.0);
+        EXPECT_TRUE(std::isnan(v[51]));
       }
     }
     EXPECT_EQ(one.rows(), 100u);
     one.commit();
-    two.commit();
-    ints.commit();
+    EXPECT_EQ(one.capacity(), 128u);  // the reservation doubled
+    const auto ints_so_far = ints.dataset().read_ints();
+    EXPECT_EQ(ints_so_far.back(), h5::kInt32Fill);  // not committed yet, or beyond the rows
+    one.finish();                                   // trims the extent to the rows
+    two.finish();
+    ints.finish();
     EXPECT_THROW(one.append_int(1), h5::Error);
     const double wrong[2] = {1, 2};
     EXPECT_THROW(two.append(wrong), h5::Error);
@@ -300,8 +309,9 @@ TEST(H5Writer, OutputPathIsCheckedBeforeAnyWork) {
 }
 
 // A process that dies without closing its file (as a killed run does) leaves a file that
-// opens and holds every row up to its last flush, with completed = 0.
-TEST(H5Writer, FileFlushedBeforeACrashIsReadable) {
+// opens and holds every committed row, without any flush after the rows were reserved, with
+// completed = 0 and /progress counting the rows; rows gathered but not committed are not there.
+TEST(H5Writer, CommittedRowsSurviveACrashWithoutFlush) {
   const fs::path dir = scratch_dir();
   const fs::path path = dir / "crash.h5";
   const pid_t child = ::fork();
@@ -309,11 +319,14 @@ TEST(H5Writer, FileFlushedBeforeACrashIsReadable) {
   if (child == 0) {
     h5::File file = h5::File::create(path, false);
     h5::write_result_header(file, {"contact", "crash.yaml", "scene: contact\n", "crash", {}});
-    h5::Series s = file.root().create_series({"x", 0, h5::Type::float64, "1", "x", 16, 4});
+    h5::CaseProgress progress = h5::CaseProgress::create(file.root(), 1);
+    h5::Series s = file.root().create_series({"x", 0, h5::Type::float64, "1", "x", 16, 64, 32});
+    file.flush();  // the layout; from here on no flush at all
+    progress.set_state(0, h5::CaseState::running);
     for (int i = 0; i < 10; ++i) s.append(1.0 * i);
     s.commit();
-    file.flush();
-    for (int i = 0; i < 10; ++i) s.append(-1.0);  // never flushed
+    progress.set_rows(0, s.rows());
+    for (int i = 0; i < 10; ++i) s.append(-1.0);  // gathered, never committed
     ::_exit(0);  // no destructors, no HDF5 atexit close: like a kill
   }
   int status = 0;
@@ -321,8 +334,136 @@ TEST(H5Writer, FileFlushedBeforeACrashIsReadable) {
   ASSERT_TRUE(WIFEXITED(status));
   const h5::File file = h5::File::open_read(path);
   EXPECT_EQ(file.root().attribute_int("completed"), 0);
+  const h5::CaseProgress progress = h5::CaseProgress::open(file.root());
+  EXPECT_EQ(progress.rows(0), 10);
+  EXPECT_EQ(progress.state(0), h5::CaseState::running);
   const auto x = file.root().open_dataset("x").read_doubles();
-  ASSERT_EQ(x.size(), 10u);
-  EXPECT_EQ(x[9], 9.0);
+  ASSERT_EQ(x.size(), 32u);  // the reservation
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(x[i], 1.0 * i);
+  for (std::size_t i = 10; i < x.size(); ++i) EXPECT_TRUE(std::isnan(x[i])) << i;
+  fs::remove_all(dir);
+}
+
+// ---- a real `subslip run` killed at random moments
+
+namespace {
+
+// Two crystal cases of a few seconds at most, with macro and per-grain series.
+const std::string kCrystalKillScene = R"(scene: crystal
+title: "killed at random"
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations:
+  random: {count: 24, seed: 3}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 15
+    increments: 150
+output:
+  grains: [stress, slip, r_s]
+  checkpoint_every: 10
+sweep:
+  "phase.tau0": [10, 12]
+)";
+
+bool is_fill(double v, bool integer) {
+  return integer ? v == static_cast<double>(h5::kInt32Fill) : std::isnan(v);
+}
+
+// What a file killed at any moment must hold: completed = 0; for each case, /progress counts
+// rows that are all present and equal (bit for bit) to the uninterrupted run's, and every row
+// after them is either not written (fill) or also equal; a completed case equals the reference.
+// Adds the number of valid rows found to `valid`.
+void check_killed_file(const fs::path& killed, const fs::path& reference, std::size_t& valid) {
+  const auto ref = subslip::testing::case_datasets(reference);
+  const h5::File file = h5::File::open_read(killed);  // readable
+  const h5::Group root = file.root();
+  EXPECT_EQ(root.attribute_int("completed"), 0);
+  const auto names = root.open_group("cases").attribute_strings("names");
+  const h5::CaseProgress progress = h5::CaseProgress::open(root);
+  const auto got = subslip::testing::case_datasets(killed);
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    SCOPED_TRACE(names[k]);
+    const std::string prefix = "/cases/" + names[k] + "/";
+    const auto state = progress.state(k);
+    if (state == h5::CaseState::not_started) continue;
+    const auto rows = static_cast<std::size_t>(progress.rows(k));
+    valid += rows;
+    for (const auto& [name, expected] : ref) {
+      if (name.rfind(prefix, 0) != 0) continue;
+      SCOPED_TRACE(name);
+      const auto it = got.find(name);
+      ASSERT_NE(it, got.end());
+      const auto& actual = it->second;
+      const bool fixed = name.ends_with("/weight") || name.ends_with("/initial_orientation") ||
+                         name.ends_with("/slip_systems");  // written once, not series
+      if (state == h5::CaseState::completed || fixed) {
+        ASSERT_EQ(actual.shape, expected.shape);
+        for (std::size_t i = 0; i < expected.values.size(); ++i)
+          ASSERT_TRUE(subslip::testing::same_bits(actual.values[i], expected.values[i])) << i;
+        continue;
+      }
+      // A series of the running case: reserved rows, the first `rows` valid.
+      ASSERT_EQ(state, h5::CaseState::running);
+      ASSERT_GE(actual.shape.front(), rows);
+      std::size_t width = 1;
+      for (std::size_t d = 1; d < expected.shape.size(); ++d) width *= expected.shape[d];
+      for (std::size_t i = 0; i < actual.values.size(); ++i) {
+        const std::size_t row = i / width;
+        const bool known = row < expected.shape.front();
+        const bool equal =
+            known && subslip::testing::same_bits(actual.values[i], expected.values[i]);
+        if (row < rows) {
+          ASSERT_TRUE(equal) << "row " << row << " of " << rows << " valid";
+        } else {
+          ASSERT_TRUE(equal || is_fill(actual.values[i], actual.integer)) << "row " << row;
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+// SIGKILL at random moments of a real run (fork + exec): the file is readable, says it did not
+// complete, and every row it counts is complete and equal to the uninterrupted run's.
+TEST(H5Output, RunKilledAtARandomMomentKeepsEveryCountedRow) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml") << kCrystalKillScene;
+  double seconds = 0.0;
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"},
+                                          dir / "ref.log", &seconds),
+            0)
+      << subslip::testing::read_text(dir / "ref.log");
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::size_t files = 0, valid = 0;
+  for (int trial = 0; trial < 3; ++trial) {
+    // One kill in each third of the run's (reference) duration.
+    std::uniform_real_distribution<double> when((0.05 + 0.3 * trial) * seconds,
+                                                (0.35 + 0.3 * trial) * seconds);
+    const double delay = when(rng);
+    SCOPED_TRACE("killed after " + std::to_string(delay) + " s of " + std::to_string(seconds));
+    fs::remove(dir / "killed.h5");
+    const int code = subslip::testing::run_and_kill(
+        dir, {"run", "scene.yaml", "-o", "killed.h5", "-q", "--force"}, dir / "killed.log", delay);
+    if (code == 0) continue;  // finished before the kill (a slow reference run)
+    ASSERT_EQ(code, 128 + SIGKILL) << subslip::testing::read_text(dir / "killed.log");
+    // Before its header is complete the file has a temporary name: the result path is absent.
+    if (!fs::exists(dir / "killed.h5")) continue;
+    ++files;
+    check_killed_file(dir / "killed.h5", dir / "ref.h5", valid);
+  }
+  EXPECT_GT(files, 0u);  // the test saw at least one killed file
+  EXPECT_GT(valid, 0u);  // with rows in it
   fs::remove_all(dir);
 }

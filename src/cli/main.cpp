@@ -8,7 +8,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include <unistd.h>
+#include "accuracy.hpp"
 #include "bench.hpp"
+#include "post.hpp"
+#include "progress.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -16,6 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -30,7 +36,9 @@
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/orientation_file.hpp"
+#include "subslip/io/restart.hpp"
 #include "subslip/io/scene_common.hpp"
+#include "subslip/io/scene_warnings.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
 namespace fs = std::filesystem;
@@ -44,12 +52,59 @@ struct RunArgs {
   bool force = false;
   bool quiet = false;
   int threads = 0;
-  double flush_interval = 0.25;
+  double flush_interval = 0.0;
+  std::string restart;        // --restart FILE: continue the run that wrote FILE
+  int checkpoint_every = -1;  // --checkpoint-every N (-1: the scene's, or automatic)
 };
 
 fs::path output_path(const RunArgs& a) {
+  if (!a.restart.empty()) return a.restart;
   if (!a.output.empty()) return a.output;
   return fs::path("results") / (fs::path(a.scene).stem().string() + ".h5");
+}
+
+// Where a run writes: a new file, created under a temporary name and renamed once its header
+// is complete (so the result path never names a half-written header), or, with --restart, the
+// file of the interrupted run.
+struct RunOutput {
+  fs::path path;
+  fs::path partial;  // empty on a restart
+  io::h5::File file;
+  bool restart() const { return partial.empty(); }
+  void header_written() { fs::rename(partial, path); }
+};
+
+RunOutput open_output(const RunArgs& a, const std::vector<std::string>& case_names,
+                      const io::RestartInfo* restart) {
+  const fs::path out = output_path(a);
+  if (restart != nullptr) {
+    io::check_restart_cases(out, *restart, case_names);
+    return {out, {}, io::h5::File::open_write(out)};
+  }
+  io::h5::check_output_path(out, a.force);
+  fs::path partial = out;
+  partial += ".partial";
+  return {out, partial, io::h5::File::create(partial, true)};
+}
+
+template <class Case>
+std::vector<std::string> names_of(const std::vector<Case>& cases) {
+  std::vector<std::string> names;
+  for (const auto& c : cases) names.push_back(c.name);
+  return names;
+}
+
+void print_warnings(const RunArgs& a, const std::vector<std::string>& warnings) {
+  if (a.quiet) return;
+  for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+}
+
+cli::ProgressMode progress_mode(const RunArgs& a) {
+  return cli::progress_mode(a.quiet, ::isatty(STDOUT_FILENO) == 1);
+}
+
+std::string scene_label(const RunArgs& a, const std::string& scene_file) {
+  return a.restart.empty() ? a.scene : scene_file + " (restart of " + a.restart + ")";
 }
 
 std::string number(double x, const char* format) {
@@ -81,26 +136,54 @@ void print_contact_table(const io::ContactScene& scene,
       "steady state at the last sliding speed)\n");
 }
 
-int run_contact(const RunArgs& a, const io::YamlDocument& document) {
+cli::RunTotals contact_totals(const std::vector<io::ContactCaseResult>& results) {
+  cli::RunTotals t;
+  for (const auto& r : results) {
+    const auto& st = r.summary.stats;
+    ++t.cases;
+    t.failed += r.failure.empty() ? 0 : 1;
+    t.increments += st.increments;
+    t.solves += st.increments;
+    t.newton_iterations += st.iterations;
+    t.cutbacks += st.cutbacks;
+    t.rejected += st.rejected;
+    t.compute_seconds += st.wall_seconds;
+  }
+  return t;
+}
+
+int run_contact(const RunArgs& a, const io::YamlDocument& document,
+                const io::RestartInfo* restart) {
   // Every input and output check comes before the first step is computed.
+  const auto session = std::chrono::steady_clock::now();
   const io::ContactScene scene = io::parse_contact_scene(document);
-  const fs::path out = output_path(a);
-  io::h5::check_output_path(out, a.force);
-  io::h5::File file = io::h5::File::create(out, a.force);
+  RunOutput output = open_output(a, names_of(scene.cases), restart);
+  print_warnings(a, io::contact_scene_warnings(scene));
   if (!a.quiet) {
-    std::printf("subslip: %s: %zu case%s%s%s\n", a.scene.c_str(), scene.cases.size(),
-                scene.cases.size() == 1 ? "" : "s", scene.title.empty() ? "" : " - ",
-                scene.title.c_str());
+    std::printf("subslip: %s: %zu case%s%s%s\n", scene_label(a, scene.file).c_str(),
+                scene.cases.size(), scene.cases.size() == 1 ? "" : "s",
+                scene.title.empty() ? "" : " - ", scene.title.c_str());
     std::fflush(stdout);
   }
+  std::vector<double> work;
+  for (const auto& c : scene.cases)
+    work.push_back(static_cast<double>(io::output_count(c.segments)));
+  cli::ProgressReporter progress(progress_mode(a), stdout, work);
   io::ContactRunOptions options;
   options.threads = a.threads;
   options.flush_interval = std::chrono::duration<double>(a.flush_interval);
-  const auto results = io::run_contact_scene(scene, file, options);
-  file.close();
+  options.restart = output.restart();
+  options.on_header_written = [&] { output.header_written(); };
+  options.on_case_done = [&](std::size_t k, const io::ContactCase& c,
+                             const io::ContactCaseResult&) { progress.update(k, c.name, 1.0); };
+  const auto results = io::run_contact_scene(scene, output.file, options);
+  output.file.close();
+  progress.clear();
   if (!a.quiet) {
     print_contact_table(scene, results);
-    std::printf("results: %s\n", out.c_str());
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
+    std::printf("%s\n", cli::summary_text(contact_totals(results), wall, output.path).c_str());
   }
   for (const auto& r : results) {
     if (!r.failure.empty()) throw contact::StepFailure(r.failure);
@@ -140,9 +223,9 @@ void print_crystal_row(const io::CrystalCaseResult& r, std::size_t width) {
 
 void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
   const io::CrystalCase& first = scene.cases.front();
-  std::printf("subslip: %s: %zu case%s%s%s\n", a.scene.c_str(), scene.cases.size(),
-              scene.cases.size() == 1 ? "" : "s", scene.title.empty() ? "" : " - ",
-              scene.title.c_str());
+  std::printf("subslip: %s: %zu case%s%s%s\n", scene_label(a, scene.file).c_str(),
+              scene.cases.size(), scene.cases.size() == 1 ? "" : "s",
+              scene.title.empty() ? "" : " - ", scene.title.c_str());
   std::printf(
       "  %zu grain%s, %zu slip systems, %d thread%s (strain and stress along the "
       "loading component; final values)\n",
@@ -152,12 +235,46 @@ void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
   std::fflush(stdout);
 }
 
-int run_crystal(const RunArgs& a, const io::YamlDocument& document) {
+cli::RunTotals crystal_totals(const std::vector<io::CrystalCaseResult>& results) {
+  cli::RunTotals t;
+  for (const auto& r : results) {
+    const auto& st = r.summary.stats;
+    ++t.cases;
+    t.failed += r.failure.empty() ? 0 : 1;
+    t.increments += st.increments;
+    t.grain_steps += st.grain_steps;
+    t.solves += st.grain_solves;
+    t.newton_iterations += st.newton_iterations;
+    t.cutbacks += st.cutbacks;
+    t.rejected += st.rejected;
+    t.compute_seconds += st.wall_seconds;
+  }
+  return t;
+}
+
+// The work of a crystal case for the progress bar: grains x increments.
+std::vector<double> crystal_work(const io::CrystalScene& scene) {
+  std::vector<double> work;
+  for (const auto& c : scene.cases) {
+    double increments = 0.0;
+    for (const auto& s : c.segments) increments += s.increments;
+    work.push_back(increments * static_cast<double>(c.orientations.size()));
+  }
+  return work;
+}
+
+int run_crystal(const RunArgs& a, const io::YamlDocument& document,
+                const io::RestartInfo* restart) {
   // Every input and output check comes before the first step is computed.
+  const auto session = std::chrono::steady_clock::now();
   const io::CrystalScene scene = io::parse_crystal_scene(document);
-  const fs::path out = output_path(a);
-  io::h5::check_output_path(out, a.force);
-  io::h5::File file = io::h5::File::create(out, a.force);
+  RunOutput output = open_output(a, names_of(scene.cases), restart);
+  const std::optional<long> checkpoint_every =
+      a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
+  bool checkpoints = true;
+  for (const auto& c : scene.cases)
+    checkpoints = checkpoints && io::checkpoint_policy(c, checkpoint_every).enabled();
+  print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
   // Crystal cases run one after the other; the threads go to the grains of a case.
   if (a.threads > 0) omp_set_num_threads(a.threads);
   std::size_t width = 4;
@@ -166,14 +283,28 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document) {
     print_crystal_intro(a, scene);
     print_crystal_header(scene, width);
   }
+  cli::ProgressReporter progress(progress_mode(a), stdout, crystal_work(scene));
   io::CrystalRunOptions options;
   options.flush_interval = std::chrono::duration<double>(a.flush_interval);
+  options.restart = output.restart();
+  options.checkpoint_every = checkpoint_every;
+  options.on_header_written = [&] { output.header_written(); };
   options.on_case_done = [&](std::size_t, const io::CrystalCase&, const io::CrystalCaseResult& r) {
+    progress.clear();
     if (!a.quiet) print_crystal_row(r, width);
   };
-  const auto results = io::run_crystal_scene(scene, file, options);
-  file.close();
-  if (!a.quiet) std::printf("results: %s\n", out.c_str());
+  options.on_progress = [&](std::size_t k, double fraction, bool resumed) {
+    if (resumed) progress.set_done_before(k, fraction);
+    progress.update(k, scene.cases[k].name, fraction);
+  };
+  const auto results = io::run_crystal_scene(scene, output.file, options);
+  output.file.close();
+  progress.clear();
+  if (!a.quiet) {
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
+    std::printf("%s\n", cli::summary_text(crystal_totals(results), wall, output.path).c_str());
+  }
   for (const auto& r : results) {
     if (!r.failure.empty()) throw crystal::CrystalStepFailure(r.failure);
   }
@@ -181,17 +312,37 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document) {
 }
 
 // The dispatch on `scene:`. A new scene kind adds its name to the list and a branch here.
+// With --restart the scene is the one stored in the file (/scene); a scene file named as well
+// must have the same text.
 int run_scene(const RunArgs& a) {
-  const io::YamlDocument document = io::YamlDocument::from_file(a.scene);
+  std::optional<io::YamlDocument> given;
+  if (!a.scene.empty()) given.emplace(io::YamlDocument::from_file(a.scene));
+  std::optional<io::RestartInfo> restart;
+  if (!a.restart.empty()) {
+    if (!a.output.empty() || a.force)
+      throw InputError(a.restart, 0, "--restart", "continues FILE in place: drop -o and --force");
+    restart = io::inspect_for_restart(
+        a.restart, given ? std::optional<std::string>(given->text()) : std::nullopt);
+  } else if (!given) {
+    throw InputError("run", 0, "", "give a scene file (or --restart FILE)");
+  }
+  const io::YamlDocument document =
+      restart ? io::YamlDocument::from_string(restart->scene_text, restart->scene_file) : *given;
+  const io::RestartInfo* info = restart ? &*restart : nullptr;
   const std::string kind = io::scene_kind(document, {"contact", "crystal"});
-  if (kind == "contact") return run_contact(a, document);
-  if (kind == "crystal") return run_crystal(a, document);
-  throw InputError(a.scene, 0, "scene", "no runner for scene kind '" + kind + "'");
+  if (restart && kind != restart->scene_kind)
+    throw InputError(a.restart, 0, "scene_kind",
+                     "cannot restart: /scene is not a " + kind + " scene");
+  if (kind == "contact") return run_contact(a, document, info);
+  if (kind == "crystal") return run_crystal(a, document, info);
+  throw InputError(document.file(), 0, "scene", "no runner for scene kind '" + kind + "'");
 }
 
 void add_run_command(CLI::App& app, RunArgs& a) {
   CLI::App* run = app.add_subcommand("run", "Run a scene file and write its results to HDF5");
-  run->add_option("scene", a.scene, "Scene file (YAML, see docs/scenes.md)")->required();
+  run->add_option("scene", a.scene,
+                  "Scene file (YAML, see docs/scenes.md); with --restart optional (then it must "
+                  "be the scene the run started with)");
   run->add_option("-o,--output", a.output, "Result file (default: results/<scene stem>.h5)");
   run->add_flag("-f,--force", a.force, "Overwrite an existing result file");
   run->add_flag("-q,--quiet", a.quiet, "Print nothing but errors");
@@ -200,10 +351,18 @@ void add_run_command(CLI::App& app, RunArgs& a) {
                   "default: OpenMP's")
       ->check(CLI::NonNegativeNumber);
   run->add_option("--flush-interval", a.flush_interval,
-                  "Flush the result file at most every SECONDS while a case runs; 0 = after "
-                  "every output step (slow: gzip chunks are recompressed at each flush)")
+                  "Write rows to the result file at most every SECONDS; 0 = after every output "
+                  "step, unless writing costs over ~5 % of the computation (then every few ms)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  run->add_option("--restart", a.restart,
+                  "Continue the killed run that wrote FILE (scene read from its /scene): "
+                  "completed cases are kept, an interrupted crystal case continues from its last "
+                  "checkpoint; the result equals an uninterrupted run bit for bit");
+  run->add_option("--checkpoint-every", a.checkpoint_every,
+                  "Crystal runs: write a checkpoint every N increments (0: never); default: "
+                  "output.checkpoint_every of the scene, else about once a minute")
+      ->check(CLI::NonNegativeNumber);
 }
 
 // ---- subslip orientations
@@ -283,6 +442,10 @@ int main(int argc, char** argv) {
   add_orientations_command(app, orientation_args);
   cli::BenchArgs bench_args;
   cli::add_bench_command(app, bench_args);
+  cli::AccuracyArgs accuracy_args;
+  cli::add_accuracy_command(app, accuracy_args);
+  cli::PostArgs post_args;
+  cli::add_post_command(app, post_args);
   // Further subcommands (post, accuracy) register here, each with its own argument struct and
   // a branch below.
   try {
@@ -295,6 +458,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("run")) return run_scene(run_args);
     if (app.got_subcommand("orientations")) return run_orientations(orientation_args);
     if (app.got_subcommand("bench")) return cli::run_bench(bench_args);
+    if (app.got_subcommand("accuracy")) return cli::run_accuracy(accuracy_args);
+    if (app.got_subcommand("post")) return cli::run_post(post_args);
   } catch (const InputError& e) {
     return report(e.what(), 2);
   } catch (const io::h5::OutputPathError& e) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 
 namespace subslip::crystal {
 
@@ -114,40 +115,127 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   }
 
   AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
-                     const MacroObserver& observe) override {
-    const auto start = std::chrono::steady_clock::now();
-    stats_ = {};
-    macro_ = {};
-    observe(macro_, *this);
-    for (size_t k = 0; k < segments.size(); ++k)
-      run_segment(segments[k], static_cast<int>(k), opt, observe);
-    stats_.wall_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+                     const MacroObserver& observe, const RunControl& control) override {
+    session_start_ = std::chrono::steady_clock::now();
+    const AggregateCheckpoint* resume = control.resume;
+    size_t first = 0;
+    if (resume != nullptr) {
+      restore(*resume);
+      first = static_cast<size_t>(resume->position.segment);
+    } else {
+      stats_ = {};
+      macro_ = {};
+      wall_before_ = 0.0;
+      observe(macro_, *this);
+    }
+    for (size_t k = first; k < segments.size(); ++k) {
+      run_segment(segments[k], static_cast<int>(k), opt, observe, control,
+                  k == first ? resume : nullptr);
+    }
+    stats_.wall_seconds = wall_seconds();
     return stats_;
   }
 
+  AggregateCheckpoint checkpoint() const override {
+    AggregateCheckpoint c;
+    c.position = cursor_.position;
+    c.macro = macro_;
+    c.segment_start_stress = cursor_.stress_start;
+    c.free_velocity_gradient = cursor_.free;
+    c.stats = stats_;
+    c.stats.wall_seconds = wall_seconds();
+    const int n = phase_.slip_count;
+    c.values_per_grain = 15 + 4 * n;
+    c.grains.resize(committed_.size() * static_cast<size_t>(c.values_per_grain));
+    double* out = c.grains.data();
+    for (const auto& g : committed_) {
+      out = std::copy(g.stress.data(), g.stress.data() + 6, out);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) *out++ = g.orientation(i, j);
+      for (const auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate})
+        out = std::copy(v->data(), v->data() + n, out);
+    }
+    return c;
+  }
+
+  void restore(const AggregateCheckpoint& c) override {
+    const int n = phase_.slip_count;
+    if (c.values_per_grain != 15 + 4 * n ||
+        c.grains.size() != committed_.size() * static_cast<size_t>(c.values_per_grain)) {
+      throw std::invalid_argument("checkpoint of a different aggregate (grains or slip systems)");
+    }
+    const double* in = c.grains.data();
+    for (auto& g : committed_) {
+      std::copy(in, in + 6, g.stress.data());
+      in += 6;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) g.orientation(i, j) = *in++;
+      for (auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate}) {
+        std::copy(in, in + n, v->data());
+        in += n;
+      }
+    }
+    macro_ = c.macro;
+    stats_ = c.stats;
+    wall_before_ = c.stats.wall_seconds;
+    cursor_ = {c.position, c.segment_start_stress, c.free_velocity_gradient};
+  }
+
  private:
+  // What the run loops carry between increments besides the grains and macro_: kept here so that
+  // checkpoint() can see it from RunControl::after_increment.
+  struct Cursor {
+    RunPosition position;
+    Mat3 stress_start = Mat3::Zero();
+    Eigen::VectorXd free;
+  };
+
+  double wall_seconds() const {
+    return wall_before_ +
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - session_start_).count();
+  }
+
+  // The segment's stress ramp start and free components of L: from the checkpoint, or from the
+  // state the segment starts in (the free components start from the previous step's values).
+  void start_segment(const std::vector<FreeComponent>& fc, const AggregateCheckpoint* resume) {
+    if (resume != nullptr) {
+      cursor_.stress_start = resume->segment_start_stress;
+      cursor_.free = resume->free_velocity_gradient;
+      return;
+    }
+    cursor_.stress_start = macro_.stress;
+    cursor_.free = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
+    for (size_t k = 0; k < fc.size(); ++k)
+      cursor_.free(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+  }
+
+  void end_increment(int index, long done, double t, double next_step, const RunControl& control) {
+    cursor_.position = {index, done, t, next_step};
+    if (control.after_increment) control.after_increment(cursor_.position, macro_);
+  }
+
   void run_segment(const LoadSegment& seg, int index, const AggregateOptions& opt,
-                   const MacroObserver& observe) {
+                   const MacroObserver& observe, const RunControl& control,
+                   const AggregateCheckpoint* resume) {
     if (opt.tolerance > 0.0 && opt.method == CrystalMethod::implicit) {
-      run_segment_adaptive(seg, index, opt, observe);
+      run_segment_adaptive(seg, index, opt, observe, control, resume);
       return;
     }
     const auto fc = free_components(seg.free);
-    const Mat3 stress_start = macro_.stress;
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
-    // Start the free components from the previous step's values where they are free too.
-    for (size_t k = 0; k < fc.size(); ++k)
-      u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    start_segment(fc, resume);
+    const Mat3 stress_start = cursor_.stress_start;
+    Eigen::VectorXd& u = cursor_.free;
     const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
-    double t_local = 0.0;
-    for (size_t i = 0; i < dts.size(); ++i) {
+    double t_local = resume != nullptr ? resume->position.segment_time : 0.0;
+    const size_t first = resume != nullptr ? static_cast<size_t>(resume->position.increment) : 0;
+    for (size_t i = first; i < dts.size(); ++i) {
       advance_increment(seg, fc, stress_start, t_local, dts[i], u, opt);
       t_local += dts[i];
       ++stats_.increments;
       macro_.segment = index;
       const bool last = i + 1 == dts.size();
       if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) observe(macro_, *this);
+      end_increment(index, static_cast<long>(i + 1), t_local, 0.0, control);
     }
   }
 
@@ -155,15 +243,18 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // segment's first increment; then the step follows the error estimate, and a step that fails
   // (a grain or the mixed control does not converge) is halved like a cutback.
   void run_segment_adaptive(const LoadSegment& seg, int index, const AggregateOptions& opt,
-                            const MacroObserver& observe) {
+                            const MacroObserver& observe, const RunControl& control,
+                            const AggregateCheckpoint* resume) {
     const auto fc = free_components(seg.free);
-    const Mat3 stress_start = macro_.stress;
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
-    for (size_t k = 0; k < fc.size(); ++k)
-      u(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
-    double dt = increment_lengths(seg.duration, seg.increments, seg.growth).front();
-    double t = 0.0;
-    long accepted = 0;
+    start_segment(fc, resume);
+    const Mat3 stress_start = cursor_.stress_start;
+    Eigen::VectorXd& u = cursor_.free;
+    double dt = resume != nullptr
+                    ? resume->position.next_step
+                    : increment_lengths(seg.duration, seg.increments, seg.growth).front();
+    double t = resume != nullptr ? resume->position.segment_time : 0.0;
+    long accepted = resume != nullptr ? resume->position.increment : 0;
+    if (resume != nullptr && t >= seg.duration) return;  // the checkpoint ended the segment
     int refusals = 0;
     for (;;) {
       const double remaining = seg.duration - t;
@@ -199,6 +290,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       macro_.segment = index;
       dt = h * integrators::step_factor(error.value, opt.tolerance, integrators::kAfterAccepted);
       if (last || accepted % seg.output_every == 0) observe(macro_, *this);
+      end_increment(index, accepted, t, dt, control);
       if (last) return;
     }
   }
@@ -425,6 +517,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<double> weights_;
   MacroState macro_;
   AggregateStats stats_;
+  Cursor cursor_;
+  std::chrono::steady_clock::time_point session_start_ = std::chrono::steady_clock::now();
+  double wall_before_ = 0.0;  // wall_seconds of the sessions before a restore
 };
 
 }  // namespace

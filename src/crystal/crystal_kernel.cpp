@@ -21,16 +21,38 @@ double sign_of(double v) {
   return v >= 0.0 ? 1.0 : -1.0;
 }
 
-// Velocity gradient split and expressed in the lattice frame at the start of the step.
+// Velocity gradient split and expressed in the lattice frame.
+struct LatticeKinematics {
+  Vec6 strain_rate;  // D_lat (Mandel)
+  Vec3 spin;         // axial vector of W_lat
+};
+
+LatticeKinematics lattice_kinematics(const Mat3& g, const Mat3& L) {
+  const Mat3 d = 0.5 * (L + L.transpose());
+  const Mat3 w = 0.5 * (L - L.transpose());
+  return {mandel_from_symmetric(g * d * g.transpose()), axial(g * w * g.transpose())};
+}
+
+// The same over a step, at the orientation of its start.
 struct StepKinematics {
   Vec6 strain_increment;  // D_lat dt (Mandel)
   Vec3 lattice_spin;      // axial vector of W_lat (lattice frame)
 };
 
 StepKinematics step_kinematics(const Mat3& g, const Mat3& L, double dt) {
-  const Mat3 d = 0.5 * (L + L.transpose());
-  const Mat3 w = 0.5 * (L - L.transpose());
-  return {mandel_from_symmetric(g * d * g.transpose()) * dt, axial(g * w * g.transpose())};
+  const LatticeKinematics k = lattice_kinematics(g, L);
+  return {k.strain_rate * dt, k.spin};
+}
+
+// The friction-coefficient evolution (3.4) as dmu = slip |du_vp| + time dt at a given mu (the
+// crystal reading: |du_vp| is the effective slip sum_b q_ab |dgamma_b|).
+struct FrictionRateCoefficients {
+  double slip, time;
+};
+FrictionRateCoefficients friction_rate_coefficients(const law::SubloadingFrictionLaw& law,
+                                                    double mu) {
+  const auto& f = law.parameters().friction;
+  return {f.kappa * (1.0 - mu / f.mu_k), f.xi * (1.0 - mu / f.mu_s)};
 }
 
 // The orientation after a step: the lattice spins with W - W_p (lattice components omega),
@@ -184,9 +206,15 @@ class ImplicitSolver {
 
   const VecN& tau_trial() const { return tau_trial_; }
 
+  // An active system at zero slip can have an infinite slope: dr_s/dslip = U(0) when r_s = 0, and
+  // dG/dslip with the power overstress (G ~ -slip^(1/n)). Newton cannot start there.
+  bool infinite_slope(const Iterate<N>& it, int a) const {
+    return it.active(a) && (!std::isfinite(it.d_rs(a)) || !std::isfinite(it.g_dslip(a)));
+  }
+
   bool finite_slopes(const Iterate<N>& it) const {
     for (int a = 0; a < n_; ++a)
-      if (it.active(a) && !std::isfinite(it.d_rs(a))) return false;
+      if (infinite_slope(it, a)) return false;
     return true;
   }
 
@@ -229,8 +257,7 @@ class ImplicitSolver {
     for (int round = 0; round < rounds; ++round) {
       bool changed = false;
       for (int a = 0; a < n_; ++a) {
-        const bool infinite_slope = it.active(a) && !std::isfinite(it.d_rs(a));
-        if (!infinite_slope && std::isfinite(it.g_value(a))) continue;
+        if (!infinite_slope(it, a) && std::isfinite(it.g_value(a))) continue;
         sign(a) = it.sign(a);
         const double z = solve_single(a, it, tolerance);
         changed = changed || z != x(a);
@@ -275,6 +302,32 @@ class ImplicitSolver {
   std::array<law::SubloadingFrictionLaw::SubloadingStart, T::MaxN> start_;
   bool unit_exponents_ = true;
 };
+
+// The Newton step of the grain iteration. A system at zero slip whose step is negative cannot
+// follow it (x >= 0, and the line search projects it back to zero), which leaves the other
+// systems with a step computed for a slip the pinned one never takes: with a stiff, rank-deficient
+// A (G/tau0 ~ 1e5, FCC: rank 5 of 12) that direction is no descent direction and the line search
+// stalls. So such systems are held at zero (row x_a = 0) and the others re-solved.
+template <int N>
+typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j,
+                                        const Iterate<N>& it) {
+  using VecN = typename SlipTypes<N>::VecN;
+  VecN step = -Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(it.merit_rows);
+  if (!step.allFinite()) return step;
+  typename SlipTypes<N>::MatNN held = j;
+  VecN rows = it.merit_rows;
+  bool any = false;
+  for (int a = 0; a < step.size(); ++a) {
+    if (!(it.x(a) == 0.0 && step(a) < 0.0)) continue;
+    held.row(a).setZero();
+    held(a, a) = 1.0;
+    rows(a) = 0.0;
+    any = true;
+  }
+  if (!any) return step;
+  const VecN reduced = -Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(held).solve(rows);
+  return reduced.allFinite() ? reduced : step;
+}
 
 template <int N>
 bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
@@ -348,6 +401,41 @@ Vec6 GrainState<N>::sample_stress() const {
 }
 
 template <int N>
+void slip_rates(const Phase<N>& ph, const GrainState<N>& s, SlipRates<N>& out) {
+  const int n = ph.slip_count;
+  out.tau = ph.schmid.transpose() * s.stress;
+  out.fn = normal_traction(ph, s.stress);
+  out.r.resize(n);
+  out.rate.resize(n);
+  for (int a = 0; a < n; ++a) {
+    out.r(a) = std::abs(out.tau(a)) / (s.mu(a) * out.fn(a));
+    out.rate(a) =
+        ph.laws[static_cast<size_t>(a)].slip_rate(out.r(a), s.r_s(a)) * sign_of(out.tau(a));
+  }
+}
+
+template <int N>
+void grain_rates(const Phase<N>& ph, const GrainState<N>& s, const SlipRates<N>& slip,
+                 const Mat3& L, GrainRates<N>& out) {
+  using VecN = typename SlipTypes<N>::VecN;
+  const int n = ph.slip_count;
+  const LatticeKinematics k = lattice_kinematics(s.orientation, L);
+  out.strain_rate = k.strain_rate;
+  out.spin = k.spin;
+  out.stress_rate = ph.stiffness * k.strain_rate - ph.c_schmid * slip.rate;
+  out.lattice_spin = ph.kinematics == Kinematics::small_strain
+                         ? Vec3::Zero()
+                         : Vec3(k.spin - ph.slip_spin * slip.rate);
+  const VecN magnitude = slip.rate.cwiseAbs();
+  const VecN effective = ph.has_latent ? VecN(ph.latent * magnitude) : magnitude;
+  out.mu_rate.resize(n);
+  for (int a = 0; a < n; ++a) {
+    const auto c = friction_rate_coefficients(ph.laws[static_cast<size_t>(a)], s.mu(a));
+    out.mu_rate(a) = c.slip * effective(a) + c.time;
+  }
+}
+
+template <int N>
 typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s) {
   const typename SlipTypes<N>::VecN tau = ph.schmid.transpose() * s.stress;
   const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
@@ -374,7 +462,12 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, std::abs(previous)) : 0.0;
   }
   Iterate<N> it, trial;
-  if (!solver.make_admissible(x, sign, it, opt.tolerance)) {
+  // The Jacobi sweep freezes the other systems' slip and normal traction; when that does not
+  // reach the admissible set (pressure-sensitive planes under a large trial), move every
+  // offending system below r_hat first and sweep again.
+  if (!solver.make_admissible(x, sign, it, opt.tolerance) &&
+      !(solver.make_admissible(x, sign, it) &&
+        solver.make_admissible(x, sign, it, opt.tolerance))) {
     rep.why = "no admissible start (r >= r_hat or slip plane open)", rep.system = it.bad_system;
     return rep;
   }
@@ -384,13 +477,15 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     const typename T::MatNN j = solver.jacobian(it);
     // Converged when every row is within tolerance or within what double precision resolves
     // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
+    // (An infinite slope, e.g. an overflowed power-form derivative, resolves nothing.)
     const VecN resolution =
-        4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x);
+        (4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x))
+            .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
     if ((it.merit_rows.cwiseAbs() - resolution.cwiseMax(opt.tolerance)).maxCoeff() <= 0.0) {
       converged = true;
       break;
     }
-    const VecN step = -Eigen::PartialPivLU<typename T::MatNN>(j).solve(it.merit_rows);
+    const VecN step = newton_step(j, it);
     if (!step.allFinite()) break;
     // Backtracking line search on the merit 1/2 |rows|^2, projected onto x >= 0; a trial point
     // beyond r_hat counts as infinitely bad, so the iterate never leaves the admissible set.
@@ -427,10 +522,14 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   s1.mu = it.mu;
   s1.slip = s0.slip + dgamma;
   s1.rate = dgamma / dt;
-  const VecN r_abs = it.tau.cwiseAbs().cwiseQuotient(it.mu.cwiseProduct(it.fn));
+  // r from the stress as stored (not from it.tau): with a large elastic trial the two differ by
+  // rounding of order eps |sigma_trial| / CRSS, and r_s <= r must hold for what is output.
+  const VecN fn1 = normal_traction(ph, s1.stress);
+  const VecN r_abs =
+      (ph.schmid.transpose() * s1.stress).cwiseAbs().cwiseQuotient(it.mu.cwiseProduct(fn1));
   s1.r_s = it.rs.cwiseMin(r_abs);  // (3.12): r_s follows r down where no slip occurs
   s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
-  if (!admissible_state(ph, s1, r_abs, it.fn, rep)) return rep;
+  if (!admissible_state(ph, s1, r_abs, fn1, rep)) return rep;
 
   if (tangent) {
     const typename T::MatNN j = solver.jacobian(it);
@@ -466,20 +565,20 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   using VecN = typename SlipTypes<N>::VecN;
   const int n = ph.slip_count;
   GrainStepReport rep;
-  const StepKinematics kin = step_kinematics(s0.orientation, L, dt);
-  const VecN tau = ph.schmid.transpose() * s0.stress;
-  const VecN fn0 = normal_traction(ph, s0.stress);
-  VecN dgamma(n);
-  for (int a = 0; a < n; ++a) {
-    const auto& law = ph.laws[static_cast<size_t>(a)];
+  for (const auto& law : ph.laws) {
     if (law.is_rate_independent()) {
       rep.why = "forward Euler needs an overstress form (rate_independent is implicit only)";
       return rep;
     }
-    const double r = std::abs(tau(a)) / (s0.mu(a) * fn0(a));
-    dgamma(a) = law.slip_rate(r, s0.r_s(a)) * dt * sign_of(tau(a));
   }
-  s1.stress = s0.stress + ph.stiffness * kin.strain_increment - ph.c_schmid * dgamma;
+  // Forward Euler of the grain rates, except r_s (method 2 below) and the orientation (the
+  // exponential map of the lattice spin, which keeps it a rotation).
+  SlipRates<N> slip;
+  GrainRates<N> rates;
+  slip_rates(ph, s0, slip);
+  grain_rates(ph, s0, slip, L, rates);
+  const VecN dgamma = slip.rate * dt;
+  s1.stress = s0.stress + ph.stiffness * (rates.strain_rate * dt) - ph.c_schmid * dgamma;
   const VecN magnitude = dgamma.cwiseAbs();
   const VecN effective = ph.has_latent ? VecN(ph.latent * magnitude) : magnitude;
   const VecN tau1 = ph.schmid.transpose() * s1.stress;
@@ -488,10 +587,9 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   s1.mu.resize(n), s1.r_s.resize(n);
   for (int a = 0; a < n; ++a) {
     const auto& law = ph.laws[static_cast<size_t>(a)];
-    const auto& f = law.parameters().friction;
     const double mu0 = s0.mu(a), rs0 = s0.r_s(a);
-    s1.mu(a) =
-        mu0 + f.kappa * (1.0 - mu0 / f.mu_k) * effective(a) + f.xi * (1.0 - mu0 / f.mu_s) * dt;
+    const auto c = friction_rate_coefficients(law, mu0);
+    s1.mu(a) = mu0 + c.slip * effective(a) + c.time * dt;
     double rs1 = rs0;
     if (magnitude(a) > 0.0) {
       // Method 2: forward Euler of (3.11); U(0) is infinite, so slip from r_s = 0 uses (2.28).
@@ -503,7 +601,7 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   }
   s1.slip = s0.slip + dgamma;
   s1.rate = dgamma / dt;
-  s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
+  s1.orientation = rotated_orientation(ph, s0.orientation, rates.spin, s1.rate, dt);
   if (!admissible_state(ph, s1, r1, fn1, rep)) return rep;
   if (tangent) {
     *tangent = mandel_rotation_operator(s1.orientation.transpose()) * ph.stiffness *
@@ -521,7 +619,10 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                                   GrainState<N>&, Tangent*);                      \
   template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,          \
                                                   const Mat3&, double, GrainState<N>&, Tangent*); \
-  template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);
+  template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);            \
+  template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);              \
+  template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,        \
+                               const Mat3&, GrainRates<N>&);
 
 SUBSLIP_INSTANTIATE_KERNEL(1)
 SUBSLIP_INSTANTIATE_KERNEL(3)

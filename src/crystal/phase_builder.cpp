@@ -48,18 +48,20 @@ typename SlipTypes<N>::MatNN latent_matrix(const PhaseDescription& d,
   return q;
 }
 
+}  // namespace
+
 template <int N>
-std::unique_ptr<Aggregate> build(const PhaseDescription& d,
-                                 const std::vector<DescribedSystem>& systems,
-                                 const std::vector<Orientation>& grains) {
+BuiltPhase<N> build_phase(const PhaseDescription& d) {
+  const auto systems = described_systems(d);
   const int n = static_cast<int>(systems.size());
-  Phase<N> ph;
+  BuiltPhase<N> out;
+  Phase<N>& ph = out.phase;
   ph.kinematics = d.kinematics;
   ph.pressure_sensitive = d.pressure_sensitive;
   ph.has_latent = d.latent.kind != LatentHardening::Kind::none;
   ph.latent = latent_matrix<N>(d, systems);
   ph.tau0.resize(n);
-  typename SlipTypes<N>::VecN mu0(n);
+  out.initial_mu.resize(n);
   std::vector<Vec3> s, m;
   for (int a = 0; a < n; ++a) {
     const auto& sys = systems[static_cast<size_t>(a)];
@@ -68,46 +70,46 @@ std::unique_ptr<Aggregate> build(const PhaseDescription& d,
                                      : d.custom_settings;
     ph.laws.emplace_back(g.law);
     ph.tau0(a) = g.tau0;
-    mu0(a) = g.initial_mu > 0.0 ? g.initial_mu : g.law.friction.mu_s;
+    out.initial_mu(a) = g.initial_mu > 0.0 ? g.initial_mu : g.law.friction.mu_s;
     s.push_back(sys.s);
     m.push_back(sys.m);
   }
   ph.assemble(s, m, d.stiffness);
+  return out;
+}
+
+int checked_slip_count(const PhaseDescription& d) {
+  if (d.custom_systems.empty() && d.families.size() != d.family_settings.size())
+    throw std::invalid_argument("one settings entry per slip family is required");
+  const size_t n = described_systems(d).size();
+  if (n == 0 || n > static_cast<size_t>(kMaxSlipSystems))
+    throw std::invalid_argument("a phase needs 1 to " + std::to_string(kMaxSlipSystems) +
+                                " slip systems, got " + std::to_string(n));
+  return static_cast<int>(n);
+}
+
+std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
+                                                  const std::vector<Orientation>& grains) {
   std::vector<Mat3> g;
   std::vector<double> w;
   for (const auto& o : grains) {
     g.push_back(o.g);
     w.push_back(o.weight);
   }
-  return make_taylor_aggregate<N>(std::move(ph), g, w, mu0);
+  return visit_phase(d, [&](auto built) -> std::unique_ptr<Aggregate> {
+    return make_taylor_aggregate(std::move(built.phase), g, w, built.initial_mu);
+  });
 }
 
-}  // namespace
+#define SUBSLIP_INSTANTIATE_BUILD_PHASE(N) \
+  template BuiltPhase<N> build_phase<N>(const PhaseDescription&);
 
-std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
-                                                  const std::vector<Orientation>& grains) {
-  if (d.custom_systems.empty() && d.families.size() != d.family_settings.size())
-    throw std::invalid_argument("one settings entry per slip family is required");
-  const auto systems = described_systems(d);
-  switch (systems.size()) {
-    case 1:
-      return build<1>(d, systems, grains);
-    case 3:
-      return build<3>(d, systems, grains);
-    case 6:
-      return build<6>(d, systems, grains);
-    case 12:
-      return build<12>(d, systems, grains);
-    case 24:
-      return build<24>(d, systems, grains);
-    case 48:
-      return build<48>(d, systems, grains);
-    default:
-      if (systems.empty() || systems.size() > static_cast<size_t>(kMaxSlipSystems))
-        throw std::invalid_argument("a phase needs 1 to " + std::to_string(kMaxSlipSystems) +
-                                    " slip systems, got " + std::to_string(systems.size()));
-      return build<Eigen::Dynamic>(d, systems, grains);
-  }
-}
+SUBSLIP_INSTANTIATE_BUILD_PHASE(1)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(3)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(6)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(12)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(24)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(48)
+SUBSLIP_INSTANTIATE_BUILD_PHASE(Eigen::Dynamic)
 
 }  // namespace subslip::crystal

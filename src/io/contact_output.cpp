@@ -118,30 +118,50 @@ std::string case_failure(const ContactCase& c, const contact::StepFailure& e) {
   return "case '" + c.name + "': " + e.what();
 }
 
-// Streams one case: every output step goes to the file as it is computed.
-ContactCaseResult stream_case(const ContactScene& scene, std::size_t index, const h5::Group& cases,
-                              h5::File& file) {
-  const ContactCase& c = scene.cases[index];
-  ContactCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
-  ContactCaseResult result{c.name, {}, {}};
-  try {
-    const auto stats = contact::run_history(c.model, c.segments, c.integrator,
-                                            [&](const contact::ContactState& s, int segment) {
-                                              writer.append(s, segment);
-                                              if (file.flush_due()) {
-                                                writer.commit();
-                                                file.flush();
-                                              }
-                                            });
-    result.summary = writer.tracker().result(c, stats);
+// What every way of running a case shares: the scene, the open file and its /progress.
+struct RunContext {
+  const ContactScene& scene;
+  h5::File& file;
+  h5::Group cases;
+  h5::CaseProgress progress;
+  const ContactRunOptions& options;
+};
+
+// Writes the outcome of a case that ran to its end (or failed) and marks it in /progress.
+ContactCaseResult close_case(RunContext& run, std::size_t index, ContactCaseWriter& writer,
+                             const contact::RunStats& stats, const std::string& failure) {
+  const ContactCase& c = run.scene.cases[index];
+  ContactCaseResult result{c.name, writer.tracker().result(c, stats), failure};
+  if (failure.empty()) {
     writer.finish(result.summary);
-  } catch (const contact::StepFailure& e) {
-    result.failure = case_failure(c, e);
-    result.summary = writer.tracker().result(c, {});
-    writer.mark_failed(e.what());
+  } else {
+    writer.mark_failed(failure);
   }
-  file.flush();
+  run.file.flush();  // the attributes and extents first: the state says they are complete
+  run.progress.set_state(index, failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
   return result;
+}
+
+// Streams one case: every output step goes to the file as it is computed (see WritePacer).
+ContactCaseResult stream_case(RunContext& run, std::size_t index) {
+  const ContactCase& c = run.scene.cases[index];
+  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress);
+  run.file.flush();
+  run.progress.set_state(index, h5::CaseState::running);
+  h5::WritePacer pacer(run.options.flush_interval, run.options.write_cost_ratio);
+  contact::RunStats stats;
+  std::string failure;
+  try {
+    stats = contact::run_history(c.model, c.segments, c.integrator,
+                                 [&](const contact::ContactState& s, int segment) {
+                                   writer.append(s, segment);
+                                   if (pacer.due()) pacer.commit([&] { writer.commit(); });
+                                 });
+  } catch (const contact::StepFailure& e) {
+    failure = case_failure(c, e);
+    stats = {};
+  }
+  return close_case(run, index, writer, stats, failure);
 }
 
 Recording record_case(const ContactCase& c) {
@@ -161,54 +181,49 @@ Recording record_case(const ContactCase& c) {
   return rec;
 }
 
-ContactCaseResult write_recorded(const ContactScene& scene, std::size_t index, const Recording& rec,
-                                 const h5::Group& cases, h5::File& file) {
+ContactCaseResult write_recorded(RunContext& run, std::size_t index, const Recording& rec) {
   if (rec.error) std::rethrow_exception(rec.error);
-  const ContactCase& c = scene.cases[index];
-  ContactCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
+  const ContactCase& c = run.scene.cases[index];
+  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress,
+                           rec.rows.size());
   for (const auto& row : rec.rows) writer.append(row.state, row.segment);
-  ContactCaseResult result{c.name, writer.tracker().result(c, rec.stats), rec.failure};
-  if (rec.failure.empty()) {
-    writer.finish(result.summary);
-  } else {
-    writer.mark_failed(rec.failure);
-  }
-  file.flush();
-  return result;
+  run.file.flush();
+  run.progress.set_state(index, h5::CaseState::running);
+  return close_case(run, index, writer, rec.stats, rec.failure);
 }
 
-std::vector<ContactCaseResult> run_serial(const ContactScene& scene, const h5::Group& cases,
-                                          h5::File& file, const ContactRunOptions& options) {
-  std::vector<ContactCaseResult> results;
-  for (std::size_t k = 0; k < scene.cases.size(); ++k) {
-    results.push_back(stream_case(scene, k, cases, file));
-    if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back().summary);
+void report_done(const RunContext& run, std::size_t index, const ContactCaseResult& result) {
+  if (run.options.on_case_done) run.options.on_case_done(index, run.scene.cases[index], result);
+}
+
+void run_serial(RunContext& run, const std::vector<std::size_t>& todo,
+                std::vector<ContactCaseResult>& results) {
+  for (std::size_t k : todo) {
+    results[k] = stream_case(run, k);
+    report_done(run, k, results[k]);
   }
-  return results;
 }
 
 // Cases are computed in parallel and written by whichever thread completes the next case in
 // order, so the file is laid out exactly as in a serial run. HDF5 calls never overlap: they
 // all happen inside the one critical section.
-std::vector<ContactCaseResult> run_parallel(const ContactScene& scene, const h5::Group& cases,
-                                            h5::File& file, const ContactRunOptions& options,
-                                            int threads) {
-  const std::size_t n = scene.cases.size();
+void run_parallel(RunContext& run, const std::vector<std::size_t>& todo,
+                  std::vector<ContactCaseResult>& results, int threads) {
+  const std::size_t n = todo.size();
   std::vector<std::optional<Recording>> pending(n);
-  std::vector<ContactCaseResult> results(n);
   std::exception_ptr write_error;
   std::size_t next = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (std::size_t k = 0; k < n; ++k) {
-    Recording rec = record_case(scene.cases[k]);
+    Recording rec = record_case(run.scene.cases[todo[k]]);
 #pragma omp critical(subslip_h5_output)
     {
       pending[k] = std::move(rec);
       try {
         while (!write_error && next < n && pending[next]) {
-          results[next] = write_recorded(scene, next, *pending[next], cases, file);
-          if (options.on_case_done)
-            options.on_case_done(next, scene.cases[next], results[next].summary);
+          const std::size_t index = todo[next];
+          results[index] = write_recorded(run, index, *pending[next]);
+          report_done(run, index, results[index]);
           pending[next].reset();
           ++next;
         }
@@ -218,7 +233,33 @@ std::vector<ContactCaseResult> run_parallel(const ContactScene& scene, const h5:
     }
   }
   if (write_error) std::rethrow_exception(write_error);
-  return results;
+}
+
+// The summary of a case an earlier run finished, read back from its attributes.
+ContactCaseResult stored_result(const h5::Group& cases, const ContactCase& c) {
+  const h5::Group g = cases.open_group(c.name);
+  ContactCaseResult r{c.name, {}, {}};
+  auto number = [&](const char* name) {
+    return g.has_attribute(name) ? g.attribute_double(name) : ContactSummary::kNone;
+  };
+  auto count = [&](const char* name) {
+    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
+  };
+  r.summary.peak_ratio = number("peak_ratio");
+  r.summary.slip_at_peak = number("slip_at_peak");
+  r.summary.bottom_ratio = number("bottom_ratio");
+  r.summary.final_ratio = number("final_ratio");
+  r.summary.steady_ratio_analytical = number("steady_ratio_analytical");
+  r.summary.steady_speed = number("steady_speed");
+  r.summary.stats.increments = count("increments");
+  r.summary.stats.substeps = count("substeps");
+  r.summary.stats.iterations = count("newton_iterations");
+  r.summary.stats.cutbacks = count("cutbacks");
+  r.summary.stats.rejected = count("rejected_steps");
+  r.summary.stats.wall_seconds = number("wall_seconds");
+  if (g.has_attribute("failed"))
+    r.failure = "case '" + c.name + "': " + g.attribute_string("failed");
+  return r;
 }
 
 }  // namespace
@@ -259,9 +300,24 @@ double steady_ratio_analytical(const ContactCase& c) {
 
 // ---------------------------------------------------------------- ContactCaseWriter
 
+namespace {
+
+// A case left behind by a killed run is replaced as a whole (contact cases take milliseconds).
+h5::Group fresh_case_group(const h5::Group& cases, const std::string& name) {
+  if (cases.has(name)) cases.remove(name);
+  return cases.create_group(name);
+}
+
+}  // namespace
+
 ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index,
-                                     const Units& units)
-    : group_(cases.create_group(c.name)), units_(units) {
+                                     const Units& units, h5::CaseProgress& progress,
+                                     std::size_t rows)
+    : group_(fresh_case_group(cases, c.name)),
+      units_(units),
+      progress_(progress),
+      index_(static_cast<std::size_t>(index)) {
+  progress_.set_rows(index_, 0);
   group_.set_attribute("name", c.name);
   group_.set_attribute("index", index);
   write_overrides(group_, c);
@@ -269,9 +325,9 @@ ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& 
   const std::size_t chunk_rows = chunk_rows_for(c);
   for (ContactField f : c.fields) {
     const FieldSpec spec = field_spec(f, units);
-    series_[static_cast<std::size_t>(f)].emplace(
-        group_.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
-                              spec.description, chunk_rows, kBlockRows}));
+    series_[static_cast<std::size_t>(f)].emplace(group_.create_series(
+        {std::string(to_string(f)), spec.columns, spec.type, spec.unit, spec.description,
+         chunk_rows, kBlockRows, rows > 0 ? rows : output_count(c.segments)}));
   }
 }
 
@@ -323,13 +379,24 @@ void ContactCaseWriter::append(const contact::ContactState& s, int segment) {
 }
 
 void ContactCaseWriter::commit() {
+  std::size_t rows = 0;
   for (auto& series : series_) {
-    if (series) series->commit();
+    if (!series) continue;
+    series->commit();
+    rows = series->rows();
+  }
+  progress_.set_rows(index_, rows);  // after the rows it counts are in the file
+}
+
+void ContactCaseWriter::close_series() {
+  commit();
+  for (auto& series : series_) {
+    if (series) series->finish();
   }
 }
 
 void ContactCaseWriter::finish(const ContactSummary& summary) {
-  commit();
+  close_series();
   const std::string_view one = kDimensionless;
   set_with_unit(group_, "peak_ratio", summary.peak_ratio, one);
   set_with_unit(group_, "slip_at_peak", summary.slip_at_peak, units_.length);
@@ -346,7 +413,7 @@ void ContactCaseWriter::finish(const ContactSummary& summary) {
 }
 
 void ContactCaseWriter::mark_failed(const std::string& why) {
-  commit();
+  close_series();
   group_.set_attribute("failed", why);
 }
 
@@ -354,18 +421,42 @@ void ContactCaseWriter::mark_failed(const std::string& why) {
 
 std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
                                                  const ContactRunOptions& options) {
-  h5::write_result_header(file,
-                          {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
-  const h5::Group cases = file.root().create_group("cases");
-  std::vector<std::string> names;
-  for (const auto& c : scene.cases) names.push_back(c.name);
-  cases.set_attribute("names", names);
-  file.set_flush_interval(options.flush_interval);
-
+  const h5::Group root = file.root();
+  std::optional<RunContext> run;
+  std::vector<ContactCaseResult> results(scene.cases.size());
+  std::vector<std::size_t> todo;
+  if (options.restart) {
+    h5::mark_running(file);
+    run.emplace(
+        RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
+    for (std::size_t k = 0; k < scene.cases.size(); ++k) {
+      const h5::CaseState state = run->progress.state(k);
+      if (state == h5::CaseState::completed || state == h5::CaseState::failed) {
+        results[k] = stored_result(run->cases, scene.cases[k]);
+        report_done(*run, k, results[k]);
+      } else {
+        todo.push_back(k);
+      }
+    }
+  } else {
+    h5::write_result_header(
+        file, {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
+    h5::Group cases = root.create_group("cases");
+    std::vector<std::string> names;
+    for (const auto& c : scene.cases) names.push_back(c.name);
+    cases.set_attribute("names", names);
+    run.emplace(RunContext{scene, file, std::move(cases),
+                           h5::CaseProgress::create(root, names.size()), options});
+    file.flush();
+    if (options.on_header_written) options.on_header_written();
+    for (std::size_t k = 0; k < scene.cases.size(); ++k) todo.push_back(k);
+  }
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
-  auto results = threads > 1 && scene.cases.size() > 1
-                     ? run_parallel(scene, cases, file, options, threads)
-                     : run_serial(scene, cases, file, options);
+  if (threads > 1 && todo.size() > 1) {
+    run_parallel(*run, todo, results, threads);
+  } else {
+    run_serial(*run, todo, results);
+  }
   const bool all_ok = std::all_of(results.begin(), results.end(),
                                   [](const ContactCaseResult& r) { return r.failure.empty(); });
   if (all_ok) h5::mark_completed(file);

@@ -9,9 +9,6 @@ namespace subslip::io {
 
 namespace {
 
-// ln(growth^(n-1)) beyond this would overflow the increment lengths.
-constexpr double kMaxLogGrowth = 600.0;
-
 void parse_contact_block(const CheckedNode& node, contact::ContactModel& model) {
   node.allow_keys({"alpha_n", "alpha_t", "normal_traction"});
   model.stiffness.alpha_n = node.get_double("alpha_n", Range::positive());
@@ -41,8 +38,9 @@ void parse_slide(const CheckedNode& node, contact::Segment& seg) {
     contact::Vec2 direction(1.0, 0.0);
     if (auto d = node.optional("direction")) {
       direction = read_vec2(*d);
-      if (!(direction.norm() > 0.0)) d->fail("direction must be non-zero");
-      direction.normalize();
+      // stableNorm: [1e-200, 0] is a direction too, and [1e200, 1e200] does not overflow.
+      if (!(direction.stableNorm() > 0.0)) d->fail("direction must be non-zero");
+      direction = direction.stableNormalized();
     }
     seg.velocity = speed * direction;
   } else {
@@ -50,12 +48,16 @@ void parse_slide(const CheckedNode& node, contact::Segment& seg) {
       d->fail("'direction' goes with 'speed'; a 'velocity' has its own");
     seg.velocity = read_vec2(node.required("velocity"));
   }
+  if (!std::isfinite(seg.velocity.norm()))
+    node.required(given).fail("the sliding speed overflows double precision");
   if (*node.one_of({"distance", "duration"}, true) == "distance") {
     const CheckedNode distance = node.required("distance");
     const double d = distance.as_double(Range::positive());
-    if (!(seg.velocity.norm() > 0.0))
-      distance.fail("a slide at zero speed covers no distance; give a duration");
-    seg.duration = d / seg.velocity.norm();
+    const double speed = seg.velocity.stableNorm();  // norm() underflows below 1e-154
+    if (!(speed > 0.0)) distance.fail("a slide at zero speed covers no distance; give a duration");
+    seg.duration = d / speed;
+    if (!(std::isfinite(seg.duration) && seg.duration > 0.0))
+      distance.fail("distance / speed is not a usable duration (over- or underflow)");
   } else {
     seg.duration = node.get_double("duration", Range::positive());
   }
@@ -75,6 +77,8 @@ void parse_normal(const std::optional<CheckedNode>& node, const contact::Contact
     seg.normal_control = contact::NormalControl::velocity;
     seg.normal_velocity = node->get_double("velocity");
     fn += model.stiffness.alpha_n * seg.normal_velocity * seg.duration;
+    if (!std::isfinite(fn))
+      node->required("velocity").fail("f_n at the end of the segment overflows double precision");
   }
 }
 
@@ -82,9 +86,7 @@ void parse_stepping(const CheckedNode& node, contact::Segment& seg) {
   seg.increments = node.get_int("increments", Range::at_least(1));
   seg.growth = node.get_double("growth", 1.0, Range::positive());
   seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
-  if (std::abs(std::log(seg.growth)) * (seg.increments - 1) > kMaxLogGrowth) {
-    node.required("growth").fail("growth^(increments - 1) overflows; use a growth closer to 1");
-  }
+  check_increment_lengths(node, seg.duration, seg.increments, seg.growth);
 }
 
 contact::Segment parse_segment(const CheckedNode& node, const contact::ContactModel& model,

@@ -2,13 +2,38 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <optional>
 #include <span>
 
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/io/checkpoint.hpp"
+#include "subslip/io/input_error.hpp"
 
 namespace subslip::io {
 
 namespace {
+
+// A fingerprint of a case's grains (quaternions and weights, bit for bit): a restart refuses to
+// continue with orientations that changed since the run started (an edited orientation file).
+std::string orientations_digest(const CrystalCase& c) {
+  std::uint64_t h = 14695981039346656037ull;  // FNV-1a, 64 bit
+  auto mix = [&h](double x) {
+    unsigned char bytes[sizeof x];
+    std::memcpy(bytes, &x, sizeof x);
+    for (unsigned char b : bytes) h = (h ^ b) * 1099511628211ull;
+  };
+  for (const auto& o : c.orientations) {
+    const auto v = o.q.as_vector();
+    for (int k = 0; k < 4; ++k) mix(v(k));
+    mix(o.weight);
+  }
+  char text[40];
+  std::snprintf(text, sizeof text, "fnv1a64:%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
 
 using crystal::Mat3;
 
@@ -330,16 +355,59 @@ double von_mises_strain(const Eigen::Matrix3d& strain) {
 // ---------------------------------------------------------------- CrystalCaseWriter
 
 CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
-                                     const Units& units)
-    : group_(cases.create_group(c.name)), units_(units) {
+                                     const Units& units, h5::CaseProgress& progress)
+    : group_(cases.create_group(c.name)),
+      units_(units),
+      progress_(progress),
+      index_(static_cast<std::size_t>(index)) {
+  progress_.set_rows(index_, 0);
   group_.set_attribute("name", c.name);
   group_.set_attribute("index", index);
   write_overrides(group_, c);
   write_phase_parameters(group_, c, units);
   write_law_parameters(group_, c, units);
   write_run_parameters(group_, c);
+  group_.set_attribute("orientations_digest", orientations_digest(c));
   create_macro(c);
   if (!c.output.grains.empty()) create_grains(c);
+}
+
+CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
+                                     const Units& units, h5::CaseProgress& progress,
+                                     std::size_t rows)
+    : group_(cases.open_group(c.name)),
+      units_(units),
+      progress_(progress),
+      index_(static_cast<std::size_t>(index)) {
+  if (group_.attribute_string("orientations_digest") != orientations_digest(c)) {
+    throw InputError(c.orientation_source.description, 0, "orientations",
+                     "case '" + c.name +
+                         "': the orientations differ from those the interrupted run used; "
+                         "restore them or start a new run");
+  }
+  // The count first: from here on, rows beyond `rows` are left-overs to be overwritten.
+  progress_.set_rows(index_, rows);
+  const h5::Group macro = group_.open_group("macro");
+  for (MacroField f : c.output.macro) {
+    const FieldSpec spec = macro_spec(f, units_);
+    macro_[static_cast<std::size_t>(f)].emplace(
+        macro.open_series(to_string(f), spec.type, rows, kMacroBlockRows));
+  }
+  if (c.output.grains.empty()) return;
+  const h5::Group grains = group_.open_group("grains");
+  const std::size_t n_grains = c.orientations.size();
+  const std::size_t slip_count = crystal::described_systems(c.phase).size();
+  std::size_t widest = 9;
+  for (GrainField f : c.output.grains) {
+    const FieldSpec spec = grain_spec(f, units_, slip_count);
+    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    grains_[static_cast<std::size_t>(f)].emplace(grains.open_series(
+        to_string(f), spec.type, rows, rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
+    grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
+    widest = std::max(widest, spec.width);
+  }
+  matrices_.resize(n_grains * 9);
+  row_.resize(n_grains * widest);
 }
 
 void CrystalCaseWriter::create_macro(const CrystalCase& c) {
@@ -350,7 +418,7 @@ void CrystalCaseWriter::create_macro(const CrystalCase& c) {
     const FieldSpec spec = macro_spec(f, units_);
     auto& series = macro_[static_cast<std::size_t>(f)];
     series.emplace(macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
-                                        spec.description, chunk_rows, kMacroBlockRows}));
+                                        spec.description, chunk_rows, kMacroBlockRows, rows}));
     if (!spec.components.empty()) series->dataset().set_attribute("layout", spec.components);
   }
 }
@@ -372,6 +440,7 @@ void CrystalCaseWriter::create_grains(const CrystalCase& c) {
                      spec.description,
                      rows_within(kGrainChunkBytes, row_bytes, rows),
                      rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
+                     rows,
                      {n_grains, spec.width}};
     auto& series = grains_[static_cast<std::size_t>(f)];
     series.emplace(grains.create_series(s));
@@ -417,16 +486,34 @@ void CrystalCaseWriter::append(const crystal::MacroState& m, const crystal::Grai
 }
 
 void CrystalCaseWriter::commit() {
+  std::size_t rows = 0;
   for (auto& s : macro_) {
-    if (s) s->commit();
+    if (!s) continue;
+    s->commit();
+    rows = s->rows();
   }
   for (auto& s : grains_) {
     if (s) s->commit();
   }
+  progress_.set_rows(index_, rows);  // after the rows it counts are in the file
+}
+
+std::size_t CrystalCaseWriter::rows() const {
+  return macro_[0]->rows();  // `time` is always written
+}
+
+void CrystalCaseWriter::close_series() {
+  commit();
+  for (auto& s : macro_) {
+    if (s) s->finish();
+  }
+  for (auto& s : grains_) {
+    if (s) s->finish();
+  }
 }
 
 void CrystalCaseWriter::finish(const CrystalSummary& summary) {
-  commit();
+  close_series();
   const std::string_view one = kDimensionless;
   const auto& st = summary.stats;
   group_.set_attribute("increments", st.increments);
@@ -447,7 +534,7 @@ void CrystalCaseWriter::finish(const CrystalSummary& summary) {
 }
 
 void CrystalCaseWriter::mark_failed(const std::string& why) {
-  commit();
+  close_series();
   group_.set_attribute("failed", why);
 }
 
@@ -472,47 +559,196 @@ CrystalSummary summarise(const CrystalCase& c, const crystal::MacroState& last,
   return s;
 }
 
-CrystalCaseResult run_case(const CrystalScene& scene, std::size_t index, const h5::Group& cases,
-                           h5::File& file, const CrystalRunOptions& options) {
-  const CrystalCase& c = scene.cases[index];
-  CrystalCaseWriter writer(cases, c, static_cast<int>(index), scene.units);
+Mat3 matrix_attribute(const h5::Group& g, const char* name) {
+  const auto v = g.attribute_doubles(name);
+  Mat3 m = Mat3::Zero();
+  for (int i = 0; i < 3 && v.size() == 9; ++i)
+    for (int j = 0; j < 3; ++j) m(i, j) = v[static_cast<std::size_t>(3 * i + j)];
+  return m;
+}
+
+// The result of a case an earlier run finished, read back from its attributes.
+CrystalCaseResult stored_result(const h5::Group& cases, const CrystalCase& c) {
+  const h5::Group g = cases.open_group(c.name);
+  CrystalCaseResult r{c.name, {}, {}};
+  auto count = [&](const char* name) {
+    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
+  };
+  crystal::AggregateStats st;
+  st.increments = count("increments");
+  st.substeps = count("substeps");
+  st.grain_steps = count("grain_steps");
+  st.grain_solves = count("grain_solves");
+  st.newton_iterations = count("newton_iterations");
+  st.cutbacks = count("cutbacks");
+  st.rejected = count("rejected_steps");
+  st.mixed_iterations = count("mixed_iterations");
+  st.wall_seconds = g.has_attribute("wall_seconds") ? g.attribute_double("wall_seconds") : 0.0;
+  crystal::MacroState last;
+  if (g.has_attribute("final_time")) {
+    last.time = g.attribute_double("final_time");
+    last.stress = matrix_attribute(g, "final_stress");
+    last.strain = matrix_attribute(g, "final_strain");
+  }
+  r.summary = summarise(c, last, st);
+  if (g.has_attribute("failed"))
+    r.failure = "case '" + c.name + "': " + g.attribute_string("failed");
+  return r;
+}
+
+struct RunContext {
+  const CrystalScene& scene;
+  h5::File& file;
+  h5::Group cases;
+  h5::CaseProgress progress;
+  const CrystalRunOptions& options;
+};
+
+// The writer of case `index`: a new group, or (a restart) the group of the interrupted run,
+// continued from `resume_rows` valid rows.
+std::optional<CrystalCaseWriter> open_writer(RunContext& run, std::size_t index,
+                                             std::optional<std::size_t> resume_rows) {
+  const CrystalCase& c = run.scene.cases[index];
+  std::optional<CrystalCaseWriter> writer;
+  const int i = static_cast<int>(index);
+  if (resume_rows) {
+    writer.emplace(run.cases, c, i, run.scene.units, run.progress, *resume_rows);
+  } else {
+    if (run.cases.has(c.name)) run.cases.remove(c.name);  // created, but never marked running
+    writer.emplace(run.cases, c, i, run.scene.units, run.progress);
+  }
+  run.file.flush();
+  run.progress.set_state(index, h5::CaseState::running);
+  return writer;
+}
+
+// Decides after each increment whether a checkpoint is due.
+class CheckpointClock {
+ public:
+  explicit CheckpointClock(const CheckpointPolicy& p) : policy_(p) {}
+  bool due() {
+    ++increments_;
+    const auto now = std::chrono::steady_clock::now();
+    const bool by_count = policy_.every_increments > 0 && increments_ >= policy_.every_increments;
+    const bool by_time =
+        policy_.every_seconds > 0.0 &&
+        std::chrono::duration<double>(now - last_).count() >= policy_.every_seconds;
+    if (!by_count && !by_time) return false;
+    increments_ = 0;
+    last_ = now;
+    return true;
+  }
+
+ private:
+  CheckpointPolicy policy_;
+  long increments_ = 0;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+double loading_time(const CrystalCase& c) {
+  double t = 0.0;
+  for (const auto& s : c.segments) t += s.duration;
+  return t;
+}
+
+// Runs case `index` into its group; `resuming`: the group of an interrupted run, continued
+// from its latest checkpoint (or from the start when it has none).
+CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
+  const CrystalCase& c = run.scene.cases[index];
+  std::optional<StoredCheckpoint> resume;
+  if (resuming) {
+    const h5::Group group = run.cases.open_group(c.name);
+    resume = CheckpointStore(group).latest();
+  }
+  std::optional<CrystalCaseWriter> writer = open_writer(
+      run, index, resuming ? std::optional<std::size_t>(resume ? resume->rows : 0) : std::nullopt);
+  if (resume) writer->set_last_state(resume->last_output);
+  CheckpointStore checkpoints(writer->group());
+  const CheckpointPolicy policy = checkpoint_policy(c, run.options.checkpoint_every);
+  CheckpointClock clock(policy);
   const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  const double duration = loading_time(c);
+  const auto& on_progress = run.options.on_progress;
+  if (on_progress && resume) on_progress(index, resume->state.macro.time / duration, true);
   CrystalCaseResult result{c.name, {}, {}};
+  h5::WritePacer pacer(run.options.flush_interval, run.options.write_cost_ratio);
+  crystal::RunControl control;
+  if (resume) control.resume = &resume->state;
+  control.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState& m) {
+    if (on_progress) on_progress(index, m.time / duration, false);
+    if (!policy.enabled() || !clock.due()) return;
+    pacer.commit([&] { writer->commit(); });  // the rows a checkpoint counts come first
+    checkpoints.write(run.file, aggregate->checkpoint(), writer->rows(), writer->last_state());
+  };
   try {
     const auto stats = aggregate->run(
-        c.segments, c.options, [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
-          writer.append(m, g);
-          if (options.on_state) options.on_state(index, m, g);
-          if (file.flush_due()) {
-            writer.commit();
-            file.flush();
-          }
-        });
-    result.summary = summarise(c, writer.last_state(), stats);
-    writer.finish(result.summary);
+        c.segments, c.options,
+        [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
+          writer->append(m, g);
+          if (run.options.on_state) run.options.on_state(index, m, g);
+          if (pacer.due()) pacer.commit([&] { writer->commit(); });
+        },
+        control);
+    result.summary = summarise(c, writer->last_state(), stats);
+    writer->finish(result.summary);
   } catch (const crystal::CrystalStepFailure& e) {
     result.failure = "case '" + c.name + "': " + e.what();
-    result.summary = summarise(c, writer.last_state(), {});
-    writer.mark_failed(e.what());
+    result.summary = summarise(c, writer->last_state(), {});
+    writer->mark_failed(e.what());
   }
-  file.flush();
+  // A finished case needs no checkpoint (its space is not reclaimed, but the next case's
+  // checkpoint may reuse it: the unlink is flushed first).
+  if (writer->group().has("checkpoint")) writer->group().remove("checkpoint");
+  run.file.flush();  // attributes and extents first: the state says they are complete
+  run.progress.set_state(index,
+                         result.failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
   return result;
 }
 
 }  // namespace
 
+CheckpointPolicy checkpoint_policy(const CrystalCase& c, std::optional<long> command_line) {
+  CheckpointPolicy p;
+  if (command_line) {
+    p.every_increments = *command_line;
+  } else if (c.output.checkpoint_every >= 0) {
+    p.every_increments = c.output.checkpoint_every;
+  } else {
+    p.every_seconds = kDefaultCheckpointSeconds;
+  }
+  return p;
+}
+
 std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,
                                                  const CrystalRunOptions& options) {
-  h5::write_result_header(
-      file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
-  const h5::Group cases = file.root().create_group("cases");
-  std::vector<std::string> names;
-  for (const auto& c : scene.cases) names.push_back(c.name);
-  cases.set_attribute("names", names);
-  file.set_flush_interval(options.flush_interval);
+  const h5::Group root = file.root();
+  std::optional<RunContext> run;
+  if (options.restart) {
+    h5::mark_running(file);
+    run.emplace(
+        RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
+  } else {
+    h5::write_result_header(
+        file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
+    h5::Group cases = root.create_group("cases");
+    std::vector<std::string> names;
+    for (const auto& c : scene.cases) names.push_back(c.name);
+    cases.set_attribute("names", names);
+    run.emplace(RunContext{scene, file, std::move(cases),
+                           h5::CaseProgress::create(root, names.size()), options});
+    file.flush();
+    if (options.on_header_written) options.on_header_written();
+  }
   std::vector<CrystalCaseResult> results;
   for (std::size_t k = 0; k < scene.cases.size(); ++k) {
-    results.push_back(run_case(scene, k, cases, file, options));
+    const h5::CaseState state = run->progress.state(k);
+    if (options.restart && (state == h5::CaseState::completed || state == h5::CaseState::failed)) {
+      results.push_back(stored_result(run->cases, scene.cases[k]));
+      if (options.on_progress) options.on_progress(k, 1.0, true);
+    } else {
+      // A case the interrupted run had started continues from its latest checkpoint.
+      results.push_back(run_case(*run, k, options.restart && state == h5::CaseState::running));
+    }
     if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
   }
   const bool all_ok = std::all_of(results.begin(), results.end(),

@@ -23,10 +23,14 @@ using crystal::LatticeKind;
 using crystal::SlipFamily;
 using law::OverstressForm;
 
-// ln(growth^(n-1)) beyond this would overflow the increment lengths.
-constexpr double kMaxLogGrowth = 600.0;
 // |s . m| / (|s| |m|) above this: a custom slip direction that does not lie in its plane.
 constexpr double kMaxSlipPlaneCosine = 1e-6;
+// Generated orientation sets larger than this would not fit in memory once the grain states
+// are allocated (about 2 kB a grain); larger sets are surely a typo.
+constexpr int kMaxGeneratedGrains = 10'000'000;
+// c/a of real hexagonal metals lies in 1.57 (Be) .. 1.89 (Cd); far outside, the Miller-Bravais
+// conversions overflow or degenerate.
+constexpr double kMinCOverA = 0.1, kMaxCOverA = 10.0;
 
 // The message of an InputError without its "FILE:LINE: KEY: " prefix.
 std::string bare_message(const InputError& e) {
@@ -74,11 +78,13 @@ std::vector<SlipFamily> parse_families(const CheckedNode& node) {
   return families;
 }
 
+// A direction, returned normalised; stableNorm so that [1e-200, 0, 0] and [1e200, 1e200, 0]
+// neither underflow to zero nor overflow.
 crystal::Vec3 read_vec3(const CheckedNode& node) {
   const auto v = node.as_doubles(Range::any(), 3);
   const crystal::Vec3 out(v[0], v[1], v[2]);
-  if (!(out.norm() > 0.0)) node.fail("must be non-zero");
-  return out;
+  if (!(out.stableNorm() > 0.0)) node.fail("must be non-zero");
+  return out.stableNormalized();
 }
 
 std::vector<crystal::CustomSlipSystem> parse_custom_systems(const CheckedNode& node) {
@@ -92,7 +98,7 @@ std::vector<crystal::CustomSlipSystem> parse_custom_systems(const CheckedNode& n
     element.allow_keys({"s", "m"});
     const crystal::Vec3 s = read_vec3(element.required("s"));
     const crystal::Vec3 m = read_vec3(element.required("m"));
-    const double cosine = std::abs(s.dot(m)) / (s.norm() * m.norm());
+    const double cosine = std::abs(s.dot(m));  // both are unit vectors
     if (cosine > kMaxSlipPlaneCosine) {
       element.fail(
           "the slip direction s must lie in the slip plane (s . m = 0); the angle "
@@ -178,7 +184,7 @@ void parse_c_over_a(const CheckedNode& phase, crystal::PhaseDescription& d) {
   const bool hexagonal =
       !d.families.empty() && crystal::lattice_of(d.families.front()) == LatticeKind::hcp;
   if (hexagonal) {
-    d.c_over_a = phase.get_double("c_over_a", Range::positive());
+    d.c_over_a = phase.get_double("c_over_a", Range::in_closed_interval(kMinCOverA, kMaxCOverA));
   } else if (auto c = phase.optional("c_over_a")) {
     c->fail("c_over_a is used by hcp slip families only; remove it");
   }
@@ -277,7 +283,10 @@ std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, Orientat
     const auto v = element.as_doubles();
     if (v.size() != 3 && v.size() != 4)
       element.fail("expected [phi1, Phi, phi2] or [phi1, Phi, phi2, weight] in degrees");
+    // The ranges of orientation files (docs/orientations.md).
     if (!(v[1] >= 0.0 && v[1] <= 180.0)) element.fail("Phi must be in [0, 180] degrees");
+    if (std::abs(v[0]) > 360.0 || std::abs(v[2]) > 360.0)
+      element.fail("phi1 and phi2 must be in [-360, 360] degrees");
     if (v.size() == 4 && !(v[3] > 0.0)) element.fail("the weight must be > 0");
     const crystal::Vec3 euler = crystal::degrees_to_radians(crystal::Vec3(v[0], v[1], v[2]));
     out.push_back(crystal::Orientation::from_euler(euler, v.size() == 4 ? v[3] : 1.0));
@@ -301,7 +310,8 @@ std::vector<crystal::Orientation> generated(const CheckedNode& node, bool compon
   } else {
     node.allow_keys({"count", "seed"});
   }
-  request.count = static_cast<std::size_t>(node.get_int("count", Range::at_least(1)));
+  request.count = static_cast<std::size_t>(
+      node.get_int("count", Range::in_closed_interval(1, kMaxGeneratedGrains)));
   request.seed = read_seed(node);
   source = {component ? "component" : "random", crystal::describe(request)};
   return crystal::generate_orientations(request);
@@ -312,9 +322,19 @@ std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
   node.allow_keys({"file", "euler_deg", "random", "component"});
   const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
   const CheckedNode value = node.required(kind);
-  if (kind == "file") return read_orientations_from(value, source);
-  if (kind == "euler_deg") return inline_euler(value, source);
-  return generated(value, kind == "component", source);
+  std::vector<crystal::Orientation> grains;
+  if (kind == "file") {
+    grains = read_orientations_from(value, source);
+  } else if (kind == "euler_deg") {
+    grains = inline_euler(value, source);
+  } else {
+    grains = generated(value, kind == "component", source);
+  }
+  // Weights are normalised by their sum, which must not overflow.
+  double total = 0.0;
+  for (const auto& g : grains) total += g.weight;
+  if (!std::isfinite(total)) value.fail("the orientation weights sum to more than 1.8e308");
+  return grains;
 }
 
 // ---------------------------------------------------------------- loading
@@ -413,6 +433,8 @@ void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg) {
   if (!(rate > 0.0))
     strain.fail("needs a non-zero prescribed component of L to reach it; give a duration");
   seg.duration = amount / rate;
+  if (!(std::isfinite(seg.duration) && seg.duration > 0.0))
+    strain.fail("strain / rate is not a usable duration (over- or underflow)");
 }
 
 void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg) {
@@ -420,9 +442,7 @@ void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg) {
   seg.increments = node.get_int("increments", Range::at_least(1));
   seg.growth = node.get_double("growth", 1.0, Range::positive());
   seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
-  if (std::abs(std::log(seg.growth)) * (seg.increments - 1) > kMaxLogGrowth) {
-    node.required("growth").fail("growth^(increments - 1) overflows; use a growth closer to 1");
-  }
+  check_increment_lengths(node, seg.duration, seg.increments, seg.growth);
 }
 
 crystal::LoadSegment parse_segment(const CheckedNode& node) {
@@ -511,7 +531,8 @@ CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
   CrystalOutputSelection out;
   out.macro.assign(kAllMacroFields.begin(), kAllMacroFields.end());
   if (!node) return out;
-  node->allow_keys({"macro", "grains"});
+  node->allow_keys({"macro", "grains", "checkpoint_every"});
+  out.checkpoint_every = node->get_int("checkpoint_every", -1, Range::at_least(0));
   if (auto macro = node->optional("macro")) {
     if (macro->size() == 0) macro->fail("needs at least 'time'");
     out.macro = parse_field_list(*macro, kAllMacroFields);

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstring>
 #include <ctime>
+#include <limits>
 #include <type_traits>
 
 namespace subslip::io::h5 {
@@ -130,6 +131,19 @@ std::vector<std::string> read_strings(hid_t stored_type, std::size_t count, Read
     out.push_back(std::move(s));
   }
   return out;
+}
+
+ValueClass value_class_of(hid_t type) {
+  switch (H5Tget_class(type)) {
+    case H5T_FLOAT:
+      return ValueClass::floating;
+    case H5T_INTEGER:
+      return ValueClass::integer;
+    case H5T_STRING:
+      return ValueClass::string;
+    default:
+      return ValueClass::other;
+  }
 }
 
 template <class T>
@@ -298,7 +312,24 @@ std::string Object::attribute_string(std::string_view name) const {
   return v.front();
 }
 
+ValueClass Object::attribute_class(std::string_view name) const {
+  Handle attr = open_attribute(id(), name);
+  Handle type = own(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  return value_class_of(type.get());
+}
+
+std::size_t Object::attribute_size(std::string_view name) const {
+  Handle attr = open_attribute(id(), name);
+  Handle space = own(H5Aget_space(attr.get()), H5Sclose, "attribute space");
+  return static_cast<std::size_t>(element_count(space.get()));
+}
+
 // ---------------------------------------------------------------- Dataset
+
+ValueClass Dataset::value_class() const {
+  Handle type = own(H5Dget_type(id()), H5Tclose, "dataset type");
+  return value_class_of(type.get());
+}
 
 std::vector<std::size_t> Dataset::shape() const {
   Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
@@ -347,6 +378,22 @@ std::vector<std::size_t> Dataset::chunk_shape() const {
   return {dims, dims + rank};
 }
 
+void Dataset::write(std::span<const double> values) const {
+  Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  if (static_cast<std::size_t>(element_count(space.get())) != values.size())
+    throw Error("HDF5: values do not fit the dataset");
+  check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+        "write dataset");
+}
+
+void Dataset::write(std::span<const long long> values) const {
+  Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  if (static_cast<std::size_t>(element_count(space.get())) != values.size())
+    throw Error("HDF5: values do not fit the dataset");
+  check(H5Dwrite(id(), H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+        "write dataset");
+}
+
 std::vector<std::string> Dataset::filters() const {
   Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
   const int n = H5Pget_nfilters(plist.get());
@@ -381,22 +428,27 @@ std::size_t product(std::span<const std::size_t> shape) {
   return n;
 }
 
+// Series datasets are opened without a chunk cache: a write goes to the file at once, in
+// program order (the row counter in /progress is written after the rows it counts).
+Handle uncached_access() {
+  Handle dapl = make_property_list(H5P_DATASET_ACCESS);
+  check(H5Pset_chunk_cache(dapl.get(), 0, 0, 1.0), "disable chunk cache");
+  return dapl;
+}
+
 }  // namespace
 
-Series::Series(Dataset dataset, std::size_t columns, Type type, std::size_t block_rows)
-    : Series(std::move(dataset), shape_of_columns(columns), type, block_rows) {}
-
-Series::Series(Dataset dataset, std::vector<std::size_t> row_shape, Type type,
-               std::size_t block_rows)
-    : dataset_(std::move(dataset)),
-      row_shape_(std::move(row_shape)),
-      width_(product(row_shape_)),
-      type_(type),
-      block_rows_(std::max<std::size_t>(block_rows, 1)) {
-  committed_ = dataset_.shape().front();
+Series::Series(Dataset dataset, Type type, std::size_t block_rows, std::size_t rows)
+    : dataset_(std::move(dataset)), type_(type), block_rows_(std::max<std::size_t>(block_rows, 1)) {
+  const auto shape = dataset_.shape();
+  row_shape_.assign(shape.begin() + 1, shape.end());
+  width_ = product(row_shape_);
+  capacity_ = shape.front();
+  committed_ = std::min(rows, capacity_);
   if (type_ == Type::float64) {
     block_.resize(block_rows_ * width_);
   } else {
+    if (width_ != 1) throw Error("HDF5: an int32 series must be 1-D");
     int_block_.resize(block_rows_);
   }
 }
@@ -419,22 +471,34 @@ void Series::append(std::span<const double> row) {
 }
 
 void Series::append_int(int value) {
-  if (type_ != Type::int32 || width_ > 1) throw Error("HDF5: not a 1-D int32 series");
+  if (type_ != Type::int32) throw Error("HDF5: not an int32 series");
   int_block_[pending_] = value;
   if (++pending_ == block_rows_) commit();
 }
 
+void Series::set_extent(std::size_t rows) {
+  std::vector<hsize_t> extent{rows};
+  extent.insert(extent.end(), row_shape_.begin(), row_shape_.end());
+  check(H5Dset_extent(dataset_.id(), extent.data()), "resize dataset");
+  capacity_ = rows;
+}
+
+void Series::reserve(std::size_t rows) {
+  if (rows <= capacity_) return;
+  set_extent(std::max(rows, 2 * capacity_));
+  // The new extent (and its chunks) must be in the file before rows that use it are counted.
+  check(H5Fflush(dataset_.id(), H5F_SCOPE_LOCAL), "flush file");
+}
+
 void Series::commit() {
   if (pending_ == 0) return;
-  // [rows, row_shape...]: the extent, the selection and the memory block share the trailing dims.
-  std::vector<hsize_t> extent{committed_ + pending_};
-  extent.insert(extent.end(), row_shape_.begin(), row_shape_.end());
-  check(H5Dset_extent(dataset_.id(), extent.data()), "extend dataset");
-  Handle file_space = own(H5Dget_space(dataset_.id()), H5Sclose, "dataset space");
-  std::vector<hsize_t> start(extent.size(), 0);
+  reserve(committed_ + pending_);
+  // [rows, row_shape...]: the selection and the memory block share the trailing dims.
+  std::vector<hsize_t> count{pending_};
+  count.insert(count.end(), row_shape_.begin(), row_shape_.end());
+  std::vector<hsize_t> start(count.size(), 0);
   start[0] = committed_;
-  std::vector<hsize_t> count = extent;
-  count[0] = pending_;
+  Handle file_space = own(H5Dget_space(dataset_.id()), H5Sclose, "dataset space");
   check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
                             nullptr),
         "select rows");
@@ -447,6 +511,16 @@ void Series::commit() {
       "append rows");
   committed_ += pending_;
   pending_ = 0;
+}
+
+void Series::truncate(std::size_t rows) {
+  pending_ = 0;
+  committed_ = std::min(committed_, rows);
+}
+
+void Series::finish() {
+  commit();
+  if (capacity_ != committed_) set_extent(committed_);
 }
 
 // ---------------------------------------------------------------- Group
@@ -473,6 +547,12 @@ bool Group::has(std::string_view name) const {
   const htri_t exists = H5Lexists(id(), std::string(name).c_str(), H5P_DEFAULT);
   if (exists < 0) fail("check member '" + std::string(name) + "'");
   return exists > 0;
+}
+
+bool Group::is_group(std::string_view name) const {
+  const std::string n(name);
+  Handle object = own(H5Oopen(id(), n.c_str(), H5P_DEFAULT), H5Oclose, "open member '" + n + "'");
+  return H5Iget_type(object.get()) == H5I_GROUP;
 }
 
 std::vector<std::string> Group::members() const {
@@ -503,12 +583,16 @@ Dataset Group::write_text(std::string_view name, std::string_view text,
   return ds;
 }
 
+// Reserved rows are allocated at once and filled (NaN / kInt32Fill), so that writing a row
+// later changes no metadata. No compression: a compressed chunk is rewritten elsewhere when it
+// grows, and HDF5 may reuse the space it frees while the file still points there.
 Series Group::create_series(const SeriesSpec& spec) const {
   const std::vector<std::size_t> row_shape =
       spec.row_shape.empty() ? shape_of_columns(spec.columns) : spec.row_shape;
   const int rank = 1 + static_cast<int>(row_shape.size());
-  std::vector<hsize_t> dims{0}, max_dims{H5S_UNLIMITED};
-  std::vector<hsize_t> chunk{std::max<hsize_t>(spec.chunk_rows, 1)};
+  const hsize_t chunk_rows = std::max<hsize_t>(spec.chunk_rows, 1);
+  std::vector<hsize_t> dims{spec.capacity > 0 ? spec.capacity : chunk_rows};
+  std::vector<hsize_t> max_dims{H5S_UNLIMITED}, chunk{chunk_rows};
   for (std::size_t d : row_shape) {
     dims.push_back(d);
     max_dims.push_back(d);
@@ -517,15 +601,57 @@ Series Group::create_series(const SeriesSpec& spec) const {
   Handle space = simple_space(dims, max_dims.data());
   Handle dcpl = make_property_list(H5P_DATASET_CREATE);
   check(H5Pset_chunk(dcpl.get(), rank, chunk.data()), "set chunk");
-  check(H5Pset_shuffle(dcpl.get()), "set shuffle filter");
-  check(H5Pset_deflate(dcpl.get(), 4), "set gzip filter");
-  const hid_t stored = spec.type == Type::float64 ? H5T_IEEE_F64LE : H5T_STD_I32LE;
-  Dataset ds(own(H5Dcreate2(id(), spec.name.c_str(), stored, space.get(), H5P_DEFAULT, dcpl.get(),
-                            H5P_DEFAULT),
-                 H5Dclose, "create dataset '" + spec.name + "'"));
+  check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY), "set allocation time");
+  check(H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_ALLOC), "set fill time");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const int int_fill = kInt32Fill;
+  const bool real = spec.type == Type::float64;
+  if (spec.type == Type::int64) throw Error("HDF5: '" + spec.name + "': no int64 series");
+  check(H5Pset_fill_value(dcpl.get(), real ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT,
+                          real ? static_cast<const void*>(&nan) : &int_fill),
+        "set fill value");
+  const hid_t stored = real ? H5T_IEEE_F64LE : H5T_STD_I32LE;
+  Handle dapl = uncached_access();
+  Dataset ds(own(
+      H5Dcreate2(id(), spec.name.c_str(), stored, space.get(), H5P_DEFAULT, dcpl.get(), dapl.get()),
+      H5Dclose, "create dataset '" + spec.name + "'"));
   ds.set_attribute("unit", spec.unit);
   ds.set_attribute("description", spec.description);
-  return Series(std::move(ds), row_shape, spec.type, spec.block_rows);
+  return Series(std::move(ds), spec.type, spec.block_rows);
+}
+
+Series Group::open_series(std::string_view name, Type type, std::size_t rows,
+                          std::size_t block_rows) const {
+  const std::string n(name);
+  Handle dapl = uncached_access();
+  Dataset ds(own(H5Dopen2(id(), n.c_str(), dapl.get()), H5Dclose, "open dataset '" + n + "'"));
+  return Series(std::move(ds), type, block_rows, rows);
+}
+
+Dataset Group::create_fixed(std::string_view name, std::span<const std::size_t> shape, Type type,
+                            std::string_view description) const {
+  const std::string n(name);
+  const std::vector<hsize_t> dims(shape.begin(), shape.end());
+  Handle space = dims.empty() ? scalar_space() : simple_space(dims);
+  Handle dcpl = make_property_list(H5P_DATASET_CREATE);
+  check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY), "set allocation time");
+  check(H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_ALLOC), "set fill time");
+  const bool real = type == Type::float64;
+  if (type == Type::int32) throw Error("HDF5: '" + n + "': fixed arrays are float64 or int64");
+  if (real) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "set fill value");
+  }
+  Dataset ds(own(H5Dcreate2(id(), n.c_str(), real ? H5T_IEEE_F64LE : H5T_STD_I64LE, space.get(),
+                            H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                 H5Dclose, "create dataset '" + n + "'"));
+  ds.set_attribute("description", description);
+  return ds;
+}
+
+void Group::remove(std::string_view name) const {
+  const std::string n(name);
+  check(H5Ldelete(id(), n.c_str(), H5P_DEFAULT), "remove '" + n + "'");
 }
 
 Dataset Group::write_array(std::string_view name, std::span<const std::size_t> shape,
@@ -549,18 +675,35 @@ Dataset Group::write_array(std::string_view name, std::span<const std::size_t> s
 
 // ---------------------------------------------------------------- File
 
-File::File(Handle h, std::filesystem::path path)
-    : handle_(std::move(h)),
-      path_(std::move(path)),
-      last_flush_(std::chrono::steady_clock::now()) {}
+File::File(Handle h, std::filesystem::path path) : handle_(std::move(h)), path_(std::move(path)) {}
+
+namespace {
+
+// No sieve buffer: a write into a contiguous dataset (/progress, checkpoints) goes to the file
+// at once, in program order.
+Handle unbuffered_file_access() {
+  Handle fapl = make_property_list(H5P_FILE_ACCESS);
+  check(H5Pset_sieve_buf_size(fapl.get(), 0), "disable sieve buffer");
+  return fapl;
+}
+
+}  // namespace
 
 File File::create(const std::filesystem::path& path, bool overwrite) {
   quiet_hdf5();
   Handle fcpl = make_property_list(H5P_FILE_CREATE);
   track_creation_order(fcpl.get());
+  Handle fapl = unbuffered_file_access();
   const hid_t id =
-      H5Fcreate(path.c_str(), overwrite ? H5F_ACC_TRUNC : H5F_ACC_EXCL, fcpl.get(), H5P_DEFAULT);
+      H5Fcreate(path.c_str(), overwrite ? H5F_ACC_TRUNC : H5F_ACC_EXCL, fcpl.get(), fapl.get());
   return File(own(id, H5Fclose, "create file " + path.string()), path);
+}
+
+File File::open_write(const std::filesystem::path& path) {
+  quiet_hdf5();
+  Handle fapl = unbuffered_file_access();
+  const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.get());
+  return File(own(id, H5Fclose, "open file " + path.string() + " for writing"), path);
 }
 
 File File::open_read(const std::filesystem::path& path) {
@@ -575,12 +718,71 @@ Group File::root() const {
 
 void File::flush() {
   check(H5Fflush(handle_.get(), H5F_SCOPE_LOCAL), "flush file");
-  last_flush_ = std::chrono::steady_clock::now();
 }
 
-bool File::flush_due() const {
-  return flush_interval_.count() <= 0.0 ||
-         std::chrono::steady_clock::now() - last_flush_ >= flush_interval_;
+// ---------------------------------------------------------------- WritePacer
+
+bool WritePacer::due() const {
+  const auto since = std::chrono::steady_clock::now() - last_;
+  return since >= floor_ && since >= cost_ratio_ * cost_;
+}
+
+// ---------------------------------------------------------------- CaseProgress
+
+CaseProgress::CaseProgress(Dataset rows, Dataset state, std::vector<long long> r,
+                           std::vector<long long> s)
+    : rows_ds_(std::move(rows)),
+      state_ds_(std::move(state)),
+      rows_(std::move(r)),
+      state_(std::move(s)) {}
+
+CaseProgress CaseProgress::create(const Group& root, std::size_t cases) {
+  const Group g = root.create_group("progress");
+  g.set_attribute("description",
+                  "how far each case got, in /cases names order; updated as the run goes");
+  const std::size_t shape[1] = {cases};
+  Dataset rows = g.create_fixed("rows", shape, Type::int64,
+                                "valid rows of every time series of the case (later rows of a "
+                                "case that did not finish are NaN or left over)");
+  rows.set_attribute("unit", "1");
+  Dataset state = g.create_fixed("state", shape, Type::int64,
+                                 "0 not started, 1 running, 2 completed, 3 failed");
+  state.set_attribute("unit", "1");
+  std::vector<long long> zeros(cases, 0);
+  rows.write(zeros);
+  state.write(zeros);
+  return CaseProgress(std::move(rows), std::move(state), zeros, zeros);
+}
+
+CaseProgress CaseProgress::open(const Group& root) {
+  const Group g = root.open_group("progress");
+  Dataset rows = g.open_dataset("rows");
+  Dataset state = g.open_dataset("state");
+  auto r = rows.read_ints();
+  auto s = state.read_ints();
+  if (r.size() != s.size()) throw Error("HDF5: /progress/rows and /progress/state differ in size");
+  return CaseProgress(std::move(rows), std::move(state), std::move(r), std::move(s));
+}
+
+void CaseProgress::write_element(const Dataset& d, std::size_t index, long long value) const {
+  Handle file_space = own(H5Dget_space(d.id()), H5Sclose, "dataset space");
+  const hsize_t start[1] = {index}, count[1] = {1};
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
+        "select element");
+  Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
+  check(
+      H5Dwrite(d.id(), H5T_NATIVE_LLONG, memory_space.get(), file_space.get(), H5P_DEFAULT, &value),
+      "write progress");
+}
+
+void CaseProgress::set_rows(std::size_t index, std::size_t rows) {
+  rows_.at(index) = static_cast<long long>(rows);
+  write_element(rows_ds_, index, rows_[index]);
+}
+
+void CaseProgress::set_state(std::size_t index, CaseState state) {
+  state_.at(index) = static_cast<long long>(state);
+  write_element(state_ds_, index, state_[index]);
 }
 
 void File::close() {
@@ -607,6 +809,11 @@ void write_result_header(File& file, const ResultHeader& header) {
 
 void mark_completed(File& file) {
   file.root().set_attribute("completed", 1);
+  file.flush();
+}
+
+void mark_running(File& file) {
+  file.root().set_attribute("completed", 0);
   file.flush();
 }
 

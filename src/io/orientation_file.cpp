@@ -189,7 +189,8 @@ class OrientationReader {
 
   double parse_number(const std::string& token, const char* column) const {
     std::string_view digits = token;
-    if (digits.starts_with('+')) digits.remove_prefix(1);
+    // One leading '+' is allowed (from_chars does not take it); "+-1" stays wrong.
+    if (digits.starts_with('+') && !digits.substr(1).starts_with('-')) digits.remove_prefix(1);
     double value = 0.0;
     const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
     if (error == std::errc::result_out_of_range) {

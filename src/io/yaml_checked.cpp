@@ -76,14 +76,39 @@ std::optional<double> yaml_special_float(std::string_view s) {
   return std::nullopt;
 }
 
+// The number without the one sign from_chars does not take, a leading '+' ("+-1" stays wrong).
+std::string_view without_plus(std::string_view s) {
+  if (s.size() > 1 && s.front() == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+  return s;
+}
+
 std::optional<double> parse_double(std::string_view text) {
   std::string_view s = trim(text);
   if (auto special = yaml_special_float(s)) return special;
-  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  s = without_plus(s);
   double value = 0.0;
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
   if (ec != std::errc() || end != s.data() + s.size() || s.empty()) return std::nullopt;
   return value;
+}
+
+// "1e400", "-1e-400": numbers that a double cannot hold.
+bool out_of_double_range(std::string_view text) {
+  const std::string_view s = without_plus(trim(text));
+  double value = 0.0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
+  return ec == std::errc::result_out_of_range && end == s.data() + s.size();
+}
+
+// "5.56 MPa", "1e-3 /s": a number followed by a unit. Scenes state their units once, in the
+// `units` block, so a unit on a value is refused with a hint rather than parsed or ignored.
+bool has_unit_suffix(std::string_view text) {
+  const std::string_view s = trim(text);
+  const std::size_t space = s.find_first_of(" \t");
+  if (space == std::string_view::npos || !parse_double(s.substr(0, space))) return false;
+  const std::string_view unit = trim(s.substr(space));
+  return !unit.empty() && (std::isalpha(static_cast<unsigned char>(unit.front())) ||
+                           unit.front() == '/' || unit.front() == '%');
 }
 
 }  // namespace
@@ -330,7 +355,11 @@ InputError CheckedNode::missing(std::string_view key, const std::string& message
 std::vector<std::string> CheckedNode::keys() const {
   expect_map();
   std::vector<std::string> out;
-  for (const auto& kv : node_) out.push_back(kv.first.Scalar());
+  for (const auto& kv : node_) {
+    if (!kv.first.IsScalar())
+      throw InputError(*file_, line_of(kv.first), path_, "mapping keys must be plain names");
+    out.push_back(kv.first.Scalar());
+  }
   return out;
 }
 
@@ -388,6 +417,12 @@ std::vector<CheckedNode> CheckedNode::elements() const {
 double CheckedNode::as_double(const Range& range) const {
   expect_scalar("a number");
   const auto value = is_quoted(node_) ? std::nullopt : parse_double(node_.Scalar());
+  if (!value && !is_quoted(node_) && out_of_double_range(node_.Scalar()))
+    fail(node_.Scalar() + " is out of the range of double precision");
+  if (!value && !is_quoted(node_) && has_unit_suffix(node_.Scalar())) {
+    fail("expected a number, got " + kind_name() +
+         ": write the bare number; every value is in the units of the scene's 'units' block");
+  }
   if (!value) {
     fail("expected a number, got " + kind_name() +
          (is_quoted(node_) ? " (remove the quotes)" : ""));

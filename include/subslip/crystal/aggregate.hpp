@@ -94,6 +94,36 @@ class GrainFields {
 
 using MacroObserver = std::function<void(const MacroState&, const GrainFields&)>;
 
+// Where a run stands between two increments.
+struct RunPosition {
+  int segment = 0;            // the segment of the last completed increment
+  long increment = 0;         // increments completed in that segment
+  double segment_time = 0.0;  // time completed in that segment
+  double next_step = 0.0;     // adaptive stepping: the step the next increment tries (else 0)
+};
+
+// Everything a run carries from one increment to the next: continuing from a checkpoint gives
+// the results of the uninterrupted run bit for bit. A plain value (the I/O layer stores it).
+struct AggregateCheckpoint {
+  RunPosition position;
+  MacroState macro;                          // the current state (not necessarily an output)
+  Mat3 segment_start_stress = Mat3::Zero();  // where the segment's stress ramp starts
+  Eigen::VectorXd free_velocity_gradient;    // mixed control: the free components of L
+  AggregateStats stats;                      // counters so far; wall_seconds over all sessions
+  int values_per_grain = 0;                  // 15 + 4 N
+  // Per grain: Cauchy stress (lattice frame, Mandel) 6, orientation g row-major 9, then mu,
+  // r_s, slip and slip rate, N each.
+  std::vector<double> grains;
+};
+
+struct RunControl {
+  // Continue from this checkpoint (of a run of the same segments and options).
+  const AggregateCheckpoint* resume = nullptr;
+  // Called after every completed increment, after its output if it has one; it may call
+  // Aggregate::checkpoint(). For progress reports and checkpoints: no I/O in the drivers.
+  std::function<void(const RunPosition&, const MacroState&)> after_increment;
+};
+
 struct CrystalStepFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -106,8 +136,15 @@ class Aggregate {
   virtual int grain_count() const = 0;
   virtual int slip_count() const = 0;
   virtual std::size_t state_bytes_per_grain() const = 0;
+  // Runs the segments from the initial state (observed first) or, with control.resume, from
+  // that checkpoint (nothing observed until the next output increment).
   virtual AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
-                             const MacroObserver& observe) = 0;
+                             const MacroObserver& observe, const RunControl& control = {}) = 0;
+  // The run's state, from inside RunControl::after_increment (or after run() returned).
+  virtual AggregateCheckpoint checkpoint() const = 0;
+  // Sets the grains, the macro state and the counters from a checkpoint of an aggregate of the
+  // same grains (throws std::invalid_argument when the sizes differ).
+  virtual void restore(const AggregateCheckpoint& c) = 0;
 };
 
 // The Taylor aggregate for N slip systems (N = Eigen::Dynamic for unusual counts).

@@ -122,6 +122,36 @@ template <int N>
 GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, GrainState<N>& s1, Tangent* tangent);
 
+// The rates of one grain: the physics that forward Euler steps and the CVODE peer integrates.
+// Split in two because the slip rates depend on the state alone while everything else is affine
+// in the velocity gradient L (mixed control solves for the free components of L in between).
+template <int N>
+struct SlipRates {
+  using VecN = typename SlipTypes<N>::VecN;
+  VecN tau;   // resolved shear stress tau_a = sigma : P_a
+  VecN fn;    // normal traction of each system: tau0 (or + the compressive plane stress)
+  VecN r;     // dynamic loading ratio |tau_a| / (mu_a fn_a)
+  VecN rate;  // signed slip rate phi(r_a, r_s,a) sign(tau_a); infinite for r_a >= r_hat
+};
+
+template <int N>
+struct GrainRates {
+  Vec6 strain_rate;   // D, lattice components (Mandel)
+  Vec3 spin;          // W, lattice components (axial vector)
+  Vec6 stress_rate;   // lattice components: C (D - sum_a gdot_a P_a), the corotational rate
+  Vec3 lattice_spin;  // omega = W - sum_a gdot_a W_a: dg/dt = -[omega]x g (0 for small strain)
+  typename SlipTypes<N>::VecN mu_rate;  // (3.4): kappa (1 - mu/mu_k) q|gdot| + xi (1 - mu/mu_s)
+};
+
+// The slip rates of a state. Not defined for the rate-independent form (its rows are 0).
+template <int N>
+void slip_rates(const Phase<N>& ph, const GrainState<N>& s, SlipRates<N>& out);
+
+// The other rates at a state under L (sample frame), given its slip rates.
+template <int N>
+void grain_rates(const Phase<N>& ph, const GrainState<N>& s, const SlipRates<N>& slip,
+                 const Mat3& L, GrainRates<N>& out);
+
 // Dynamic loading ratio r_a = |tau_a| / (mu_a f_n,a) of a state, per system.
 template <int N>
 typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s);

@@ -58,4 +58,39 @@ std::vector<DescribedSystem> described_systems(const PhaseDescription& d);
 std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
                                                   const std::vector<Orientation>& grains);
 
+// The kernel phase of a description for N slip systems, with the initial mu of each system, for
+// drivers other than the Taylor aggregate (the CVODE peer). visit_phase picks N from the slip
+// count exactly as build_taylor_aggregate does and calls visitor(BuiltPhase<N>).
+template <int N>
+struct BuiltPhase {
+  Phase<N> phase;
+  typename SlipTypes<N>::VecN initial_mu;
+};
+template <int N>
+BuiltPhase<N> build_phase(const PhaseDescription& d);
+
+// The number of slip systems of a description (checked: 1 to kMaxSlipSystems, one settings
+// entry per family); throws std::invalid_argument otherwise.
+int checked_slip_count(const PhaseDescription& d);
+
+template <class Visitor>
+decltype(auto) visit_phase(const PhaseDescription& d, Visitor&& visitor) {
+  switch (checked_slip_count(d)) {
+    case 1:
+      return visitor(build_phase<1>(d));
+    case 3:
+      return visitor(build_phase<3>(d));
+    case 6:
+      return visitor(build_phase<6>(d));
+    case 12:
+      return visitor(build_phase<12>(d));
+    case 24:
+      return visitor(build_phase<24>(d));
+    case 48:
+      return visitor(build_phase<48>(d));
+    default:
+      return visitor(build_phase<Eigen::Dynamic>(d));
+  }
+}
+
 }  // namespace subslip::crystal

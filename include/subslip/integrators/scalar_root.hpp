@@ -34,9 +34,13 @@ ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, d
   for (int it = 1; it <= max_iterations; ++it) {
     auto [f, df] = eval(x);
     // Converged when |F| is within tolerance or within what double precision can resolve at x
-    // (F changes by |dF/dx| ulp(x) between neighbouring doubles: very steep F stop there).
+    // (F changes by |dF/dx| ulp(x) between neighbouring doubles: very steep F stop there). An
+    // infinite slope (an overflowed derivative, e.g. the power overstress at a slip of 1e-319)
+    // says nothing about the resolution and must not declare convergence.
     const double resolution =
-        4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x);
+        std::isfinite(df)
+            ? 4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x)
+            : 0.0;
     if (std::isfinite(f) && std::abs(f) <= std::max(f_tol, resolution)) return {x, it, true};
     // Shrink the bracket with the sign of F at x.
     if ((f < 0.0) == increasing) {

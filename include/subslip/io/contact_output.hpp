@@ -50,32 +50,31 @@ class SummaryTracker {
 double steady_ratio_analytical(const ContactCase& c);
 
 // One /cases/<name> group: datasets for the requested fields and the case's attributes.
+// A group left by an earlier (killed) run under the same name is replaced.
 class ContactCaseWriter {
  public:
-  ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index, const Units& units);
+  // `rows`: the rows to reserve (0: as many as the case's increments give).
+  ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index, const Units& units,
+                    h5::CaseProgress& progress, std::size_t rows = 0);
   // One row in every dataset (no heap allocation on our side).
   void append(const contact::ContactState& s, int segment);
-  // Writes the rows gathered so far (call before File::flush()).
+  // Writes the rows gathered so far and then their number to /progress.
   void commit();
-  // Commits, and writes the summary attributes.
+  // Commits, trims the datasets to their rows, and writes the summary attributes.
   void finish(const ContactSummary& summary);
-  // Commits, and records why the case stopped.
+  // Commits, trims, and records why the case stopped.
   void mark_failed(const std::string& why);
   const SummaryTracker& tracker() const { return tracker_; }
 
  private:
+  void close_series();
+
   h5::Group group_;
   Units units_;
+  h5::CaseProgress& progress_;
+  std::size_t index_;
   std::array<std::optional<h5::Series>, kAllContactFields.size()> series_;
   SummaryTracker tracker_;
-};
-
-struct ContactRunOptions {
-  int threads = 0;  // cases run in parallel on this many threads (0: OpenMP's default)
-  // Flush at most this often while streaming (0: after every output step).
-  std::chrono::duration<double> flush_interval{0.25};
-  // Called (serially, in case order) as each case is written.
-  std::function<void(std::size_t index, const ContactCase&, const ContactSummary&)> on_case_done;
 };
 
 struct ContactCaseResult {
@@ -84,12 +83,30 @@ struct ContactCaseResult {
   std::string failure;  // non-empty when the case stopped on a contact::StepFailure
 };
 
+struct ContactRunOptions {
+  int threads = 0;  // cases run in parallel on this many threads (0: OpenMP's default)
+  // Rows are committed after every output step unless that costs more than ~5 % (WritePacer);
+  // never more often than this.
+  std::chrono::duration<double> flush_interval{0.0};
+  double write_cost_ratio = h5::WritePacer::kCostRatio;  // 0: every output step (benchmarks)
+  // Continue the run whose file this is (header, /cases and /progress exist): cases marked
+  // completed or failed are kept, every other case is run again from its start.
+  bool restart = false;
+  // Called once the file holds a complete header, /cases and /progress (not on a restart): the
+  // command line writes to a temporary name and renames it here, so that the result path never
+  // names a file that is not a readable result file.
+  std::function<void()> on_header_written;
+  // Called (serially, in case order) as each case is written or found done.
+  std::function<void(std::size_t index, const ContactCase&, const ContactCaseResult&)> on_case_done;
+};
+
 // Writes the result header, runs every case into /cases and, when all succeeded, sets
 // completed = 1. One thread streams each output step to the file; several threads compute
 // cases in memory and write them in case order, so the file's data do not depend on the thread
-// count. A case that fails numerically (contact::StepFailure) keeps the rows it reached, gets a
-// `failed` attribute and a result with `failure` set; the other cases still run, and the file
-// then stays completed = 0. Other errors (HDF5) are thrown.
+// count. /progress records each case's valid rows and state as the run goes. A case that fails
+// numerically (contact::StepFailure) keeps the rows it reached, gets a `failed` attribute and a
+// result with `failure` set; the other cases still run, and the file then stays completed = 0.
+// Other errors (HDF5) are thrown.
 std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
                                                  const ContactRunOptions& options = {});
 

@@ -48,25 +48,38 @@ struct CrystalSummary {
 };
 
 // One /cases/<name> group: datasets for the requested fields and the case's attributes.
+// The case's valid rows are counted in /progress (index `index`).
 class CrystalCaseWriter {
  public:
-  CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units);
+  // A new group (the name must be free).
+  CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units,
+                    h5::CaseProgress& progress);
+  // The group an interrupted run left (a restart), continued after its first `rows` rows. Throws
+  // InputError when the case's orientations are not those the group was written with.
+  CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units,
+                    h5::CaseProgress& progress, std::size_t rows);
   // One row in every dataset.
   void append(const crystal::MacroState& m, const crystal::GrainFields& grains);
-  // Writes the rows gathered so far (call before File::flush()).
+  // Writes the rows gathered so far and then their number to /progress.
   void commit();
-  // Commits, and writes the summary attributes.
+  // Commits, trims the datasets to their rows, and writes the summary attributes.
   void finish(const CrystalSummary& summary);
-  // Commits, and records why the case stopped.
+  // Commits, trims, and records why the case stopped.
   void mark_failed(const std::string& why);
   const crystal::MacroState& last_state() const { return last_; }
+  void set_last_state(const crystal::MacroState& m) { last_ = m; }  // a restart
+  std::size_t rows() const;                                         // appended so far
+  const h5::Group& group() const { return group_; }
 
  private:
   void create_macro(const CrystalCase& c);
   void create_grains(const CrystalCase& c);
+  void close_series();
 
   h5::Group group_;
   Units units_;
+  h5::CaseProgress& progress_;
+  std::size_t index_;
   std::array<std::optional<h5::Series>, kAllMacroFields.size()> macro_;
   std::array<std::optional<h5::Series>, kAllGrainFields.size()> grains_;
   std::array<std::size_t, kAllGrainFields.size()> grain_width_{};  // values per step
@@ -81,11 +94,42 @@ struct CrystalCaseResult {
   std::string failure;  // non-empty when the case stopped on a crystal::CrystalStepFailure
 };
 
+// When a crystal case writes a checkpoint (io/checkpoint.hpp): every `every_increments`
+// increments and/or whenever `every_seconds` of wall time have passed since the last one (after
+// the increment that crosses it); neither set: no checkpoints.
+struct CheckpointPolicy {
+  long every_increments = 0;
+  double every_seconds = 0.0;
+  bool enabled() const { return every_increments > 0 || every_seconds > 0.0; }
+};
+
+// The default when neither the scene (output.checkpoint_every) nor the command line says: a
+// checkpoint about once a minute, which costs nothing noticeable and loses at most a minute.
+inline constexpr double kDefaultCheckpointSeconds = 60.0;
+
+// The policy of a case: `command_line` (--checkpoint-every N, N increments, 0 none) if given,
+// else the scene's output.checkpoint_every, else every kDefaultCheckpointSeconds.
+CheckpointPolicy checkpoint_policy(const CrystalCase& c, std::optional<long> command_line);
+
 struct CrystalRunOptions {
-  // Flush at most this often while streaming (0: after every output step).
-  std::chrono::duration<double> flush_interval{0.25};
+  // Rows are committed after every output step unless that costs more than ~5 % (WritePacer);
+  // never more often than this.
+  std::chrono::duration<double> flush_interval{0.0};
+  double write_cost_ratio = h5::WritePacer::kCostRatio;  // 0: every output step (benchmarks)
+  // Continue the run whose file this is (header, /cases and /progress exist): completed and
+  // failed cases are kept, an interrupted case continues, the others run.
+  bool restart = false;
+  // --checkpoint-every: overrides every case's checkpoint_policy.
+  std::optional<long> checkpoint_every;
+  // Called once the file holds a complete header, /cases and /progress (not on a restart): the
+  // command line writes to a temporary name and renames it here, so that the result path never
+  // names a file that is not a readable result file.
+  std::function<void()> on_header_written;
   // Called as each case is written.
   std::function<void(std::size_t index, const CrystalCase&, const CrystalCaseResult&)> on_case_done;
+  // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
+  // restart continues from (work done before this session), and completed cases it skips.
+  std::function<void(std::size_t index, double fraction, bool resumed)> on_progress;
   // Called with every state the aggregate reports, after it is written (tests, progress).
   std::function<void(std::size_t index, const crystal::MacroState&, const crystal::GrainFields&)>
       on_state;

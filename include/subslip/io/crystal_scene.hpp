@@ -37,6 +37,7 @@ std::string_view to_string(GrainField f);
 struct CrystalOutputSelection {
   std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
   std::vector<GrainField> grains;  // in kAllGrainFields order; empty: no /grains group
+  int checkpoint_every = -1;       // output.checkpoint_every: increments, 0 none, -1 not given
 };
 
 // How the orientations were given, for the case attributes.

@@ -35,6 +35,13 @@ Units parse_units(const CheckedNode& node);
 // accepted and checked when given, else left empty.
 Units parse_units_without_length(const CheckedNode& node);
 
+// Checks the stepping of a loading segment (a mapping with `increments` and optionally
+// `growth`): `increments` lengths in geometric progression with ratio `growth`, summing to
+// `duration`, must all be usable numbers. growth^(increments - 1) must not overflow (reported at
+// `growth`) and the smallest increment must not underflow (reported at `increments`).
+void check_increment_lengths(const CheckedNode& segment, double duration, int increments,
+                             double growth);
+
 // The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
 std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);
 

@@ -1,0 +1,699 @@
+// subslip_extreme_report: runs the stiff and extreme case set (inputs/extreme/*.yaml, issue 4)
+// and prints Markdown:
+//
+//  * one table per scene file, one row per case: outcome (ran to the end, or the failure
+//    message), steps, Newton iterations and cutbacks per step, min(r_hat - r) over the outputs
+//    (every grain and slip system for crystals), admissibility (finite, 0 <= r_s <= r < r_hat at
+//    every output), and the error against a reference (the same case with every increment split
+//    into R), at 1, 2 and 4 splits with the observed order;
+//  * adaptive stepping on chosen cases (when the library has it): steps and error per tolerance;
+//  * where forward Euler goes unstable: the measured critical step against the linearised
+//    estimate dt_crit = 2 / lambda, lambda = alpha dphi/dr / (f_n mu) for a contact and the
+//    largest eigenvalue of A diag(dphi_a/dr_a / (mu_a tau0_a)) for a crystal.
+//
+// Usage: subslip_extreme_report [SCENE.yaml ...] [--reference R] [--skip-cases] [--skip-fe]
+// (default: every inputs/extreme/*.yaml). Errors are in units of the yield scale: contact
+// |f_t - f_t,ref| / (f_n mu_s) (the traction vector, f_n the initial normal traction), crystal
+// max_ij |sigma_ij - sigma_ref,ij| / max_a(mu0_a tau0_a) (mu0 the initial friction coefficient).
+#include <CLI/CLI.hpp>
+#include <omp.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "subslip/contact/contact_point.hpp"
+#include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/crystal_kernel.hpp"
+#include "subslip/crystal/elasticity.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/io/contact_scene.hpp"
+#include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/input_error.hpp"
+#include "subslip/io/scene_common.hpp"
+#include "subslip/law/subloading_friction.hpp"
+
+namespace fs = std::filesystem;
+using namespace subslip;
+namespace ct = subslip::contact;
+namespace cr = subslip::crystal;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+std::string sci(double v) {
+  if (std::isnan(v)) return "-";
+  if (v == kInf) return "inf";
+  return fmt("%.2e", v);
+}
+
+// ------------------------------------------------------------------------------------------
+// Time series of one run and the error of one series against another.
+// ------------------------------------------------------------------------------------------
+
+struct Series {
+  std::vector<double> time;
+  std::vector<std::vector<double>> value;  // one vector per output
+};
+
+// max over the outputs of |s - ref| (max norm) for runs with the same output steps (a split
+// run reports at the original increments).
+double max_error_nested(const Series& s, const Series& ref) {
+  if (s.value.size() != ref.value.size()) return std::nan("");
+  double worst = 0.0;
+  for (size_t i = 0; i < s.value.size(); ++i)
+    for (size_t j = 0; j < s.value[i].size(); ++j)
+      worst = std::max(worst, std::abs(s.value[i][j] - ref.value[i][j]));
+  return worst;
+}
+
+// The same for an adaptive run, which reports every accepted step, against a fixed-step
+// reference: the run is interpolated linearly in time at the reference's output times. (Not
+// the other way round: at the onset of a hold the traction relaxes within ~alpha-scale times,
+// 1e-8 min, which the adaptive run resolves and a fixed reference step of 1e-5 min jumps over;
+// the implicit reference is right at its own nodes, L-stable, but not in between.)
+double max_error_interpolated(const Series& s, const Series& ref) {
+  if (s.time.size() < 2 || ref.time.empty()) return std::nan("");
+  double worst = 0.0;
+  for (size_t i = 0; i < ref.time.size(); ++i) {
+    const double t = ref.time[i];
+    const auto hi = std::lower_bound(s.time.begin(), s.time.end(), t);
+    const size_t k =
+        std::clamp<size_t>(static_cast<size_t>(hi - s.time.begin()), 1, s.time.size() - 1);
+    const double t0 = s.time[k - 1], t1 = s.time[k];
+    const double w = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+    for (size_t j = 0; j < ref.value[i].size(); ++j) {
+      const double v = (1.0 - w) * s.value[k - 1][j] + w * s.value[k][j];
+      worst = std::max(worst, std::abs(v - ref.value[i][j]));
+    }
+  }
+  return worst;
+}
+
+// ------------------------------------------------------------------------------------------
+// One run of one case.
+// ------------------------------------------------------------------------------------------
+
+struct CaseRun {
+  std::string failure;    // empty: ran to the end
+  std::string violation;  // first output outside the admissible set, if any
+  long steps = 0;         // accepted steps (cutback pieces included)
+  long increments = 0;
+  long iterations = 0;  // Newton iterations (per grain solve for crystals)
+  long solves = 0;      // grain solves (crystals)
+  long cutbacks = 0;
+  long rejected = 0;  // adaptive steps refused by the error estimate
+  double min_gap = kInf;  // min(r_hat - r) over the outputs, rate-dependent systems
+  double wall = 0.0;
+  Series series;
+  double scale = 1.0;  // the yield scale the series is divided by
+};
+
+// Every increment of every segment split into k: k times the increments with growth^(1/k)
+// gives the same increment boundaries (a geometric progression of ratio g^(1/k) summed over k
+// terms is proportional to g^i). Outputs stay at the original increments unless `every_step`.
+template <class Seg>
+std::vector<Seg> split(std::vector<Seg> segs, int k, bool every_step) {
+  for (Seg& s : segs) {
+    s.increments *= k;
+    s.growth = std::pow(s.growth, 1.0 / k);
+    s.output_every = every_step ? 1 : k;
+  }
+  return segs;
+}
+
+std::string contact_inadmissible(const ct::ContactState& s, const law::LawParameters& p) {
+  const bool finite = std::isfinite(s.traction_t.x()) && std::isfinite(s.traction_t.y()) &&
+                      std::isfinite(s.traction_n) && std::isfinite(s.law.mu) &&
+                      std::isfinite(s.law.r_s) && std::isfinite(s.r) && std::isfinite(s.time);
+  std::ostringstream why;
+  if (!finite) why << "non-finite";
+  if (!(s.law.r_s >= 0.0)) why << " r_s<0";
+  if (!(s.law.r_s <= s.r)) why << " r_s>r";
+  if (p.overstress.form != law::OverstressForm::rate_independent && !(s.r < p.overstress.r_hat))
+    why << " r>=r_hat";
+  if (!(s.law.mu > 0.0)) why << " mu<=0";
+  if (why.str().empty()) return {};
+  why << " at t=" << s.time << " (r=" << s.r << ", r_s=" << s.law.r_s << ")";
+  return why.str();
+}
+
+CaseRun run_contact(const io::ContactCase& c, int split_by, bool every_step, double tolerance) {
+  CaseRun out;
+  const auto& p = c.model.law;
+  out.scale = c.model.initial_normal_traction * p.friction.mu_s;
+  ct::IntegratorOptions opt = c.integrator;
+  if (tolerance >= 0.0) opt.tolerance = tolerance;
+  const bool rate_dependent = p.overstress.form != law::OverstressForm::rate_independent;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const ct::RunStats st = ct::run_history(
+        c.model, split(c.segments, split_by, every_step), opt, [&](const ct::ContactState& s, int) {
+          if (out.violation.empty()) out.violation = contact_inadmissible(s, p);
+          if (rate_dependent) out.min_gap = std::min(out.min_gap, p.overstress.r_hat - s.r);
+          out.series.time.push_back(s.time);
+          out.series.value.push_back(
+              {s.traction_t.x() / out.scale, s.traction_t.y() / out.scale});
+        });
+    out.steps = st.substeps;
+    out.increments = st.increments;
+    out.iterations = st.iterations;
+    out.cutbacks = st.cutbacks;
+    out.rejected = st.rejected;
+  } catch (const std::exception& e) {
+    out.failure = e.what();
+  }
+  out.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+// Per slip system: r_hat (inf for rate-independent) in output order.
+std::vector<double> system_r_hat(const cr::PhaseDescription& d) {
+  std::vector<double> out;
+  for (const auto& sys : cr::described_systems(d)) {
+    const auto& settings = d.custom_systems.empty()
+                               ? d.family_settings[static_cast<size_t>(sys.group)]
+                               : d.custom_settings;
+    const auto& o = settings.law.overstress;
+    out.push_back(o.form == law::OverstressForm::rate_independent ? kInf : o.r_hat);
+  }
+  return out;
+}
+
+double crss_scale(const cr::PhaseDescription& d) {
+  double scale = 0.0;
+  auto add = [&](const cr::SlipGroupSettings& s) {
+    const double mu0 = s.initial_mu > 0.0 ? s.initial_mu : s.law.friction.mu_s;
+    scale = std::max(scale, mu0 * s.tau0);
+  };
+  if (d.custom_systems.empty()) {
+    for (const auto& s : d.family_settings) add(s);
+  } else {
+    add(d.custom_settings);
+  }
+  return scale;
+}
+
+CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, double tolerance) {
+  CaseRun out;
+  out.scale = crss_scale(c.phase);
+  const std::vector<double> r_hat = system_r_hat(c.phase);
+  cr::AggregateOptions opt = c.options;
+  if (tolerance >= 0.0) opt.tolerance = tolerance;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    auto agg = cr::build_taylor_aggregate(c.phase, c.orientations);
+    const size_t n = static_cast<size_t>(agg->slip_count());
+    const size_t cells = n * static_cast<size_t>(agg->grain_count());
+    std::vector<double> r(cells), rs(cells), crss(cells);
+    const cr::AggregateStats st = agg->run(
+        split(c.segments, split_by, every_step), opt,
+        [&](const cr::MacroState& m, const cr::GrainFields& f) {
+          f.ratio(r.data());
+          f.subloading_ratio(rs.data());
+          f.crss(crss.data());
+          for (size_t i = 0; i < cells && out.violation.empty(); ++i) {
+            const double rh = r_hat[i % n];
+            std::ostringstream why;
+            if (!std::isfinite(r[i]) || !std::isfinite(rs[i]) || !std::isfinite(crss[i]))
+              why << "non-finite";
+            else if (rs[i] < 0.0)
+              why << "r_s<0";
+            else if (rs[i] > r[i] + 1e-12 * std::max(1.0, r[i]))
+              why << "r_s>r";
+            else if (!(r[i] < rh))
+              why << "r>=r_hat";
+            else if (!(crss[i] > 0.0))
+              why << "crss<=0";
+            if (!why.str().empty()) {
+              why << " at t=" << m.time << " grain " << i / n << " system " << i % n
+                  << " (r=" << r[i] << ", r_s=" << rs[i] << ")";
+              out.violation = why.str();
+            }
+          }
+          if (!m.stress.allFinite() && out.violation.empty())
+            out.violation = "non-finite stress at t=" + std::to_string(m.time);
+          for (size_t i = 0; i < cells; ++i)
+            if (std::isfinite(r_hat[i % n])) out.min_gap = std::min(out.min_gap, r_hat[i % n] - r[i]);
+          out.series.time.push_back(m.time);
+          std::vector<double> v(9);
+          for (int k = 0; k < 9; ++k) v[static_cast<size_t>(k)] = m.stress(k / 3, k % 3) / out.scale;
+          out.series.value.push_back(std::move(v));
+        });
+    out.steps = st.substeps;
+    out.increments = st.increments;
+    out.iterations = st.newton_iterations;
+    out.solves = st.grain_solves;
+    out.cutbacks = st.cutbacks;
+    out.rejected = st.rejected;
+  } catch (const std::exception& e) {
+    out.failure = e.what();
+  }
+  out.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+// The error below which differences are rounding, not discretisation: a few ulps of the
+// largest elastic trial of a step (the return mapping subtracts the slip from it), in units of
+// the yield scale.
+double largest_increment(double duration, int increments, double growth) {
+  const auto dts = cr::increment_lengths(duration, increments, growth);
+  return *std::max_element(dts.begin(), dts.end());
+}
+// Differences below this (yield-scale units) count as converged: the implicit solvers stop at
+// a flow residual of 1e-12 (ratio units), which the return mapping's conditioning amplifies.
+constexpr double kConvergedFloor = 1e-9;
+
+double roundoff_floor(const io::ContactCase& c) {
+  double du = 0.0;
+  for (const auto& s : c.segments)
+    du = std::max(du, s.velocity.norm() * largest_increment(s.duration, s.increments, s.growth));
+  return 8.0 * std::numeric_limits<double>::epsilon() * c.model.stiffness.alpha_t * du /
+         (c.model.initial_normal_traction * c.model.law.friction.mu_s);
+}
+double roundoff_floor(const io::CrystalCase& c) {
+  double de = 0.0;
+  for (const auto& s : c.segments)
+    de = std::max(de, s.velocity_gradient.cwiseAbs().maxCoeff() *
+                          largest_increment(s.duration, s.increments, s.growth));
+  return 8.0 * std::numeric_limits<double>::epsilon() * c.phase.stiffness.cwiseAbs().maxCoeff() *
+         de / crss_scale(c.phase);
+}
+
+// ------------------------------------------------------------------------------------------
+// The per-file tables.
+// ------------------------------------------------------------------------------------------
+
+struct Options {
+  std::vector<std::string> scenes;
+  int reference = 32;  // splits of the reference run
+  bool skip_cases = false;
+  bool skip_adaptive = false;
+  bool skip_fe = false;
+};
+
+std::string outcome(const CaseRun& r) {
+  if (!r.failure.empty()) {
+    std::string m = r.failure;
+    std::replace(m.begin(), m.end(), '|', '/');
+    return "**failed**: " + m;
+  }
+  if (!r.violation.empty()) return "**inadmissible**: " + r.violation;
+  return "ran to end";
+}
+
+struct Totals {
+  int cases = 0, failed = 0, inadmissible = 0, not_converging = 0;
+  double max_newton = 0.0, max_cutbacks = 0.0, min_gap = kInf;
+};
+
+template <class Case, class Run>
+void case_table(const std::string& file, const std::string& title, const std::vector<Case>& cases,
+                Run&& run, const Options& o, bool crystal, Totals& totals) {
+  std::cout << "\n### `" << file << "`: " << title << "\n\n";
+  std::cout << "| case | outcome | steps | Newton/" << (crystal ? "grain solve" : "step")
+            << " | cutbacks/step | min(r_hat - r) | err x1 | err x2 | err x4 | order | wall [s] |\n"
+            << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const Case& c : cases) {
+    const CaseRun r1 = run(c, 1, false);
+    ++totals.cases;
+    std::vector<double> err(3, std::nan(""));
+    std::string order = "-";
+    if (r1.failure.empty()) {
+      const CaseRun ref = run(c, o.reference, false);
+      const CaseRun r2 = run(c, 2, false), r4 = run(c, 4, false);
+      if (ref.failure.empty()) {
+        err = {max_error_nested(r1.series, ref.series), max_error_nested(r2.series, ref.series),
+               max_error_nested(r4.series, ref.series)};
+        const double floor = std::max(10.0 * roundoff_floor(c), kConvergedFloor);
+        if (err[0] <= floor) {
+          order = "round-off";
+        } else {
+          order = err[2] > floor ? fmt("%.2f", std::log2(err[0] / err[2]) / 2.0) : "> 1";
+          const bool decreasing =
+              err[1] <= err[0] && (err[2] <= err[1] || std::max(err[1], err[2]) <= floor);
+          if (!decreasing) ++totals.not_converging, order += " (!)";
+        }
+      }
+    }
+    if (!r1.failure.empty()) ++totals.failed;
+    if (!r1.violation.empty()) ++totals.inadmissible;
+    const double steps = std::max<double>(1.0, static_cast<double>(r1.steps));
+    const double per_newton =
+        static_cast<double>(r1.iterations) /
+        (crystal ? std::max<double>(1.0, static_cast<double>(r1.solves)) : steps);
+    const double per_cut = static_cast<double>(r1.cutbacks) /
+                           std::max<double>(1.0, static_cast<double>(r1.increments));
+    totals.max_newton = std::max(totals.max_newton, per_newton);
+    totals.max_cutbacks = std::max(totals.max_cutbacks, per_cut);
+    totals.min_gap = std::min(totals.min_gap, r1.min_gap);
+    std::cout << "| " << c.name << " | " << outcome(r1) << " | " << r1.steps << " | "
+              << fmt("%.2f", per_newton) << " | " << fmt("%.3f", per_cut) << " | "
+              << (r1.min_gap == kInf ? std::string("-") : sci(r1.min_gap)) << " | " << sci(err[0])
+              << " | " << sci(err[1]) << " | " << sci(err[2]) << " | " << order << " | "
+              << fmt("%.3f", r1.wall) << " |\n";
+  }
+}
+
+void report_scene_cases(const fs::path& path, const Options& o, Totals& totals);
+
+void report_scene(const fs::path& path, const Options& o, Totals& totals) {
+  try {
+    report_scene_cases(path, o, totals);
+  } catch (const InputError& e) {
+    std::cout << "\n### `" << path.filename().string() << "`\n\n**input error**: " << e.what()
+              << "\n";
+    ++totals.failed;
+  }
+}
+
+void report_scene_cases(const fs::path& path, const Options& o, Totals& totals) {
+  const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
+  if (kind == "contact") {
+    const auto scene = io::load_contact_scene(path);
+    case_table(
+        path.filename().string(), scene.title, scene.cases,
+        [](const io::ContactCase& c, int k, bool every) { return run_contact(c, k, every, 0.0); },
+        o, false, totals);
+  } else {
+    const auto scene = io::load_crystal_scene(path);
+    case_table(
+        path.filename().string(), scene.title, scene.cases,
+        [](const io::CrystalCase& c, int k, bool every) { return run_crystal(c, k, every, 0.0); },
+        o, true, totals);
+  }
+}
+
+// ------------------------------------------------------------------------------------------
+// Adaptive stepping on chosen cases.
+// ------------------------------------------------------------------------------------------
+
+struct AdaptivePick {
+  const char* file;
+  const char* case_name;
+};
+
+const AdaptivePick kAdaptivePicks[] = {
+    {"contact_hold_hours.yaml", "duration=6000,increments=100,xi=0"},
+    {"contact_hold_hours.yaml", "duration=6000,increments=100,xi=0.009"},
+    {"contact_impact_metres.yaml", "speed=1.0e6,increments=10000"},
+    {"contact_impact_metres.yaml", "speed=1.0e4,increments=10000"},
+    {"contact_speed_viscosity.yaml", "speed=1.0e6,eta_v=1.0e5,r_hat=1.01"},
+    {"contact_speed_viscosity.yaml", "speed=1.0e-4,eta_v=10,r_hat=1.8"},
+    {"contact_stiffness_exponent.yaml", "form=power,alpha_t=1.0e8,n=128,increments=1000"},
+    {"contact_stiffness_exponent.yaml", "form=exponential,alpha_t=1.0e8,n=1,increments=1000"},
+    {"crystal_single_slip_stiffness.yaml",
+     "tau0=1,loading[0].L[0][1]=1.0e4,loading[1].L[0][1]=-1.0e-6"},
+    {"crystal_fcc_schmid_stiff.yaml", "tau0=0.754,L[2][2]=1.0e4,increments=1000"},
+};
+
+template <class Case, class Run>
+void adaptive_rows(const std::string& file, const Case& c, Run&& run, const Options& o) {
+  const CaseRun ref = run(c, o.reference, false, 0.0);
+  const CaseRun fixed = run(c, 1, false, 0.0);
+  auto row = [&](const std::string& setting, const CaseRun& r) {
+    const double steps = std::max<double>(1.0, static_cast<double>(r.steps));
+    const double newton =
+        static_cast<double>(r.iterations) /
+        (r.solves > 0 ? static_cast<double>(r.solves) : steps);
+    std::cout << "| " << file << " | " << c.name << " | " << setting << " | " << outcome(r)
+              << " | " << r.steps << " | " << r.rejected << " | " << fmt("%.2f", newton) << " | "
+              << (r.failure.empty() && ref.failure.empty() ? sci(max_error_interpolated(r.series, ref.series))
+                                                           : std::string("-"))
+              << " | " << fmt("%.3f", r.wall) << " |\n";
+  };
+  row("fixed (scene)", fixed);
+  for (double tol : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}) row("tol " + sci(tol), run(c, 1, false, tol));
+}
+
+void report_adaptive(const fs::path& dir, const Options& o) {
+  std::cout << "\n## Adaptive stepping\n\n"
+            << "Tolerance on the local error estimate (yield-scale units); the first step of each "
+               "segment is the scene's first increment. Error against the fixed-step reference "
+               "(each increment split into "
+            << o.reference
+            << "), at the reference's output times (the adaptive run interpolated linearly).\n\n"
+            << "| file | case | setting | outcome | steps | rejected | Newton/step | max error | "
+               "wall [s] |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const AdaptivePick& pick : kAdaptivePicks) {
+    const fs::path path = dir / pick.file;
+    if (!fs::exists(path)) continue;
+    const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
+    auto find_and_run = [&](const auto& scene, auto&& run) {
+      for (const auto& c : scene.cases)
+        if (c.name == pick.case_name) return adaptive_rows(pick.file, c, run, o);
+      std::cout << "| " << pick.file << " | " << pick.case_name << " | - | no such case | | | | | |\n";
+    };
+    if (kind == "contact") {
+      find_and_run(io::load_contact_scene(path),
+                   [](const io::ContactCase& c, int k, bool every, double tol) {
+                     return run_contact(c, k, every, tol);
+                   });
+    } else {
+      find_and_run(io::load_crystal_scene(path),
+                   [](const io::CrystalCase& c, int k, bool every, double tol) {
+                     return run_crystal(c, k, every, tol);
+                   });
+    }
+  }
+}
+
+// ------------------------------------------------------------------------------------------
+// Forward Euler stability.
+//
+// Forward Euler advances the traction by df_t = alpha_t (du - dt phi(r, r_s)), r = f_t/(f_n mu).
+// With mu and r_s frozen (they move on the slip scales 1/kappa and 1/u_tilde, while f_t moves on
+// f_n mu / alpha), a perturbation of f_t is multiplied per step by 1 - lambda dt with
+//   lambda = alpha_t phi_r(r, r_s) / (f_n mu),   phi_r = d phi / d r,
+// so the step is stable while dt < dt_crit = 2 / lambda. At steady sliding (r_s = 1, phi = v)
+// the exponential form (3.15) gives phi_r = n / (eta_v (r_hat - r)) + n v + v / (r_hat - r).
+// A crystal slip system reads the same with alpha_t -> the interaction A_aa (= G for the
+// single-slip system) and f_n -> tau0; several active systems couple through A, and lambda is
+// the largest eigenvalue of A diag(phi_r,a / (mu_a tau0_a)).
+//
+// Measured: from the implicit steady state (perturbed by 1e-6 relative), forward Euler steps of
+// fixed dt; stable when the perturbation has not grown after 400 steps (an inadmissible step
+// counts as unstable). Bisection on dt to 0.5 %.
+// ------------------------------------------------------------------------------------------
+
+law::LawParameters paper_law() {
+  law::LawParameters p;
+  p.friction = {0.097, 0.085, 0.2, 0.009};
+  p.subloading = {law::SubloadingFunction::cot, 80.0};
+  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
+  return p;
+}
+
+template <class Stable>
+double bisect_critical_step(double guess, Stable&& stable) {
+  double lo = guess, hi = guess;
+  while (!stable(lo) && lo > guess * 1e-6) lo *= 0.5;
+  while (stable(hi) && hi < guess * 1e6) hi *= 2.0;
+  while (hi / lo > 1.005) {
+    const double mid = std::sqrt(lo * hi);
+    (stable(mid) ? lo : hi) = mid;
+  }
+  return std::sqrt(lo * hi);
+}
+
+struct FeRow {
+  double stiffness, lambda, measured, lambda_path, measured_path;
+};
+
+// The contact at steady sliding at v = 1 mm/min with stiffness alpha.
+FeRow contact_fe_row(double alpha) {
+  const law::LawParameters p = paper_law();
+  const law::SubloadingFrictionLaw lw(p);
+  const double v = 1.0, fn = 5.56;
+  ct::ContactModel m;
+  m.law = p;
+  m.initial_law_state = {p.friction.mu_s, 0.0};
+  m.stiffness = {alpha, alpha};
+  m.initial_normal_traction = fn;
+  ct::Segment seg;
+  seg.velocity = ct::Vec2(v, 0.0);
+  seg.duration = 30.0;  // 30 mm: mu and r_s at their attractors (e^-70)
+  seg.normal_traction = fn;
+  seg.increments = 3000;
+  seg.growth = 1.004;
+  ct::ContactState steady;
+  double lambda_path = 0.0;
+  ct::run_history(m, {seg}, ct::IntegratorOptions{}, [&](const ct::ContactState& s, int) {
+    steady = s;
+    if (s.law.mu > 0.0)
+      lambda_path = std::max(lambda_path, alpha * lw.slip_rate_slope(s.r, s.law.r_s) / (fn * s.law.mu));
+  });
+  const auto ss = lw.steady_state(v);
+  const double lambda = alpha * lw.slip_rate_slope(ss.r, 1.0) / (fn * ss.mu);
+  auto stable = [&](double dt) {
+    ct::ContactState s = steady;
+    s.traction_t *= 1.0 + 1e-6;
+    s.r *= 1.0 + 1e-6;
+    const double d0 = std::abs(s.r - steady.r);
+    for (int i = 0; i < 400; ++i) {
+      const auto a = ct::forward_euler_step(lw, m.stiffness, s, ct::Vec2(v * dt, 0.0), fn, dt);
+      if (!a.ok) return false;
+      s = a.state;
+    }
+    return std::abs(s.r - steady.r) < d0;
+  };
+  const double measured = bisect_critical_step(2.0 / lambda, stable);
+  // From rest over the first 0.1 mm (the peak at ~0.04 mm included), uniform steps: the largest
+  // step that completes without a cutback and ends within 1 % of the overshoot-free reference.
+  double measured_path = std::nan("");
+  if (alpha <= 1e6) {
+    ct::Segment first = seg;
+    first.duration = 0.1 / v;
+    first.increments = 20000;
+    first.growth = 1.0;
+    double ref_end = 0.0;
+    ct::run_history(m, {first}, ct::IntegratorOptions{},
+                    [&](const ct::ContactState& s, int) { ref_end = s.traction_ratio(); });
+    auto completes = [&](double dt) {
+      ct::Segment fe = first;
+      fe.increments = std::max(1, static_cast<int>(std::lround(first.duration / dt)));
+      ct::IntegratorOptions opt;
+      opt.method = ct::Method::forward_euler;
+      opt.max_cutbacks = 0;
+      double end = 0.0;
+      try {
+        ct::run_history(m, {fe}, opt, [&](const ct::ContactState& s, int) { end = s.traction_ratio(); });
+      } catch (const ct::StepFailure&) {
+        return false;
+      }
+      return std::abs(end - ref_end) < 1e-2 * ref_end;
+    };
+    measured_path = bisect_critical_step(2.0 / lambda_path, completes);
+  }
+  return {alpha, lambda, measured, lambda_path, measured_path};
+}
+
+// One slip system s = e1, m = e2 in simple shear at L12 = gamma_dot, shear modulus G, tau0 = 1:
+// the crystal image of the contact (kernel calls only, Phase<1>).
+FeRow crystal_fe_row(double g_over_tau0) {
+  const double tau0 = 1.0, G = g_over_tau0 * tau0, rate = 1.0;
+  law::LawParameters p;
+  p.friction = {1.0, 2.0, 0.0, 0.0};  // no hardening: the steady state is reached exactly
+  p.subloading = {law::SubloadingFunction::cot, 200.0};
+  p.overstress = {law::OverstressForm::exponential, 1e-3, 16.0, 1.6};
+  const law::SubloadingFrictionLaw lw(p);
+  cr::Phase<1> ph;
+  ph.kinematics = cr::Kinematics::small_strain;
+  ph.tau0 = cr::SlipTypes<1>::VecN::Constant(tau0);
+  ph.laws.assign(1, lw);
+  ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()}, cr::isotropic_from_G_nu(G, 0.3));
+  cr::GrainState<1> s;
+  s.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
+  cr::Mat3 L = cr::Mat3::Zero();
+  L(0, 1) = rate;
+  // Implicit to the steady state: slip 1 in 1000 steps (r_s = 1 - e^-300).
+  cr::GrainStepOptions opt;
+  for (int i = 0; i < 1000; ++i) {
+    cr::GrainState<1> next = s;
+    if (!cr::implicit_grain_step(ph, s, L, 1e-3, opt, next, nullptr).ok) break;
+    s = next;
+  }
+  const double r = cr::loading_ratio(ph, s)(0);
+  const double a = ph.interaction(0, 0);
+  const double lambda = a * lw.slip_rate_slope(r, s.r_s(0)) / (s.mu(0) * tau0);
+  auto stable = [&](double dt) {
+    cr::GrainState<1> x = s;
+    x.stress *= 1.0 + 1e-6;
+    const double d0 = std::abs(cr::loading_ratio(ph, x)(0) - r);
+    for (int i = 0; i < 400; ++i) {
+      cr::GrainState<1> next = x;
+      if (!cr::explicit_grain_step(ph, x, L, dt, next, nullptr).ok) return false;
+      x = next;
+    }
+    return std::abs(cr::loading_ratio(ph, x)(0) - r) < d0;
+  };
+  return {g_over_tau0, lambda, bisect_critical_step(2.0 / lambda, stable), std::nan(""),
+          std::nan("")};
+}
+
+void report_forward_euler() {
+  std::cout
+      << "\n## Forward Euler stability limit\n\n"
+      << "Linearised estimate dt_crit = 2 / lambda, lambda = alpha_t phi_r(r, r_s) / (f_n mu) "
+         "(crystal: A_aa phi_r / (mu tau0)), evaluated at the analytical steady state; measured: "
+         "the largest stable fixed step from that steady state (perturbation 1e-6, 400 steps, "
+         "bisection to 0.5 %).\n\n"
+      << "Contact, the paper's section 5 law at v = 1 mm/min, f_n = 5.56 MPa:\n\n"
+      << "| alpha [MPa/mm] | lambda_ss [1/min] | 2/lambda_ss [min] | measured dt_crit [min] | "
+         "measured / estimate | from rest: 2/max(lambda) [min] | from rest: measured [min] |\n"
+      << "|---|---|---|---|---|---|---|\n";
+  for (double alpha : {1e5, 1e6, 1e7, 1e8}) {
+    const FeRow r = contact_fe_row(alpha);
+    std::cout << "| " << sci(alpha) << " | " << sci(r.lambda) << " | " << sci(2.0 / r.lambda)
+              << " | " << sci(r.measured) << " | " << fmt("%.3f", r.measured * r.lambda / 2.0)
+              << " | " << sci(2.0 / r.lambda_path) << " | " << sci(r.measured_path) << " |\n";
+  }
+  std::cout << "\nCrystal, one slip system in simple shear at 1 /s (tau0 = 1, eta_v = 1e-3 s, "
+               "n = 16, r_hat = 1.6, no hardening):\n\n"
+            << "| G/tau0 | lambda_ss [1/s] | 2/lambda_ss [s] | measured dt_crit [s] | "
+               "measured / estimate | as strain step |\n|---|---|---|---|---|---|\n";
+  for (double g : {1e2, 1e3, 1e4, 1e5}) {
+    const FeRow r = crystal_fe_row(g);
+    std::cout << "| " << sci(g) << " | " << sci(r.lambda) << " | " << sci(2.0 / r.lambda) << " | "
+              << sci(r.measured) << " | " << fmt("%.3f", r.measured * r.lambda / 2.0) << " | "
+              << sci(r.measured * 1.0) << " |\n";
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Runs the stiff and extreme case set and prints Markdown tables"};
+  Options o;
+  app.add_option("scenes", o.scenes, "scene files (default: every inputs/extreme/*.yaml)");
+  app.add_option("--reference", o.reference, "splits of every increment in the reference run")
+      ->check(CLI::Range(4, 1024));
+  app.add_flag("--skip-cases", o.skip_cases, "no per-case tables");
+  app.add_flag("--skip-adaptive", o.skip_adaptive, "no adaptive-stepping table");
+  app.add_flag("--skip-fe", o.skip_fe, "no forward-Euler stability tables");
+  CLI11_PARSE(app, argc, argv);
+  omp_set_num_threads(1);  // small aggregates: a parallel region per step costs more than it gains
+
+  const fs::path dir = fs::path(SUBSLIP_SOURCE_DIR) / "inputs" / "extreme";
+  std::vector<fs::path> scenes(o.scenes.begin(), o.scenes.end());
+  if (scenes.empty()) {
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().extension() == ".yaml") scenes.push_back(e.path());
+    std::sort(scenes.begin(), scenes.end());
+  }
+  try {
+    std::cout << "# Stiff and extreme cases\n\nGenerated by `subslip_extreme_report` (reference: "
+                 "every increment split into "
+              << o.reference << "; err xk: the case with every increment split into k).\n";
+    if (!o.skip_cases) {
+      Totals totals;
+      for (const auto& path : scenes) report_scene(path, o, totals);
+      std::cout << "\n**Summary**: " << totals.cases << " cases, " << totals.failed << " failed, "
+                << totals.inadmissible << " inadmissible outputs, " << totals.not_converging
+                << " with errors not decreasing under refinement; at most "
+                << fmt("%.2f", totals.max_newton) << " Newton iterations per step (or grain solve), "
+                << fmt("%.3f", totals.max_cutbacks)
+                << " cutbacks per increment; smallest r_hat - r: " << sci(totals.min_gap) << "\n";
+    }
+    if (!o.skip_adaptive) report_adaptive(dir, o);
+    if (!o.skip_fe) report_forward_euler();
+  } catch (const InputError& e) {
+    std::cerr << "subslip_extreme_report: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

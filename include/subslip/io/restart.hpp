@@ -1,0 +1,30 @@
+// What `subslip run --restart FILE` needs to know about a result file before it continues it,
+// and every reason to refuse (each an InputError naming the file and what is wrong, so the
+// command exits with code 2 before it changes anything).
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace subslip::io {
+
+struct RestartInfo {
+  std::string scene_kind;  // "contact", "crystal"
+  std::string scene_file;  // as the interrupted run was given it
+  std::string scene_text;  // /scene, verbatim
+  std::vector<std::string> case_names;
+};
+
+// Reads FILE and checks that it is a result file of this program version whose run did not
+// complete and that has the /progress table. `scene_text`, when given, is the text of a scene
+// file named on the command line: it must equal /scene.
+RestartInfo inspect_for_restart(const std::filesystem::path& file,
+                                const std::optional<std::string>& scene_text = std::nullopt);
+
+// Checks that the scene parsed from /scene has the cases the file lists (same names, order).
+void check_restart_cases(const std::filesystem::path& file, const RestartInfo& info,
+                         const std::vector<std::string>& scene_case_names);
+
+}  // namespace subslip::io

@@ -1,0 +1,317 @@
+// The work-precision study: a problem (one contact or crystal case) is run with each integrator
+// over a ladder of settings; every run's path is compared with a much finer reference run and
+// timed. No I/O: the command line and src/io/accuracy_output.cpp print and write the results.
+//
+// Settings. Fixed-step integrators (forward Euler, implicit) take an increment factor f: every
+// segment gets round(f n) increments whose geometric grading is kept (growth^(n / n')), so for
+// an integer f each original increment is split into exactly f. Adaptive integrators (implicit
+// with a tolerance, CVODE) take a tolerance.
+//
+// Errors. The measured quantity is f_t/f_n (contact) or the stress component along the loading
+// direction (crystal). A measuring run reports every step it takes; at each, the reference is
+// interpolated (PathInterpolant) and the error is |value - reference| / scale, the scale being
+// the yield scale of the problem (contact: mu_s; crystal: the largest |stress| of the reference
+// along the path). Reported: the maximum over the run's steps, where it is, and the error at the
+// end. Timing runs are separate and report only the scene's output points.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "subslip/contact/contact_point.hpp"
+#include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/crystal/rotation.hpp"
+
+namespace subslip::study {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+enum class Integrator { forward_euler, implicit, implicit_adaptive, cvode };
+std::string_view to_string(Integrator integrator);
+// What a setting's value means for this integrator: "increment factor", "tolerance" or "rtol".
+std::string_view setting_kind(Integrator integrator);
+bool is_fixed_step(Integrator integrator);
+
+struct Setting {
+  Integrator integrator = Integrator::implicit;
+  double value = 1.0;  // fixed step: increment factor; adaptive: tolerance; CVODE: rtol
+  // Fixed step: uniform increments (growth 1) instead of the scene's grading, in the same
+  // number. Forward Euler's step is bounded by stability everywhere, so grading only wastes
+  // its steps.
+  bool uniform = false;
+  // CVODE: absolute tolerances are min(value, atol_scale) times each component's natural scale
+  // (the peer's CvodeOptions::atol_scale).
+  double atol_scale = 1e-10;
+};
+
+// One observed path: the measured quantity at the reported points of a run.
+struct Trajectory {
+  std::vector<double> time;
+  std::vector<double> value;
+  std::vector<int> segment;  // loading segment of each point, -1 for the initial state
+
+  void add(double t, double v, int seg);
+  std::size_t size() const { return time.size(); }
+};
+
+// The work of one run.
+struct RunCounters {
+  long steps = 0;              // accepted (sub)steps actually taken
+  long rejected = 0;           // adaptive steps refused by the error estimate
+  long newton_iterations = 0;  // summed over every solve (grain solves for crystals)
+  long cutbacks = 0;           // halvings after a failed update
+};
+
+struct RunResult {
+  RunCounters counters;  // zero when the run failed (the integrators report them at the end)
+  bool ok = false;
+  std::string failure;      // when !ok: the integrator's message (a data point)
+  double seconds = 0.0;     // wall time of the whole run (setup included)
+  double last_time = kNaN;  // the time of the last reported point
+};
+
+// Which points a run reports.
+enum class Report {
+  every_step,    // every increment (fixed step), every accepted step (adaptive), every CVODE
+                 // step and the scene's increments (CVODE): what the errors are measured at
+  scene_points,  // the scene's output points (fixed step and CVODE; adaptive: every accepted
+                 // step): the timed runs
+};
+
+// Receives each reported point: time, measured value, loading segment (-1: initial state).
+using PointObserver = std::function<void(double time, double value, int segment)>;
+
+// A case the study can run at any setting. run() never throws for a numerical failure: the
+// failure is returned (forward Euler at coarse steps diverges, and that is a result).
+class Problem {
+ public:
+  virtual ~Problem() = default;
+  virtual RunResult run(const Setting& setting, Report report,
+                        const PointObserver& observe) const = 0;
+  virtual bool supports(Integrator integrator) const = 0;
+  // The increments of the unrefined scene, summed over segments (the base of the factors).
+  virtual long base_increments() const = 0;
+  virtual std::string quantity() const = 0;  // "f_t/f_n", "sigma_33", ...
+  // The yield scale that divides every error, from the reference path.
+  virtual double error_scale(const Trajectory& reference) const = 0;
+  virtual std::string error_scale_description() const = 0;
+};
+
+// Runs `setting` and keeps every reported point in `path`; a run still going after
+// `budget_seconds` is stopped (not ok, with a message saying so).
+RunResult record(const Problem& problem, const Setting& setting, Report report, Trajectory& path,
+                 double budget_seconds = std::numeric_limits<double>::infinity());
+
+// Segments with every increment count multiplied by `factor` (at least 1 each), the grading
+// kept so that integer factors subdivide each original increment (growth 1 when `uniform`),
+// and output_every scaled so that the scene's output points are kept (1 when `every_step`).
+std::vector<contact::Segment> refine(std::vector<contact::Segment> segments, double factor,
+                                     bool uniform, bool every_step);
+std::vector<crystal::LoadSegment> refine(std::vector<crystal::LoadSegment> segments, double factor,
+                                         bool uniform, bool every_step);
+
+// One contact case; the quantity is f_t/f_n, the scale mu_s.
+class ContactProblem final : public Problem {
+ public:
+  ContactProblem(contact::ContactModel model, std::vector<contact::Segment> segments,
+                 contact::IntegratorOptions options);
+  RunResult run(const Setting& setting, Report report, const PointObserver& observe) const override;
+  bool supports(Integrator integrator) const override;
+  long base_increments() const override;
+  std::string quantity() const override { return "f_t/f_n"; }
+  double error_scale(const Trajectory&) const override { return model_.law.friction.mu_s; }
+  std::string error_scale_description() const override;
+
+ private:
+  contact::ContactModel model_;
+  std::vector<contact::Segment> segments_;
+  contact::IntegratorOptions options_;
+};
+
+// One crystal case (a Taylor aggregate, a single crystal being one grain); the quantity is the
+// Cauchy stress component (i, j) along the loading direction, the scale the reference's largest
+// |sigma_ij|.
+class CrystalProblem final : public Problem {
+ public:
+  CrystalProblem(crystal::PhaseDescription phase, std::vector<crystal::Orientation> orientations,
+                 std::vector<crystal::LoadSegment> segments, crystal::AggregateOptions options,
+                 std::pair<int, int> component);
+  RunResult run(const Setting& setting, Report report, const PointObserver& observe) const override;
+  bool supports(Integrator integrator) const override;
+  long base_increments() const override;
+  std::string quantity() const override;
+  double error_scale(const Trajectory& reference) const override;
+  std::string error_scale_description() const override;
+
+ private:
+  crystal::PhaseDescription phase_;
+  std::vector<crystal::Orientation> orientations_;
+  std::vector<crystal::LoadSegment> segments_;
+  crystal::AggregateOptions options_;
+  std::pair<int, int> component_;
+};
+
+// Interpolation of a path within each loading segment: the nodes of segment k are the points
+// of segment k and the last point before it (the segment's start); between two nodes the value
+// is the cubic through the four nearest nodes of the segment (exact for cubics, error ~h^4 where
+// the path is smooth). It never reaches across the kink between two segments (a reversal, the
+// start of a hold).
+class PathInterpolant {
+ public:
+  explicit PathInterpolant(const Trajectory& path);
+  // The value at time t in segment `segment` (-1: the initial state, the first point). Times
+  // outside the segment's span are clamped to it.
+  double at(double t, int segment) const;
+  // A bound on the interpolation error, in the path's units: the same interpolation built on
+  // every second node, evaluated at the dropped nodes. Where the path is smooth the error falls
+  // as h^4, so at the full node density it is about 16 times smaller than this.
+  double estimated_error() const;
+
+ private:
+  struct Piece {
+    int segment;
+    std::vector<double> t, y;  // nodes, t strictly increasing
+  };
+  const Piece* piece_of(int segment) const;
+  std::vector<Piece> pieces_;  // in path order
+};
+
+struct ErrorMeasure {
+  double max_error = kNaN;       // max over the run's points of |value - ref| / scale
+  double max_error_time = kNaN;  // where the maximum is
+  double end_error = kNaN;       // at the run's last point (NaN when the run failed)
+};
+
+// The error of a run, point by point as the run reports them (nothing is stored).
+class ErrorAccumulator {
+ public:
+  ErrorAccumulator(const PathInterpolant& reference, double scale)
+      : reference_(reference), scale_(scale) {}
+  void add(double time, double value, int segment);
+  // NaN errors unless `complete` (a failed run has no end, and its error is not a result).
+  ErrorMeasure result(bool complete) const;
+
+ private:
+  const PathInterpolant& reference_;
+  double scale_;
+  ErrorMeasure e_{0.0, kNaN, kNaN};
+  bool any_ = false;
+};
+
+ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
+                           bool complete);
+
+// Richardson extrapolation of a first-order method from runs at step h (`fine`) and 2h
+// (`coarse`): y_h + (y_h - y_2h) at the fine points, the correction y_h - y_2h taken at the
+// coarse points (fine nodes there when the increments nest) and interpolated between them.
+Trajectory richardson(const Trajectory& fine, const Trajectory& coarse);
+
+// The median of the times, the middle pair averaged.
+double median(std::vector<double> values);
+
+struct Ladder {
+  Integrator integrator = Integrator::implicit;
+  std::vector<double> values;  // settings, coarse to fine
+  bool uniform = false;        // fixed step: uniform increments (Setting::uniform)
+  double atol_scale = 1e-10;   // CVODE (Setting::atol_scale)
+  // Forward Euler: continue the ladder by x4 factors until the predicted run time exceeds the
+  // budget (the explicit values come first).
+  bool extend_until_budget = false;
+};
+
+struct StudyOptions {
+  std::vector<Ladder> ladders;
+  // The reference: the implicit integrator at a fixed increment factor R, or adaptive at a
+  // tight tolerance. Fixed step: with `richardson`, the first-order runs at R and R/2 are
+  // extrapolated (2 y_R - y_R/2, second order), and the same from R/2 and R/4 is its coarser
+  // companion; without, the companion is the run at R/2. Adaptive: the companion is the run at
+  // a 10x looser tolerance. self_convergence = max |companion - reference|.
+  Setting reference{Integrator::implicit, 64.0};
+  bool richardson = true;
+  // The CVODE cross-check of the reference (when available), with atol_scale = rtol.
+  double cvode_check_rtol = 1e-12;
+  double cvode_check_seconds = 120.0;  // the cross-check is stopped after this long
+  int repeat = 5;                      // timed runs per point (median)
+  double repeat_budget_seconds = 5.0;  // fewer repeats when the first run is slow
+  // Ladder points predicted to run longer are skipped, and a run that does is stopped.
+  double max_run_seconds = 30.0;
+  // Progress: called after the reference and after each point.
+  std::function<void(std::string_view line)> progress;
+};
+
+struct PointResult {
+  Setting setting;
+  RunCounters counters;
+  bool ok = false;
+  std::string failure;
+  double reached_time = kNaN;  // the last output time the run reached
+  ErrorMeasure error;
+  double median_seconds = kNaN;  // of the timed runs (NaN when the run failed)
+  int repeats = 0;
+  double measured_seconds = 0.0;  // the run that measured the error (every step reported)
+  long reported_points = 0;       // points it reported
+  bool over_budget = false;       // stopped after max_run_seconds (not ok, not a result)
+};
+
+struct ReferenceResult {
+  Setting setting;
+  RunResult run;              // the reference run (R, for an extrapolated one)
+  Trajectory path;            // the reference path: every step
+  double scale = kNaN;        // the error scale
+  bool extrapolated = false;  // Richardson: from `setting` and half its increments
+  Setting check;              // the coarser companion of the self-convergence estimate
+  // max |companion - ref| / scale: for a plain fixed-step reference (first order) this
+  // estimates the reference's own error; for an extrapolated or adaptive one, the error of the
+  // coarser companion, an upper estimate of the reference's.
+  double self_convergence = kNaN;
+  double interpolation_error = kNaN;  // PathInterpolant::estimated_error / scale
+  std::optional<RunResult> cvode;     // the CVODE cross-check (when available)
+  Trajectory cvode_path;              // its every step
+  double cvode_difference = kNaN;     // max |cvode - ref| / scale
+};
+
+struct StudyResult {
+  std::string quantity;
+  std::string scale_description;
+  long base_increments = 0;  // of the scene (the increment factors multiply it)
+  ReferenceResult reference;
+  std::vector<PointResult> points;  // ladder by ladder, coarse to fine
+  std::vector<std::string> notes;   // skipped points and why
+};
+
+// The reference run failed: nothing can be measured without it.
+struct ReferenceFailure : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Runs the reference (and its checks), then every ladder. Throws ReferenceFailure when the
+// reference itself fails.
+StudyResult run_study(const Problem& problem, const StudyOptions& options);
+
+// One ladder point: one run measures the error at every step; then `repeat` timed runs (fewer
+// when they would take more than repeat_budget_seconds; at least one) report only the scene's
+// output points, and their median is the time.
+PointResult measure_point(const Problem& problem, const Setting& setting,
+                          const PathInterpolant& reference, double scale,
+                          const StudyOptions& options);
+
+// The cheapest measured run of `integrator` whose maximum error is at most `error`: its median
+// time, NaN when no run reached that error. (Measured points only, no interpolation.)
+double cheapest_time(const StudyResult& study, Integrator integrator, double error);
+
+// The integrators that have at least one successful point, in ladder order.
+std::vector<Integrator> measured_integrators(const StudyResult& study);
+
+// Whether the CVODE peer integrator was built in.
+bool cvode_available();
+
+}  // namespace subslip::study

@@ -1,0 +1,241 @@
+#!/usr/bin/python3
+"""Tests of scripts/subslip_plots.py (run by ctest; unittest, Debian's h5py/numpy/matplotlib).
+
+    /usr/bin/python3 scripts/test_subslip_plots.py PoleGeometry ReservedRows  # no subslip
+    SUBSLIP_BINARY=build/src/subslip /usr/bin/python3 scripts/test_subslip_plots.py Pictures
+
+PoleGeometry checks the projection and the rotation convention against hand-derived poles;
+Pictures runs subslip on the small scenes of tests/data/post/, draws them, checks the PNG files,
+and checks the poles of a grain whose quaternion subslip wrote against g built by hand from its
+Euler angles with the formula of include/subslip/crystal/rotation.hpp.
+"""
+
+import math
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import h5py
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SOURCE = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+sys.dont_write_bytecode = True  # no scripts/__pycache__ in the source tree
+import subslip_plots as sp  # noqa: E402
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def points(x, y):
+    """Projected points as a sorted array, for set comparisons."""
+    p = np.round(np.stack([x, y], axis=1), 9) + 0.0  # + 0.0 turns -0 into 0
+    return p[np.lexsort((p[:, 1], p[:, 0]))]
+
+
+def project(v):
+    """Equal-area projection written out for one upper-hemisphere unit vector."""
+    x, y, z = v
+    return x / math.sqrt(1 + z), y / math.sqrt(1 + z)
+
+
+def bunge_matrix(phi1, Phi, phi2):
+    """g of Bunge Euler angles (degrees), the formula in include/subslip/crystal/rotation.hpp."""
+    c1, s1 = math.cos(math.radians(phi1)), math.sin(math.radians(phi1))
+    c2, s2 = math.cos(math.radians(phi2)), math.sin(math.radians(phi2))
+    c, s = math.cos(math.radians(Phi)), math.sin(math.radians(Phi))
+    return np.array([[c1 * c2 - s1 * s2 * c, s1 * c2 + c1 * s2 * c, s2 * s],
+                     [-c1 * s2 - s1 * c2 * c, -s1 * s2 + c1 * c2 * c, c2 * s],
+                     [s1 * s, -c1 * s, c]])
+
+
+class PoleGeometry(unittest.TestCase):
+    def test_cube_orientation_puts_100_at_centre_and_rim(self):
+        x, y = sp.pole_figure_points([[1.0, 0.0, 0.0, 0.0]], sp.cubic_family((1, 0, 0)))
+        expected = points(np.array([0.0, 1.0, -1.0, 0.0, 0.0]),
+                          np.array([0.0, 0.0, 0.0, 1.0, -1.0]))
+        np.testing.assert_allclose(points(x, y), expected, atol=1e-12)
+
+    def test_cube_orientation_111_and_110(self):
+        # {111}: four poles at polar angle acos(1/sqrt3) = 54.74 deg, on the diagonals.
+        x, y = sp.pole_figure_points([[1.0, 0.0, 0.0, 0.0]], sp.cubic_family((1, 1, 1)))
+        r = math.sqrt(1 - 1 / math.sqrt(3))
+        d = r / math.sqrt(2)
+        expected = points(np.array([d, d, -d, -d]), np.array([d, -d, d, -d]))
+        np.testing.assert_allclose(points(x, y), expected, atol=1e-12)
+        # {110}: four on the rim at 45 deg, four at polar angle 45 deg on the axes.
+        x, y = sp.pole_figure_points([[1.0, 0.0, 0.0, 0.0]], sp.cubic_family((1, 1, 0)))
+        self.assertEqual(len(x), 8)
+        radii = np.sort(np.hypot(x, y))
+        np.testing.assert_allclose(radii[:4], math.sqrt(1 - 1 / math.sqrt(2)), atol=1e-12)
+        np.testing.assert_allclose(radii[4:], 1.0, atol=1e-12)
+
+    def test_rotation_is_not_transposed(self):
+        # Passive 30 deg about sample x: the crystal frame is the sample frame turned by +30 deg
+        # about x, so crystal [001] lies along R_x(30) e_z = (0, -sin 30, cos 30): below the
+        # centre. With g instead of g^T it would land above it, at (0, +sin 30, cos 30).
+        half = math.radians(15)
+        q = [[math.cos(half), math.sin(half), 0.0, 0.0]]
+        x, y = sp.pole_figure_points(q, np.array([[0.0, 0.0, 1.0]]))
+        ex, ey = project((0.0, -0.5, math.cos(math.radians(30))))
+        np.testing.assert_allclose([x[0], y[0]], [ex, ey], atol=1e-12)
+        self.assertLess(y[0], -0.2)
+
+    def test_quaternion_matrix_matches_rotation_hpp(self):
+        # rotation.hpp: Euler (90, 0, 0) deg gives g = [[0,1,0],[-1,0,0],[0,0,1]], which is the
+        # quaternion of 90 deg about z, (cos 45, 0, 0, sin 45).
+        c = math.cos(math.radians(45))
+        g = sp.quaternion_to_matrix([c, 0.0, 0.0, c])
+        np.testing.assert_allclose(g, [[0, 1, 0], [-1, 0, 0], [0, 0, 1]], atol=1e-15)
+        np.testing.assert_allclose(g, bunge_matrix(90, 0, 0), atol=1e-15)
+
+    def test_projection_is_equal_area(self):
+        # Uniform directions on the upper hemisphere: the fraction inside radius R must be R^2
+        # (cap area 2 pi (1 - cos theta) over 2 pi, and R^2 = 1 - cos theta).
+        rng = np.random.default_rng(3)
+        v = rng.normal(size=(400000, 3))
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        v[:, 2] = np.abs(v[:, 2])
+        x, y = sp.upper_hemisphere_projection(v)
+        r = np.hypot(x, y)
+        self.assertLessEqual(r.max(), 1.0 + 1e-12)
+        for R in (0.3, 0.5, 0.8):
+            self.assertAlmostEqual(np.mean(r < R), R * R, delta=0.003)
+
+    def test_hexagonal_poles(self):
+        # c axis at the centre for the identity; six {10-10} normals on the rim at 30 + 60 k deg.
+        x, y = sp.pole_figure_points([[1.0, 0.0, 0.0, 0.0]], sp.hexagonal_family("0001"))
+        np.testing.assert_allclose(points(x, y), [[0.0, 0.0]], atol=1e-12)
+        x, y = sp.pole_figure_points([[1.0, 0.0, 0.0, 0.0]], sp.hexagonal_family("10-10"))
+        np.testing.assert_allclose(np.degrees(np.arctan2(y, x)) % 60.0, 30.0, atol=1e-9)
+
+
+class ReservedRows(unittest.TestCase):
+    """A run that did not finish: its series hold reserved rows (NaN) after the valid ones, and
+    /progress says how many are valid (docs/scenes.md). Nothing beyond them may be drawn."""
+
+    def setUp(self):
+        self.dir = tempfile.mkdtemp(prefix="subslip_plots_reserved_")
+        self.path = os.path.join(self.dir, "partial.h5")
+        with h5py.File(self.path, "w") as f:
+            f.attrs.update({"format": "subslip", "scene_kind": "contact", "completed": 0})
+            f.create_group("units").attrs.update({"length": "mm"})
+            cases = f.create_group("cases")
+            cases.attrs["names"] = ["a", "b"]
+            a = cases.create_group("a")
+            path = np.concatenate([np.linspace(0.0, 1.0, 6), np.full(4, np.nan)])
+            for name, values in (("slip_path", path), ("ratio", 0.1 * path),
+                                 ("time", path)):
+                a.create_dataset(name, data=values, maxshape=(None,), chunks=(4,))
+            cases.create_group("b")  # created, never started
+            progress = f.create_group("progress")
+            progress["rows"] = np.array([6, 0], dtype=np.int64)
+            progress["state"] = np.array([1, 0], dtype=np.int64)
+
+    def tearDown(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def test_only_valid_rows_and_started_cases(self):
+        result = sp.Result(self.path)
+        self.assertEqual(result.case_names, ["a"])
+        ratio = result.case("a").series("ratio")
+        self.assertEqual(len(ratio), 6)
+        self.assertTrue(np.all(np.isfinite(ratio)))
+        out = os.path.join(self.dir, "png")
+        run = subprocess.run([sys.executable, os.path.join(HERE, "subslip_plots.py"), self.path,
+                              "-o", out], capture_output=True, text=True)
+        self.assertEqual(run.returncode, 0, run.stderr)
+        self.assertEqual(os.listdir(out), ["traction_ratio.png"])
+
+
+def png_size(path):
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    return struct.unpack(">II", head[16:24])
+
+
+@unittest.skipUnless(os.environ.get("SUBSLIP_BINARY"), "set SUBSLIP_BINARY to the subslip binary")
+class Pictures(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.mkdtemp(prefix="subslip_plots_")
+        cls.addClassCleanup(shutil.rmtree, cls.dir, ignore_errors=True)  # also if setUp fails
+        cls.results = {}
+        for scene in ("crystal_small", "contact_small", "single_crystal_euler"):
+            out = os.path.join(cls.dir, scene + ".h5")
+            subprocess.run([os.environ["SUBSLIP_BINARY"], "run", "-q", "-o", out,
+                            os.path.join(SOURCE, "tests", "data", "post", scene + ".yaml")],
+                           check=True)
+            cls.results[scene] = out
+
+    def draw(self, scene, *extra):
+        out = os.path.join(self.dir, scene + "_" + "_".join(extra) + "_png")
+        run = subprocess.run([sys.executable, os.path.join(HERE, "subslip_plots.py"),
+                              self.results[scene], "-o", out, *extra],
+                             capture_output=True, text=True)
+        return run, out
+
+    def assert_pictures(self, directory, names):
+        self.assertEqual(sorted(os.listdir(directory)), sorted(names))
+        for name in names:
+            path = os.path.join(directory, name)
+            size = png_size(path)
+            self.assertIsNotNone(size, f"{name} is not a PNG")
+            self.assertGreater(min(size), 200, name)
+            self.assertGreater(os.path.getsize(path), 10000, f"{name} is nearly empty")
+
+    def test_crystal_pictures(self):
+        run, out = self.draw("crystal_small")
+        self.assertEqual(run.returncode, 0, run.stderr)
+        cases = ["L_2__2_=1.0e-3", "L_2__2_=1.0e-1"]
+        self.assert_pictures(out, ["stress_strain.png"] +
+                             [f"slip_activity_{c}.png" for c in cases] +
+                             [f"pole_figures_{c}.png" for c in cases])
+        self.assertIn("traction ratio: not a contact result, skipped", run.stderr)
+
+    def test_contact_pictures(self):
+        run, out = self.draw("contact_small")
+        self.assertEqual(run.returncode, 0, run.stderr)
+        self.assert_pictures(out, ["traction_ratio.png"])
+        self.assertIn("stress-strain: not a crystal result, skipped", run.stderr)
+
+    def test_one_case_and_missing_data(self):
+        run, out = self.draw("single_crystal_euler", "--case", "base")
+        self.assertEqual(run.returncode, 0, run.stderr)
+        self.assert_pictures(out, ["pole_figures_base.png"])
+        self.assertIn("slip activity (base): no grains/slip_rate or grains/slip", run.stderr)
+        run, _ = self.draw("contact_small", "--case", "nope")
+        self.assertEqual(run.returncode, 2)
+        self.assertIn("no case 'nope'", run.stderr)
+
+    def test_loading_component_is_the_prescribed_one(self):
+        # Tension along z with free lateral L11, L22 (which change every step): 33.
+        result = sp.Result(self.results["crystal_small"])
+        self.assertEqual(len(result.case_names), 2)
+        for name in result.case_names:
+            self.assertEqual(sp.loading_component(result.case(name)), (2, 2))
+
+    def test_stored_quaternion_gives_the_euler_grains_poles(self):
+        # The grain of single_crystal_euler.yaml is at Bunge (90, 30, 0) deg. subslip converted
+        # that to the stored quaternion; the script must turn it back into the same g, and put
+        # crystal direction c at g^T c: [100] -> row 0 of g = sample +y, [001] -> row 2 =
+        # (sin 30, 0, cos 30), [010] -> row 1 = (-cos 30, 0, sin 30).
+        g = bunge_matrix(90, 30, 0)
+        np.testing.assert_allclose(g[0], [0, 1, 0], atol=1e-15)
+        with h5py.File(self.results["single_crystal_euler"], "r") as f:
+            q = f["cases/base/grains/initial_orientation"][:]
+        np.testing.assert_allclose(sp.quaternion_to_matrix(q)[0], g, atol=1e-12)
+        x, y = sp.pole_figure_points(q, sp.cubic_family((1, 0, 0)))
+        expected = [project(v) for v in (g[0], -g[0], g[2], g[1])]  # -g[1] has z < 0
+        ex, ey = np.array(expected).T
+        np.testing.assert_allclose(points(x, y), points(ex, ey), atol=1e-9)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,23 @@
+// subslip post: summary of a result file and CSV export of chosen datasets.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+namespace subslip::cli {
+
+struct PostArgs {
+  std::string file;
+  std::string csv_dir;  // empty: print the summary only
+  std::string case_name;
+  std::vector<std::string> datasets;
+  long grain = -1;  // < 0: every grain (long format)
+  bool force = false;
+  bool quiet = false;
+};
+
+void add_post_command(CLI::App& app, PostArgs& args);
+int run_post(const PostArgs& args);
+
+}  // namespace subslip::cli

@@ -1,0 +1,216 @@
+#include "subslip/io/checkpoint.hpp"
+
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace subslip::io {
+
+namespace {
+
+using crystal::Mat3;
+
+constexpr const char* kSlots[2] = {"a", "b"};
+constexpr int kMaxFree = 9;  // free components of L
+
+// The macro numbers of a slot's `values`, in order; a name per number (matrices row-major).
+std::vector<std::string> value_names() {
+  std::vector<std::string> names = {"time", "segment_time", "next_step", "wall_seconds"};
+  auto matrix = [&](const std::string& what) {
+    for (int i = 1; i <= 3; ++i)
+      for (int j = 1; j <= 3; ++j) names.push_back(what + "_" + std::to_string(10 * i + j));
+  };
+  for (const char* m : {"L", "F", "strain", "stress", "segment_start_stress"}) matrix(m);
+  for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_" + std::to_string(k));
+  names.push_back("last_output_time");
+  for (const char* m :
+       {"last_output_L", "last_output_F", "last_output_strain", "last_output_stress"})
+    matrix(m);
+  return names;
+}
+
+const std::vector<std::string> kCounterNames = {
+    "segment",     "increment",           "macro_segment",     "free_count",
+    "rows",        "last_output_segment", "increments",        "substeps",
+    "grain_steps", "grain_solves",        "newton_iterations", "cutbacks",
+    "rejected",    "mixed_iterations"};
+
+void put(std::vector<double>& v, const Mat3& m) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) v.push_back(m(i, j));
+}
+
+Mat3 take(const double*& p) {
+  Mat3 m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) m(i, j) = *p++;
+  return m;
+}
+
+std::vector<double> pack_values(const crystal::AggregateCheckpoint& c,
+                                const crystal::MacroState& last) {
+  std::vector<double> v = {c.macro.time, c.position.segment_time, c.position.next_step,
+                           c.stats.wall_seconds};
+  put(v, c.macro.velocity_gradient);
+  put(v, c.macro.deformation_gradient);
+  put(v, c.macro.strain);
+  put(v, c.macro.stress);
+  put(v, c.segment_start_stress);
+  for (int k = 0; k < kMaxFree; ++k)
+    v.push_back(k < c.free_velocity_gradient.size() ? c.free_velocity_gradient(k) : std::nan(""));
+  v.push_back(last.time);
+  put(v, last.velocity_gradient);
+  put(v, last.deformation_gradient);
+  put(v, last.strain);
+  put(v, last.stress);
+  return v;
+}
+
+std::vector<long long> pack_counters(const crystal::AggregateCheckpoint& c, std::size_t rows,
+                                     const crystal::MacroState& last) {
+  const auto& s = c.stats;
+  return {c.position.segment,
+          c.position.increment,
+          c.macro.segment,
+          c.free_velocity_gradient.size(),
+          static_cast<long long>(rows),
+          last.segment,
+          s.increments,
+          s.substeps,
+          s.grain_steps,
+          s.grain_solves,
+          s.newton_iterations,
+          s.cutbacks,
+          s.rejected,
+          s.mixed_iterations};
+}
+
+StoredCheckpoint unpack(const std::vector<double>& values, const std::vector<long long>& n,
+                        std::vector<double> grains, int values_per_grain, long long sequence) {
+  StoredCheckpoint out;
+  auto& c = out.state;
+  const double* p = values.data();
+  c.macro.time = *p++;
+  c.position.segment_time = *p++;
+  c.position.next_step = *p++;
+  c.stats.wall_seconds = *p++;
+  c.macro.velocity_gradient = take(p);
+  c.macro.deformation_gradient = take(p);
+  c.macro.strain = take(p);
+  c.macro.stress = take(p);
+  c.segment_start_stress = take(p);
+  c.free_velocity_gradient.resize(static_cast<int>(n[3]));
+  for (int k = 0; k < kMaxFree; ++k, ++p) {
+    if (k < n[3]) c.free_velocity_gradient(k) = *p;
+  }
+  out.last_output.time = *p++;
+  out.last_output.velocity_gradient = take(p);
+  out.last_output.deformation_gradient = take(p);
+  out.last_output.strain = take(p);
+  out.last_output.stress = take(p);
+  c.position.segment = static_cast<int>(n[0]);
+  c.position.increment = static_cast<long>(n[1]);
+  c.macro.segment = static_cast<int>(n[2]);
+  out.rows = static_cast<std::size_t>(n[4]);
+  out.last_output.segment = static_cast<int>(n[5]);
+  auto& s = c.stats;
+  s.increments = n[6];
+  s.substeps = n[7];
+  s.grain_steps = n[8];
+  s.grain_solves = n[9];
+  s.newton_iterations = n[10];
+  s.cutbacks = n[11];
+  s.rejected = n[12];
+  s.mixed_iterations = n[13];
+  c.values_per_grain = values_per_grain;
+  c.grains = std::move(grains);
+  out.sequence = sequence;
+  return out;
+}
+
+long long read_sequence(const h5::Group& slot) {
+  const auto v = slot.open_dataset("sequence").read_ints();
+  return v.empty() ? -1 : v.front();
+}
+
+void write_sequence(const h5::Group& slot, long long value) {
+  const long long v[1] = {value};
+  slot.open_dataset("sequence").write(v);
+}
+
+}  // namespace
+
+void CheckpointStore::create_slots(h5::File& file, std::size_t grains, int values_per_grain) {
+  const h5::Group g = case_.create_group("checkpoint");
+  g.set_attribute("description",
+                  "two slots written alternately; the one with the larger sequence >= 1 is the "
+                  "latest complete checkpoint (-1: being written)");
+  const auto names = value_names();
+  for (const char* name : kSlots) {
+    const h5::Group slot = g.create_group(name);
+    const std::size_t grain_shape[2] = {grains, static_cast<std::size_t>(values_per_grain)};
+    slot.create_fixed("grains", grain_shape, h5::Type::float64,
+                      "per grain: stress (lattice frame, Mandel) 6, orientation g (row-major) 9, "
+                      "then mu, r_s, slip, slip rate (N each)");
+    const std::size_t value_shape[1] = {names.size()};
+    slot.create_fixed("values", value_shape, h5::Type::float64, "macro state, see names")
+        .set_attribute("names", names);
+    const std::size_t counter_shape[1] = {kCounterNames.size()};
+    slot.create_fixed("counters", counter_shape, h5::Type::int64, "position and counters")
+        .set_attribute("names", kCounterNames);
+    slot.create_fixed("sequence", {}, h5::Type::int64, "checkpoint number; -1 while written");
+    write_sequence(slot, -1);
+  }
+  file.flush();  // the slots exist before anything is counted on them
+}
+
+void CheckpointStore::write(h5::File& file, const crystal::AggregateCheckpoint& state,
+                            std::size_t rows, const crystal::MacroState& last_output) {
+  if (!case_.has("checkpoint")) {
+    create_slots(file, state.grains.size() / static_cast<std::size_t>(state.values_per_grain),
+                 state.values_per_grain);
+  } else if (sequence_ == 0) {
+    // A restart: continue the numbering, and write over the older slot.
+    if (auto l = latest()) {
+      sequence_ = l->sequence;
+      const h5::Group a = case_.open_group("checkpoint").open_group(kSlots[0]);
+      next_slot_ = read_sequence(a) == sequence_ ? 1 : 0;
+    }
+  }
+  const h5::Group slot = case_.open_group("checkpoint").open_group(kSlots[next_slot_]);
+  write_sequence(slot, -1);  // from here until the end the slot is not a checkpoint
+  slot.open_dataset("grains").write(state.grains);
+  slot.open_dataset("values").write(pack_values(state, last_output));
+  slot.open_dataset("counters").write(pack_counters(state, rows, last_output));
+  write_sequence(slot, ++sequence_);
+  next_slot_ = 1 - next_slot_;
+}
+
+std::optional<StoredCheckpoint> CheckpointStore::latest() const {
+  if (!case_.has("checkpoint")) return std::nullopt;
+  const h5::Group g = case_.open_group("checkpoint");
+  int best = -1;
+  long long best_sequence = 0;
+  for (int k = 0; k < 2; ++k) {
+    if (!g.has(kSlots[k])) continue;
+    const long long s = read_sequence(g.open_group(kSlots[k]));
+    if (s > best_sequence) {
+      best = k;
+      best_sequence = s;
+    }
+  }
+  if (best < 0) return std::nullopt;
+  const h5::Group slot = g.open_group(kSlots[best]);
+  const h5::Dataset grains = slot.open_dataset("grains");
+  const auto shape = grains.shape();
+  const auto values = slot.open_dataset("values").read_doubles();
+  const auto counters = slot.open_dataset("counters").read_ints();
+  if (shape.size() != 2 || values.size() != value_names().size() ||
+      counters.size() != kCounterNames.size()) {
+    throw h5::Error("HDF5: checkpoint slot '" + std::string(kSlots[best]) + "' has another layout");
+  }
+  return unpack(values, counters, grains.read_doubles(), static_cast<int>(shape[1]), best_sequence);
+}
+
+}  // namespace subslip::io

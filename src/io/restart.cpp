@@ -1,0 +1,85 @@
+#include "subslip/io/restart.hpp"
+
+#include <system_error>
+
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/io/input_error.hpp"
+
+namespace subslip::io {
+
+namespace {
+
+[[noreturn]] void refuse(const std::filesystem::path& file, const std::string& key,
+                         const std::string& why) {
+  throw InputError(file.string(), 0, key, "cannot restart: " + why);
+}
+
+std::string string_attribute(const h5::Group& root, const std::filesystem::path& file,
+                             const char* name) {
+  if (!root.has_attribute(name))
+    refuse(file, name, "not a subslip result file (no root attribute '" + std::string(name) + "')");
+  return root.attribute_string(name);
+}
+
+}  // namespace
+
+RestartInfo inspect_for_restart(const std::filesystem::path& file,
+                                const std::optional<std::string>& scene_text) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) refuse(file, "", "no such file");
+  std::optional<h5::File> h5file;
+  try {
+    h5file.emplace(h5::File::open_read(file));
+  } catch (const h5::Error& e) {
+    refuse(file, "", std::string("not a readable HDF5 file (") + e.what() + ")");
+  }
+  const h5::Group root = h5file->root();
+  if (!root.has_attribute("format") || root.attribute_string("format") != "subslip")
+    refuse(file, "format", "not a subslip result file");
+  const long long version = root.attribute_int("format_version");
+  if (version != h5::kFormatVersion) {
+    refuse(file, "format_version",
+           "format version " + std::to_string(version) + ", this program writes " +
+               std::to_string(h5::kFormatVersion));
+  }
+  const std::string program = string_attribute(root, file, "program_version");
+  if (program != SUBSLIP_VERSION) {
+    refuse(file, "program_version",
+           "written by subslip " + program + ", this is " + SUBSLIP_VERSION +
+               "; a continued run would not be identical to an uninterrupted one");
+  }
+  if (root.attribute_int("completed") == 1) refuse(file, "completed", "the run completed");
+  if (!root.has("progress") || !root.has("cases") || !root.has("scene"))
+    refuse(file, "progress", "the file has no /progress, /cases or /scene (it was never started)");
+  RestartInfo info;
+  info.scene_kind = string_attribute(root, file, "scene_kind");
+  info.scene_file = string_attribute(root, file, "scene_file");
+  info.scene_text = root.open_dataset("scene").read_string();
+  info.case_names = root.open_group("cases").attribute_strings("names");
+  const h5::CaseProgress progress = h5::CaseProgress::open(root);
+  if (progress.size() != info.case_names.size())
+    refuse(file, "progress", "/progress does not list every case of /cases");
+  bool left = false;
+  for (std::size_t k = 0; k < progress.size(); ++k) {
+    const auto s = progress.state(k);
+    left = left || (s != h5::CaseState::completed && s != h5::CaseState::failed);
+  }
+  if (!left) refuse(file, "progress", "every case completed or failed; nothing is left to run");
+  if (scene_text && *scene_text != info.scene_text) {
+    refuse(file, "scene",
+           "the scene file given differs from the scene the run started with (/scene); restart "
+           "without naming a scene, or start a new run");
+  }
+  return info;
+}
+
+void check_restart_cases(const std::filesystem::path& file, const RestartInfo& info,
+                         const std::vector<std::string>& scene_case_names) {
+  if (scene_case_names != info.case_names) {
+    refuse(file, "cases",
+           "the scene in /scene no longer gives the cases the run started with (files it reads "
+           "changed?)");
+  }
+}
+
+}  // namespace subslip::io

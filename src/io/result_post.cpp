@@ -1,0 +1,674 @@
+#include "subslip/io/result_post.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cstdio>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <system_error>
+#include <utility>
+
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/io/input_error.hpp"
+
+namespace subslip::io::post {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// ---------------------------------------------------------------- opening and navigating
+
+// /progress (docs/scenes.md): per case, in /cases `names` order, the valid rows of every time
+// series of the case and its state. A run that did not finish leaves reserved rows (NaN or
+// left over from before a restart) after the valid ones. Older files have no /progress: every
+// row is valid and every case that has a group was run.
+enum class CaseState { unknown, not_started, running, completed, failed };
+
+struct ResultFile {
+  std::string name;  // the path as given, for messages
+  h5::File file;
+  h5::Group root;
+  std::vector<std::string> cases;  // run order
+  std::vector<long long> rows;     // /progress/rows, in `cases` order; empty without it
+  std::vector<long long> states;   // /progress/state
+
+  std::optional<std::size_t> index(const std::string& c) const {
+    const auto it = std::find(cases.begin(), cases.end(), c);
+    if (it == cases.end()) return std::nullopt;
+    return static_cast<std::size_t>(it - cases.begin());
+  }
+  // The valid rows of the case's time series; nullopt: all of them.
+  std::optional<std::size_t> valid_rows(const std::string& c) const {
+    const auto i = index(c);
+    if (!i || *i >= rows.size() || rows[*i] < 0) return std::nullopt;
+    return static_cast<std::size_t>(rows[*i]);
+  }
+  CaseState state(const std::string& c) const {
+    const auto i = index(c);
+    if (!i || *i >= states.size() || states[*i] < 0 || states[*i] > 3) return CaseState::unknown;
+    return static_cast<CaseState>(states[*i] + 1);
+  }
+  bool started(const std::string& c) const {
+    const bool has_group = root.has("cases") && root.open_group("cases").has(c);
+    return has_group && state(c) != CaseState::not_started;
+  }
+};
+
+bool has_string_attribute(const h5::Object& o, const std::string& name) {
+  return o.has_attribute(name) && o.attribute_class(name) == h5::ValueClass::string;
+}
+
+// The case names in run order (`/cases` attribute `names`), plus any group it does not list.
+std::vector<std::string> case_names(const h5::Group& root) {
+  if (!root.has("cases")) return {};
+  const h5::Group cases = root.open_group("cases");
+  std::vector<std::string> names;
+  if (has_string_attribute(cases, "names")) names = cases.attribute_strings("names");
+  for (const auto& m : cases.members()) {
+    if (std::find(names.begin(), names.end(), m) == names.end()) names.push_back(m);
+  }
+  return names;
+}
+
+// /progress/rows and /progress/state, when the file has both with one entry per case.
+void read_progress(ResultFile& r) {
+  if (!r.root.has("progress") || !r.root.is_group("progress")) return;
+  const h5::Group g = r.root.open_group("progress");
+  if (!g.has("rows") || !g.has("state")) return;
+  auto rows = g.open_dataset("rows").read_ints();
+  auto states = g.open_dataset("state").read_ints();
+  if (rows.size() != r.cases.size() || states.size() != r.cases.size()) return;
+  r.rows = std::move(rows);
+  r.states = std::move(states);
+}
+
+ResultFile open_result(const fs::path& path) {
+  const std::string name = path.string();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw InputError(name, 0, "", "no such file");
+  if (fs::is_directory(path, ec)) throw InputError(name, 0, "", "is a directory, not a file");
+  std::optional<h5::File> file;
+  try {
+    file.emplace(h5::File::open_read(path));
+  } catch (const h5::Error&) {
+    throw InputError(name, 0, "", "not an HDF5 file (or not readable)");
+  }
+  h5::Group root = file->root();
+  if (!has_string_attribute(root, "format") || root.attribute_string("format") != "subslip") {
+    throw InputError(name, 0, "format",
+                     "not a subslip result file (no root attribute format = \"subslip\")");
+  }
+  ResultFile r{name, std::move(*file), std::move(root), {}, {}, {}};
+  r.cases = case_names(r.root);
+  read_progress(r);
+  return r;
+}
+
+std::vector<std::string> split(const std::string& text, char separator) {
+  std::vector<std::string> parts;
+  std::string part;
+  std::istringstream in(text);
+  while (std::getline(in, part, separator)) {
+    if (!part.empty()) parts.push_back(part);
+  }
+  return parts;
+}
+
+std::string join(const std::vector<std::string>& parts, const std::string& separator) {
+  std::string out;
+  for (std::size_t i = 0; i < parts.size(); ++i) out += (i > 0 ? separator : "") + parts[i];
+  return out;
+}
+
+enum class NodeKind { missing, group, dataset };
+
+// What `path` (components separated by '/', relative to `base`) names. Walks one component at
+// a time: H5Lexists on a multi-component path fails when an intermediate link is missing.
+NodeKind node_kind(const h5::Group& base, const std::string& path) {
+  const auto parts = split(path, '/');
+  if (parts.empty()) return NodeKind::group;
+  std::optional<h5::Group> current;
+  const h5::Group* g = &base;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    if (!g->has(parts[i])) return NodeKind::missing;
+    const bool group = g->is_group(parts[i]);
+    if (i + 1 == parts.size()) return group ? NodeKind::group : NodeKind::dataset;
+    if (!group) return NodeKind::missing;
+    h5::Group next = g->open_group(parts[i]);
+    current = std::move(next);
+    g = &*current;
+  }
+  return NodeKind::missing;
+}
+
+// Every dataset below `g`, as paths relative to `g`, in creation order.
+void collect_datasets(const h5::Group& g, const std::string& prefix,
+                      std::vector<std::string>& out) {
+  for (const auto& m : g.members()) {
+    const std::string path = prefix.empty() ? m : prefix + "/" + m;
+    if (g.is_group(m)) {
+      collect_datasets(g.open_group(m), path, out);
+    } else {
+      out.push_back(path);
+    }
+  }
+}
+
+// The cases to work on: `wanted`, or every case that has a group (was started).
+std::vector<std::string> select_cases(const ResultFile& r, const std::string& wanted) {
+  const auto& names = r.cases;
+  std::vector<std::string> started;
+  for (const auto& n : names) {
+    if (r.started(n)) started.push_back(n);
+  }
+  if (wanted.empty()) return started;
+  if (std::find(started.begin(), started.end(), wanted) != started.end()) return {wanted};
+  const bool listed = std::find(names.begin(), names.end(), wanted) != names.end();
+  throw InputError(r.name, 0, "--case",
+                   listed ? "case '" + wanted + "' was not started (the run stopped before it)"
+                          : "no case '" + wanted + "'; the file has: " + join(names, ", "));
+}
+
+std::string attribute_or(const h5::Object& o, const std::string& name, const std::string& dflt) {
+  return has_string_attribute(o, name) ? o.attribute_string(name) : dflt;
+}
+
+// ---------------------------------------------------------------- summary
+
+std::string short_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// One line for a list of values: "v", "v (x12)" when all equal, "[a, b, c]", or the first six
+// and the count.
+std::string compact(const std::vector<std::string>& values) {
+  if (values.empty()) return "[]";
+  if (values.size() == 1) return values.front();
+  if (std::all_of(values.begin(), values.end(), [&](const auto& v) { return v == values[0]; })) {
+    return values.front() + " (x" + std::to_string(values.size()) + ")";
+  }
+  if (values.size() <= 9) return "[" + join(values, ", ") + "]";
+  const std::vector<std::string> head(values.begin(), values.begin() + 6);
+  return "[" + join(head, ", ") + ", ...] (" + std::to_string(values.size()) + " values)";
+}
+
+std::string attribute_text(const h5::Object& o, const std::string& name) {
+  switch (o.attribute_class(name)) {
+    case h5::ValueClass::string:
+      return compact(o.attribute_strings(name));
+    case h5::ValueClass::floating:
+    case h5::ValueClass::integer: {
+      std::vector<std::string> values;
+      for (double v : o.attribute_doubles(name)) values.push_back(short_number(v));
+      return compact(values);
+    }
+    case h5::ValueClass::other:
+      break;
+  }
+  return "(unsupported type)";
+}
+
+bool ends_with(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+std::string shape_text(const std::vector<std::size_t>& shape) {
+  std::vector<std::string> dims;
+  for (auto d : shape) dims.push_back(std::to_string(d));
+  return "[" + join(dims, ", ") + "]";
+}
+
+void print_file_header(std::ostream& out, const ResultFile& r) {
+  const h5::Group& root = r.root;
+  const auto text = [&](const char* name) { return attribute_or(root, name, "-"); };
+  const std::string version =
+      root.has_attribute("format_version") ? attribute_text(root, "format_version") : "-";
+  out << "file:        " << r.name << "\n";
+  out << "format:      subslip, format_version " << version << ", written by subslip "
+      << text("program_version") << "\n";
+  out << "scene kind:  " << text("scene_kind") << " (scene file " << text("scene_file") << ")\n";
+  out << "title:       " << text("title") << "\n";
+  out << "created:     " << text("created") << "\n";
+  const bool completed = root.has_attribute("completed") &&
+                         root.attribute_class("completed") != h5::ValueClass::string &&
+                         root.attribute_double("completed") == 1.0;
+  out << "completed:   "
+      << (completed ? "yes"
+                    : "NO (the run was interrupted, failed or is still running; see the cases)")
+      << "\n";
+  std::vector<std::string> units;
+  if (root.has("units")) {
+    const h5::Group u = root.open_group("units");
+    for (const auto& n : u.attribute_names()) units.push_back(n + " " + attribute_text(u, n));
+  }
+  out << "units:       " << (units.empty() ? "-" : join(units, ", ")) << "\n";
+  if (root.has("scene")) out << "scene:       /scene (the scene YAML; h5dump -d /scene FILE)\n";
+}
+
+void print_case_attributes(std::ostream& out, const h5::Group& g) {
+  std::vector<std::pair<std::string, std::string>> lines;
+  for (const auto& n : g.attribute_names()) {
+    if (n == "name" || n == "index" || ends_with(n, ".unit")) continue;
+    std::string value = attribute_text(g, n);
+    const std::string unit = attribute_or(g, n + ".unit", "");
+    if (!unit.empty() && unit != "1") value += " " + unit;
+    lines.emplace_back(n, value);
+  }
+  std::size_t width = 0;
+  for (const auto& l : lines) width = std::max(width, l.first.size());
+  out << "  attributes:\n";
+  for (const auto& [name, value] : lines) {
+    out << "    " << name << std::string(width - name.size(), ' ') << " = " << value << "\n";
+  }
+}
+
+// The rows of `d` to use: for a time series (chunked, extendible) at most `valid`.
+std::size_t usable_rows(const h5::Dataset& d, const std::vector<std::size_t>& shape,
+                        std::optional<std::size_t> valid) {
+  if (shape.empty()) return 1;
+  if (!valid || d.chunk_shape().empty()) return shape[0];
+  return std::min(shape[0], *valid);
+}
+
+void print_case_datasets(std::ostream& out, const h5::Group& g, std::optional<std::size_t> valid) {
+  std::vector<std::string> paths;
+  collect_datasets(g, "", paths);
+  struct Row {
+    std::string path, shape, unit, description;
+  };
+  std::vector<Row> rows;
+  std::size_t w_path = 0, w_shape = 0, w_unit = 0;
+  for (const auto& p : paths) {
+    const h5::Dataset d = g.open_dataset(p);
+    const bool text = d.value_class() == h5::ValueClass::string;
+    auto shape = d.shape();
+    if (!shape.empty()) shape[0] = usable_rows(d, shape, valid);
+    Row row{p, text ? "text" : shape_text(shape), "[" + attribute_or(d, "unit", "-") + "]",
+            attribute_or(d, "description", "")};
+    w_path = std::max(w_path, row.path.size());
+    w_shape = std::max(w_shape, row.shape.size());
+    w_unit = std::max(w_unit, row.unit.size());
+    rows.push_back(std::move(row));
+  }
+  out << "  datasets:\n";
+  for (const auto& r : rows) {
+    out << "    " << r.path << std::string(w_path - r.path.size() + 2, ' ') << r.shape
+        << std::string(w_shape - r.shape.size() + 2, ' ') << r.unit
+        << std::string(w_unit - r.unit.size() + 2, ' ') << r.description << "\n";
+  }
+}
+
+// ": FAILED", ": RUNNING or interrupted, N valid rows", or "" for a completed case.
+std::string case_state_text(const ResultFile& r, const std::string& c, const h5::Group& g) {
+  const auto rows = r.valid_rows(c);
+  const std::string valid = rows ? ", " + std::to_string(*rows) + " valid rows" : "";
+  switch (r.state(c)) {
+    case CaseState::failed:
+      return ": FAILED" + valid;
+    case CaseState::running:
+      return ": RUNNING or interrupted" + valid;
+    case CaseState::unknown:
+      return g.has_attribute("failed") ? ": FAILED" : "";
+    case CaseState::not_started:
+    case CaseState::completed:
+      break;
+  }
+  return "";
+}
+
+// ---------------------------------------------------------------- CSV
+
+// The shortest text that reads back to the same double ("0.1", "-1", "nan").
+std::string exact_number(double v) {
+  char buf[64];
+  const auto result = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, result.ptr);
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string quoted = "\"";
+  for (char c : s) quoted += (c == '"') ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+// Letters, digits and ._=+- are kept in file names; anything else becomes '_'.
+std::string file_safe(const std::string& s) {
+  std::string out = s;
+  for (char& c : out) {
+    const bool keep = std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' ||
+                      c == '=' || c == '+' || c == '-';
+    if (!keep) c = '_';
+  }
+  return out;
+}
+
+std::string leaf(const std::string& path) {
+  const auto parts = split(path, '/');
+  return parts.empty() ? path : parts.back();
+}
+
+std::string parent(const std::string& path) {
+  const auto slash = path.rfind('/');
+  return slash == std::string::npos ? "" : path.substr(0, slash);
+}
+
+struct Export {
+  std::string group;    // absolute path of the group the dataset path is relative to
+  std::string dataset;  // relative to `group`
+  fs::path output;
+  bool one_grain;                         // a per-grain series written for options.grain only
+  std::optional<std::size_t> valid_rows;  // of the case's series (see ResultFile)
+};
+
+// Names of the last axis (k values): the slip-system labels when the `components` attribute
+// says "per slip system", the words of `components` / `layout` (after a ':') when they are k,
+// the contact layouts of docs/scenes.md, else 0..k-1.
+std::vector<std::string> component_names(const h5::Group& base, const std::string& path,
+                                         std::size_t k) {
+  const h5::Dataset d = base.open_dataset(path);
+  const std::string dir = parent(path);
+  for (const char* attr : {"components", "layout"}) {
+    if (!has_string_attribute(d, attr)) continue;
+    std::string text = d.attribute_string(attr);
+    const std::string systems = dir.empty() ? "slip_systems" : dir + "/slip_systems";
+    if (text.find("slip_systems") != std::string::npos &&
+        node_kind(base, systems) == NodeKind::dataset) {
+      const h5::Dataset s = base.open_dataset(systems);
+      if (has_string_attribute(s, "labels") && s.attribute_size("labels") == k) {
+        return s.attribute_strings("labels");
+      }
+    }
+    if (const auto colon = text.rfind(':'); colon != std::string::npos) text.erase(0, colon + 1);
+    auto words = split(text, ' ');
+    if (words.size() == k) return words;
+  }
+  const std::string name = leaf(path);
+  if (name == "slip" && k == 2) return {"x", "y"};
+  if (name == "traction" && k == 3) return {"x", "y", "n"};
+  if (name == "slip_systems" && k == 6) return {"s1", "s2", "s3", "m1", "m2", "m3"};
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < k; ++i) out.push_back(std::to_string(i));
+  return out;
+}
+
+// The case's time series for a series of `rows` rows: a sibling `time`, the case's `time`, or
+// `macro/time`.
+std::optional<std::string> time_column(const h5::Group& base, const std::string& path,
+                                       std::size_t rows, std::optional<std::size_t> valid) {
+  const std::string dir = parent(path);
+  for (const std::string& t :
+       {dir.empty() ? "time" : dir + "/time", std::string("time"), std::string("macro/time")}) {
+    if (t == path || node_kind(base, t) != NodeKind::dataset) continue;
+    const h5::Dataset d = base.open_dataset(t);
+    const auto shape = d.shape();
+    if (shape.size() == 1 && usable_rows(d, shape, valid) == rows) return t;
+  }
+  return std::nullopt;
+}
+
+std::string headed(const std::string& name, const std::string& unit) {
+  return unit.empty() ? name : name + " [" + unit + "]";
+}
+
+void write_line(std::ostream& out, const std::vector<std::string>& fields) {
+  for (std::size_t i = 0; i < fields.size(); ++i) out << (i > 0 ? "," : "") << fields[i];
+  out << "\n";
+}
+
+// Writes one dataset as CSV. Layouts (n rows, G grains, k components):
+//   [n] / [n, k] series        step, time, value(s)
+//   [n, G, k] series           step, time, grain, values   (one row per step and grain)
+//   [n, G, k] with `grain`     step, time, values of that grain
+//   fixed arrays               row (or label), values
+// A series has only its first `valid` rows written (when given); the rest are reserved.
+void write_table(std::ostream& out, const h5::Group& base, const std::string& path,
+                 std::optional<std::size_t> grain, std::optional<std::size_t> valid) {
+  const h5::Dataset d = base.open_dataset(path);
+  auto shape = d.shape();
+  const std::size_t rows = usable_rows(d, shape, valid);
+  if (shape.empty()) shape = {1};  // a scalar: one row
+  const std::vector<double> values = d.read_doubles();
+  const std::size_t grains = shape.size() == 3 ? shape[1] : 1;
+  const std::size_t k = shape.size() == 1 ? 1 : shape.back();
+  const bool series = !d.chunk_shape().empty();
+  const std::string unit = attribute_or(d, "unit", "");
+  const std::string name = leaf(path);
+
+  std::vector<std::string> header{series ? "step" : "row"};
+  std::optional<std::string> time_path =
+      series ? time_column(base, path, rows, valid) : std::nullopt;
+  std::vector<double> time;
+  if (time_path) {
+    const h5::Dataset t = base.open_dataset(*time_path);
+    time = t.read_doubles();
+    header.push_back(csv_field(headed("time", attribute_or(t, "unit", ""))));
+  }
+  std::vector<std::string> labels;
+  if (!series && has_string_attribute(d, "labels") && d.attribute_size("labels") == rows) {
+    labels = d.attribute_strings("labels");
+    header.front() = "label";
+  }
+  const bool long_format = shape.size() == 3 && !grain;
+  if (long_format) header.push_back("grain");
+  if (shape.size() == 1) {
+    header.push_back(csv_field(headed(name, unit)));
+  } else {
+    for (const auto& c : component_names(base, path, k)) {
+      header.push_back(csv_field(headed(name + "_" + c, unit)));
+    }
+  }
+  write_line(out, header);
+
+  std::string line;
+  const auto emit = [&](std::size_t row, std::size_t g, bool with_grain) {
+    line = labels.empty() ? std::to_string(row) : csv_field(labels[row]);
+    // append(): GCC 12 gives a false -Wrestrict warning on "literal" + std::string&&.
+    if (!time.empty()) line.append(",").append(exact_number(time[row]));
+    if (with_grain) line.append(",").append(std::to_string(g));
+    const std::size_t first = (row * grains + g) * k;
+    for (std::size_t c = 0; c < k; ++c) line.append(",").append(exact_number(values[first + c]));
+    line.append("\n");
+    out << line;
+  };
+  for (std::size_t row = 0; row < rows; ++row) {
+    if (grain) {
+      emit(row, *grain, false);
+    } else {
+      for (std::size_t g = 0; g < grains; ++g) emit(row, g, long_format);
+    }
+  }
+}
+
+// ---------------------------------------------------------------- planning the export
+
+class Planner {
+ public:
+  Planner(const ResultFile& r, const CsvOptions& o) : r_(r), o_(o) {}
+
+  std::vector<Export> plan() {
+    const auto cases = select_cases(r_, o_.case_name);
+    if (o_.datasets.empty()) {
+      for (const auto& c : cases) add_all(c, "");
+    }
+    for (const auto& request : o_.datasets) {
+      if (!request.empty() && request.front() == '/') {
+        add_absolute(request);
+      } else {
+        for (const auto& c : cases) add_relative(c, request);
+      }
+    }
+    return exports_;
+  }
+
+ private:
+  static std::string case_group(const std::string& c) { return "/cases/" + c; }
+
+  void add_relative(const std::string& c, const std::string& request) {
+    const h5::Group g = r_.root.open_group(case_group(c).substr(1));
+    const NodeKind kind = node_kind(g, request);
+    if (kind == NodeKind::missing) {
+      std::vector<std::string> available;
+      collect_datasets(g, "", available);
+      throw InputError(
+          r_.name, 0, "--dataset",
+          "no dataset '" + request + "' in case '" + c + "'; it has: " + join(available, ", "));
+    }
+    if (kind == NodeKind::group) {
+      add_all(c, request);
+    } else {
+      add(case_group(c), c, request, true);
+    }
+  }
+
+  void add_absolute(const std::string& request) {
+    const NodeKind kind = node_kind(r_.root, request);
+    if (kind == NodeKind::missing) {
+      throw InputError(r_.name, 0, "--dataset",
+                       "no dataset or group '" + request + "' in the file");
+    }
+    // Under /cases/<case>/...: relative to the case, so that the time column is found.
+    const auto parts = split(request, '/');
+    if (parts.size() >= 2 && parts[0] == "cases") {
+      const std::string rest = join(std::vector<std::string>(parts.begin() + 2, parts.end()), "/");
+      if (kind == NodeKind::group) {
+        add_all(parts[1], rest);
+      } else {
+        add(case_group(parts[1]), parts[1], rest, true);
+      }
+      return;
+    }
+    if (kind == NodeKind::group) {
+      std::vector<std::string> paths;
+      collect_datasets(r_.root.open_group(request.substr(1)), "", paths);
+      const std::string prefix = join(parts, "/");
+      for (const auto& p : paths) add("/", "", prefix + "/" + p, false);
+    } else {
+      add("/", "", join(parts, "/"), true);
+    }
+  }
+
+  // Every numeric dataset of case `c` below `sub` ("" for the whole case).
+  void add_all(const std::string& c, const std::string& sub) {
+    const h5::Group g = r_.root.open_group(case_group(c).substr(1));
+    std::vector<std::string> paths;
+    if (sub.empty()) {
+      collect_datasets(g, "", paths);
+    } else {
+      collect_datasets(g.open_group(sub), sub, paths);
+    }
+    for (const auto& p : paths) add(case_group(c), c, p, false);
+  }
+
+  // `explicit_request`: named by the user, so text is an error rather than skipped.
+  void add(const std::string& group, const std::string& c, const std::string& path,
+           bool explicit_request) {
+    const h5::Group base =
+        group == "/" ? r_.root.open_group(".") : r_.root.open_group(group.substr(1));
+    const h5::Dataset d = base.open_dataset(path);
+    const std::string full = (group == "/" ? "" : group) + "/" + path;
+    const auto cls = d.value_class();
+    if (cls != h5::ValueClass::floating && cls != h5::ValueClass::integer) {
+      if (!explicit_request) return;
+      throw InputError(r_.name, 0, "--dataset",
+                       "'" + full + "' holds " +
+                           (cls == h5::ValueClass::string ? "text" : "non-numeric data") +
+                           ", not numbers; print it with: h5dump -d " + full + " " + r_.name);
+    }
+    const auto shape = d.shape();
+    if (shape.size() > 3) {
+      throw InputError(r_.name, 0, "--dataset",
+                       "'" + full + "' has rank " + std::to_string(shape.size()) +
+                           "; only ranks 0 to 3 are exported");
+    }
+    const bool per_grain = shape.size() == 3 && o_.grain.has_value();
+    if (per_grain && *o_.grain >= shape[1]) {
+      throw InputError(r_.name, 0, "--grain",
+                       "grain " + std::to_string(*o_.grain) + " is out of range: '" + full +
+                           "' has " + std::to_string(shape[1]) + " grains (0 to " +
+                           std::to_string(shape[1] - 1) + ")");
+    }
+    if (!seen_.insert(full).second) return;  // asked for twice
+    std::string stem = c.empty() ? "" : file_safe(c) + "_";
+    stem += file_safe(join(split(path, '/'), "_"));
+    if (per_grain) stem += "_grain" + std::to_string(*o_.grain);
+    std::string file = stem + ".csv";
+    for (int n = 2; !names_.insert(file).second; ++n) {
+      file = stem + "_" + std::to_string(n) + ".csv";  // two names made the same by file_safe
+    }
+    const auto valid = c.empty() ? std::nullopt : r_.valid_rows(c);
+    exports_.push_back({group, path, o_.directory / file, per_grain, valid});
+  }
+
+  const ResultFile& r_;
+  const CsvOptions& o_;
+  std::vector<Export> exports_;
+  std::set<std::string> seen_;
+  std::set<std::string> names_;
+};
+
+void prepare_directory(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw h5::OutputPathError(dir.string() + ": exists and is not a directory");
+  }
+  fs::create_directories(dir, ec);
+  if (ec) {
+    throw h5::OutputPathError(dir.string() + ": cannot create the directory (" + ec.message() +
+                              ")");
+  }
+}
+
+}  // namespace
+
+void print_summary(std::ostream& out, const fs::path& file, const std::string& case_name) {
+  const ResultFile r = open_result(file);
+  const auto selected = select_cases(r, case_name);
+  print_file_header(out, r);
+  const auto& all = r.cases;
+  out << "cases:       " << all.size() << (all.empty() ? "" : ": " + join(all, ", ")) << "\n";
+  for (const auto& c : selected) {
+    const h5::Group g = r.root.open_group("cases/" + c);
+    out << "\ncase " << c;
+    if (g.has_attribute("index")) out << " (index " << attribute_text(g, "index") << ")";
+    out << case_state_text(r, c, g) << "\n";
+    print_case_attributes(out, g);
+    print_case_datasets(out, g, r.valid_rows(c));
+  }
+  for (const auto& c : all) {
+    if (std::find(selected.begin(), selected.end(), c) == selected.end() && case_name.empty()) {
+      out << "\ncase " << c << ": not started\n";
+    }
+  }
+}
+
+std::vector<fs::path> export_csv(const fs::path& file, const CsvOptions& options) {
+  const ResultFile r = open_result(file);
+  const std::vector<Export> exports = Planner(r, options).plan();
+  for (const auto& e : exports) {
+    if (fs::exists(e.output) && !options.force) {
+      throw h5::OutputPathError(e.output.string() +
+                                ": already exists; use --force to overwrite it");
+    }
+  }
+  prepare_directory(options.directory);
+  std::vector<fs::path> written;
+  for (const auto& e : exports) {
+    std::ofstream out(e.output, std::ios::binary | std::ios::trunc);
+    if (!out) throw h5::OutputPathError(e.output.string() + ": cannot be written");
+    const h5::Group base =
+        e.group == "/" ? r.root.open_group(".") : r.root.open_group(e.group.substr(1));
+    write_table(out, base, e.dataset, e.one_grain ? options.grain : std::nullopt, e.valid_rows);
+    out.close();
+    if (!out) throw h5::OutputPathError(e.output.string() + ": write failed");
+    written.push_back(e.output);
+  }
+  return written;
+}
+
+}  // namespace subslip::io::post

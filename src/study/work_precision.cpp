@@ -1,0 +1,697 @@
+#include "subslip/study/work_precision.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include "subslip/integrators/cvode_peer.hpp"
+
+namespace subslip::study {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// round(n f) increments (at least 1). Graded: growth' = growth^(n / n'), which for an integer f
+// puts exactly f new increments in each old one (the geometric sums nest).
+template <class Segment>
+void refine_segment(Segment& s, double factor, bool uniform, bool every_step) {
+  const long n = s.increments;
+  const long refined = std::max(1L, std::lround(static_cast<double>(n) * factor));
+  if (uniform) {
+    s.growth = 1.0;
+  } else if (s.growth != 1.0 && refined > 1) {
+    s.growth = std::pow(s.growth, static_cast<double>(n) / static_cast<double>(refined));
+  }
+  if (every_step) {
+    s.output_every = 1;
+  } else {
+    // Keep the scene's output points: every (output_every f)-th refined increment.
+    s.output_every = static_cast<int>(
+        std::max(1L, std::lround(static_cast<double>(s.output_every) *
+                                 static_cast<double>(refined) / static_cast<double>(n))));
+  }
+  s.increments = static_cast<int>(refined);
+}
+
+// Adaptive integrators and CVODE: the scene's increments set the first step (adaptive) or the
+// output points (CVODE); measured runs report every one.
+template <class Segment>
+std::vector<Segment> outputs_for(std::vector<Segment> segments, Report report) {
+  if (report == Report::every_step) {
+    for (auto& s : segments) s.output_every = 1;
+  }
+  return segments;
+}
+
+template <class Segment>
+long total_increments(const std::vector<Segment>& segments) {
+  long n = 0;
+  for (const auto& s : segments) n += s.increments;
+  return n;
+}
+
+// Local cubic interpolation on nodes (t strictly increasing), clamped to their span: the cubic
+// through the four nodes around x (j-1 .. j+2 for x in [t_j, t_j+1], shifted inward at the ends
+// of the nodes; fewer nodes, lower degree). Exact for cubics; the error falls as h^4 where the
+// path is smooth.
+double local_cubic_at(const std::vector<double>& t, const std::vector<double>& y, double x) {
+  const std::size_t n = t.size();
+  if (n == 1 || x <= t.front()) return y.front();
+  if (x >= t.back()) return y.back();
+  const auto upper = std::upper_bound(t.begin(), t.end(), x);
+  const std::size_t j = static_cast<std::size_t>(upper - t.begin()) - 1;
+  if (x == t[j]) return y[j];
+  const std::size_t m = std::min<std::size_t>(4, n);
+  const std::size_t first = std::min(j > 0 ? j - 1 : 0, n - m);
+  double sum = 0.0;
+  for (std::size_t a = first; a < first + m; ++a) {
+    double weight = 1.0;
+    for (std::size_t b = first; b < first + m; ++b) {
+      if (b != a) weight *= (x - t[b]) / (t[a] - t[b]);
+    }
+    sum += weight * y[a];
+  }
+  return sum;
+}
+
+// CVODE at a relative tolerance rtol and absolute tolerances of min(rtol, atol_scale) times
+// each component's natural scale (the peer's atol_scale). Measured runs also report every
+// internal CVODE step.
+cvode::CvodeOptions cvode_options(const Setting& s, Report report) {
+  cvode::CvodeOptions o;
+  o.rtol = s.value;
+  o.atol_scale = std::min(s.value, s.atol_scale);
+  o.report_every_step = report == Report::every_step;
+  return o;
+}
+
+RunCounters counters_of(const contact::RunStats& st) {
+  return {st.substeps, st.rejected, st.iterations, st.cutbacks};
+}
+
+RunCounters counters_of(const crystal::AggregateStats& st) {
+  return {st.substeps, st.rejected, st.newton_iterations, st.cutbacks};
+}
+
+std::string format_setting(const Setting& s) {
+  char buf[64];
+  if (is_fixed_step(s.integrator)) {
+    std::snprintf(buf, sizeof buf, "x%g%s", s.value, s.uniform ? " uniform" : "");
+  } else {
+    std::snprintf(buf, sizeof buf, "%s %.0e", std::string(setting_kind(s.integrator)).c_str(),
+                  s.value);
+  }
+  return buf;
+}
+
+std::string describe_point(const PointResult& p) {
+  char buf[256];
+  const std::string head =
+      std::string(to_string(p.setting.integrator)) + " " + format_setting(p.setting);
+  if (!p.ok) return head + ": failed: " + p.failure;
+  std::snprintf(buf, sizeof buf,
+                ": %ld steps, max error %.3e (t = %.3g), end error %.3e, %.4g s (%d run%s)",
+                p.counters.steps, p.error.max_error, p.error.max_error_time, p.error.end_error,
+                p.median_seconds, p.repeats, p.repeats == 1 ? "" : "s");
+  return head + buf;
+}
+
+void say(const StudyOptions& o, const std::string& line) {
+  if (o.progress) o.progress(line);
+}
+
+// Thrown from an observer to stop a run that takes too long. Every driver calls its observer
+// from C++ code between steps (CVODE's too: between CVode calls), so the exception unwinds
+// through C++ frames only.
+struct OverBudget {
+  double time;
+};
+constexpr long kBudgetCheckInterval = 16;  // points between clock reads
+
+std::string stopped_message(double time, double seconds) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "stopped at t = %.4g after %.3g s (over the run-time budget)",
+                time, seconds);
+  return buf;
+}
+
+// Wraps an observer so that the run knows its last reported time.
+struct LastTime {
+  const PointObserver& observe;
+  double last = kNaN;
+  void operator()(double t, double v, int segment) {
+    last = t;
+    observe(t, v, segment);
+  }
+};
+
+}  // namespace
+
+std::string_view to_string(Integrator integrator) {
+  switch (integrator) {
+    case Integrator::forward_euler:
+      return "forward_euler";
+    case Integrator::implicit:
+      return "implicit";
+    case Integrator::implicit_adaptive:
+      return "implicit_adaptive";
+    case Integrator::cvode:
+      return "cvode";
+  }
+  return "?";
+}
+
+std::string_view setting_kind(Integrator integrator) {
+  switch (integrator) {
+    case Integrator::forward_euler:
+    case Integrator::implicit:
+      return "increment factor";
+    case Integrator::implicit_adaptive:
+      return "tolerance";
+    case Integrator::cvode:
+      return "rtol";
+  }
+  return "?";
+}
+
+bool is_fixed_step(Integrator integrator) {
+  return integrator == Integrator::forward_euler || integrator == Integrator::implicit;
+}
+
+void Trajectory::add(double t, double v, int seg) {
+  time.push_back(t);
+  value.push_back(v);
+  segment.push_back(seg);
+}
+
+RunResult record(const Problem& problem, const Setting& setting, Report report, Trajectory& path,
+                 double budget_seconds) {
+  path = {};
+  const auto start = Clock::now();
+  long reported = 0;
+  try {
+    return problem.run(setting, report, [&](double t, double v, int seg) {
+      path.add(t, v, seg);
+      if (++reported % kBudgetCheckInterval == 0 && seconds_since(start) > budget_seconds)
+        throw OverBudget{t};
+    });
+  } catch (const OverBudget& stop) {
+    RunResult r;
+    r.failure = stopped_message(stop.time, seconds_since(start));
+    r.seconds = seconds_since(start);
+    r.last_time = stop.time;
+    return r;
+  }
+}
+
+std::vector<contact::Segment> refine(std::vector<contact::Segment> segments, double factor,
+                                     bool uniform, bool every_step) {
+  for (auto& s : segments) refine_segment(s, factor, uniform, every_step);
+  return segments;
+}
+
+std::vector<crystal::LoadSegment> refine(std::vector<crystal::LoadSegment> segments, double factor,
+                                         bool uniform, bool every_step) {
+  for (auto& s : segments) refine_segment(s, factor, uniform, every_step);
+  return segments;
+}
+
+bool cvode_available() {
+  return cvode::available();
+}
+
+// ---- contact
+
+ContactProblem::ContactProblem(contact::ContactModel model, std::vector<contact::Segment> segments,
+                               contact::IntegratorOptions options)
+    : model_(std::move(model)), segments_(std::move(segments)), options_(options) {}
+
+bool ContactProblem::supports(Integrator integrator) const {
+  // The rate-independent form has no ODE form (its slip rate comes from consistency).
+  if (integrator == Integrator::cvode) {
+    return cvode_available() && model_.law.overstress.form != law::OverstressForm::rate_independent;
+  }
+  return true;
+}
+
+long ContactProblem::base_increments() const {
+  return total_increments(segments_);
+}
+
+std::string ContactProblem::error_scale_description() const {
+  return "mu_s (the static friction coefficient: the yield ratio f_t/f_n of a fresh contact)";
+}
+
+RunResult ContactProblem::run(const Setting& setting, Report report,
+                              const PointObserver& observe) const {
+  RunResult out;
+  const auto start = Clock::now();
+  LastTime seen{observe};
+  const auto record = [&seen](const contact::ContactState& s, int segment) {
+    seen(s.time, s.traction_ratio(), segment);
+  };
+  contact::IntegratorOptions opt = options_;
+  opt.tolerance = 0.0;
+  try {
+    switch (setting.integrator) {
+      case Integrator::forward_euler:
+      case Integrator::implicit: {
+        opt.method = setting.integrator == Integrator::implicit ? contact::Method::implicit
+                                                                : contact::Method::forward_euler;
+        const auto segments =
+            refine(segments_, setting.value, setting.uniform, report == Report::every_step);
+        out.counters = counters_of(contact::run_history(model_, segments, opt, record));
+        break;
+      }
+      case Integrator::implicit_adaptive:
+        opt.method = contact::Method::implicit;
+        opt.tolerance = setting.value;
+        out.counters =
+            counters_of(contact::run_history(model_, outputs_for(segments_, report), opt, record));
+        break;
+      case Integrator::cvode:
+        out.counters = counters_of(cvode::run_contact_history(
+            model_, outputs_for(segments_, report), cvode_options(setting, report), record));
+        break;
+    }
+    out.ok = true;
+  } catch (const contact::StepFailure& e) {
+    out.failure = e.what();
+  } catch (const cvode::CvodeFailure& e) {
+    out.failure = e.what();
+  }
+  out.seconds = seconds_since(start);
+  out.last_time = seen.last;
+  return out;
+}
+
+// ---- crystal
+
+CrystalProblem::CrystalProblem(crystal::PhaseDescription phase,
+                               std::vector<crystal::Orientation> orientations,
+                               std::vector<crystal::LoadSegment> segments,
+                               crystal::AggregateOptions options, std::pair<int, int> component)
+    : phase_(std::move(phase)),
+      orientations_(std::move(orientations)),
+      segments_(std::move(segments)),
+      options_(options),
+      component_(component) {}
+
+bool CrystalProblem::supports(Integrator integrator) const {
+  // The rate-independent form has no slip rate for forward Euler or an ODE solver.
+  const auto rate_independent = [](const crystal::SlipGroupSettings& g) {
+    return g.law.overstress.form == law::OverstressForm::rate_independent;
+  };
+  const bool any_rate_independent =
+      phase_.custom_systems.empty() ? std::any_of(phase_.family_settings.begin(),
+                                                  phase_.family_settings.end(), rate_independent)
+                                    : rate_independent(phase_.custom_settings);
+  if (integrator == Integrator::cvode) return cvode_available() && !any_rate_independent;
+  if (integrator == Integrator::forward_euler) return !any_rate_independent;
+  return true;
+}
+
+long CrystalProblem::base_increments() const {
+  return total_increments(segments_);
+}
+
+std::string CrystalProblem::quantity() const {
+  return "sigma_" + std::to_string(component_.first + 1) + std::to_string(component_.second + 1);
+}
+
+double CrystalProblem::error_scale(const Trajectory& reference) const {
+  double largest = 0.0;
+  for (double v : reference.value) largest = std::max(largest, std::abs(v));
+  return largest > 0.0 ? largest : 1.0;
+}
+
+std::string CrystalProblem::error_scale_description() const {
+  return "the largest |" + quantity() +
+         "| of the reference along the path (the flow stress the test reaches)";
+}
+
+RunResult CrystalProblem::run(const Setting& setting, Report report,
+                              const PointObserver& observe) const {
+  RunResult out;
+  const auto start = Clock::now();
+  LastTime seen{observe};
+  const auto [i, j] = component_;
+  const auto record = [&seen, i, j](const crystal::MacroState& m, const crystal::GrainFields&) {
+    seen(m.time, m.stress(i, j), m.segment);
+  };
+  crystal::AggregateOptions opt = options_;
+  opt.tolerance = 0.0;
+  try {
+    switch (setting.integrator) {
+      case Integrator::forward_euler:
+      case Integrator::implicit: {
+        opt.method = setting.integrator == Integrator::implicit
+                         ? crystal::CrystalMethod::implicit
+                         : crystal::CrystalMethod::forward_euler;
+        const auto segments =
+            refine(segments_, setting.value, setting.uniform, report == Report::every_step);
+        auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);
+        out.counters = counters_of(aggregate->run(segments, opt, record));
+        break;
+      }
+      case Integrator::implicit_adaptive: {
+        opt.method = crystal::CrystalMethod::implicit;
+        opt.tolerance = setting.value;
+        auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);
+        out.counters = counters_of(aggregate->run(outputs_for(segments_, report), opt, record));
+        break;
+      }
+      case Integrator::cvode:
+        out.counters = counters_of(
+            cvode::run_taylor_aggregate(phase_, orientations_, outputs_for(segments_, report),
+                                        cvode_options(setting, report), record));
+        break;
+    }
+    out.ok = true;
+  } catch (const crystal::CrystalStepFailure& e) {
+    out.failure = e.what();
+  } catch (const cvode::CvodeFailure& e) {
+    out.failure = e.what();
+  }
+  out.seconds = seconds_since(start);
+  out.last_time = seen.last;
+  return out;
+}
+
+// ---- interpolation and errors
+
+PathInterpolant::PathInterpolant(const Trajectory& path) {
+  for (std::size_t k = 0; k < path.size(); ++k) {
+    const int seg = path.segment[k];
+    if (pieces_.empty() || pieces_.back().segment != seg) {
+      Piece p;
+      p.segment = seg;
+      if (k > 0) {  // the segment starts where the previous one ended
+        p.t.push_back(path.time[k - 1]);
+        p.y.push_back(path.value[k - 1]);
+      }
+      pieces_.push_back(std::move(p));
+    }
+    pieces_.back().t.push_back(path.time[k]);
+    pieces_.back().y.push_back(path.value[k]);
+  }
+}
+
+const PathInterpolant::Piece* PathInterpolant::piece_of(int segment) const {
+  for (const auto& p : pieces_)
+    if (p.segment == segment) return &p;
+  return nullptr;
+}
+
+double PathInterpolant::at(double t, int segment) const {
+  const Piece* p = piece_of(segment);
+  if (p == nullptr) {
+    throw std::out_of_range("reference path has no segment " + std::to_string(segment));
+  }
+  return local_cubic_at(p->t, p->y, t);
+}
+
+double PathInterpolant::estimated_error() const {
+  double worst = 0.0;
+  for (const auto& p : pieces_) {
+    const std::size_t n = p.t.size();
+    if (n < 5) continue;
+    std::vector<double> t2, y2;
+    for (std::size_t k = 0; k < n; k += 2) {
+      t2.push_back(p.t[k]);
+      y2.push_back(p.y[k]);
+    }
+    if ((n - 1) % 2 != 0) {  // keep the last node
+      t2.push_back(p.t[n - 1]);
+      y2.push_back(p.y[n - 1]);
+    }
+    for (std::size_t k = 1; k + 1 < n; k += 2) {
+      worst = std::max(worst, std::abs(local_cubic_at(t2, y2, p.t[k]) - p.y[k]));
+    }
+  }
+  return worst;
+}
+
+void ErrorAccumulator::add(double time, double value, int segment) {
+  const double d = std::abs(value - reference_.at(time, segment)) / scale_;
+  // The first point sets the maximum; a NaN sticks.
+  if (!std::isnan(e_.max_error) && (!any_ || !(d <= e_.max_error))) {
+    e_.max_error = d;
+    e_.max_error_time = time;
+  }
+  e_.end_error = d;
+  any_ = true;
+}
+
+ErrorMeasure ErrorAccumulator::result(bool complete) const {
+  if (!complete || !any_) return {};
+  return e_;
+}
+
+ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
+                           bool complete) {
+  ErrorAccumulator acc(reference, scale);
+  for (std::size_t k = 0; k < run.size(); ++k) acc.add(run.time[k], run.value[k], run.segment[k]);
+  return acc.result(complete);
+}
+
+Trajectory richardson(const Trajectory& fine, const Trajectory& coarse) {
+  // The correction y_h - y_2h is known at the coarse points (fine nodes there); it is small and
+  // smooth, so interpolating it to the other fine nodes adds only a small fraction of itself.
+  const PathInterpolant f(fine);
+  Trajectory correction;
+  for (std::size_t k = 0; k < coarse.size(); ++k) {
+    const double t = coarse.time[k];
+    correction.add(t, f.at(t, coarse.segment[k]) - coarse.value[k], coarse.segment[k]);
+  }
+  const PathInterpolant c(correction);
+  Trajectory out;
+  for (std::size_t k = 0; k < fine.size(); ++k) {
+    const double t = fine.time[k];
+    out.add(t, fine.value[k] + c.at(t, fine.segment[k]), fine.segment[k]);
+  }
+  return out;
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return kNaN;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+// ---- the study
+
+PointResult measure_point(const Problem& problem, const Setting& setting,
+                          const PathInterpolant& reference, double scale,
+                          const StudyOptions& options) {
+  PointResult p;
+  p.setting = setting;
+  ErrorAccumulator error(reference, scale);
+  long reported = 0;
+  // A run that overruns the budget is stopped from its observer.
+  const auto start = Clock::now();
+  RunResult measured;
+  try {
+    measured = problem.run(setting, Report::every_step, [&](double t, double v, int seg) {
+      error.add(t, v, seg);
+      if (++reported % kBudgetCheckInterval == 0 && seconds_since(start) > options.max_run_seconds)
+        throw OverBudget{t};
+    });
+  } catch (const OverBudget& stop) {
+    p.failure = stopped_message(stop.time, seconds_since(start));
+    p.reached_time = stop.time;
+    p.measured_seconds = seconds_since(start);
+    p.reported_points = reported;
+    p.over_budget = true;
+    return p;
+  }
+  p.measured_seconds = measured.seconds;
+  p.reported_points = reported;
+  p.counters = measured.counters;
+  p.ok = measured.ok;
+  p.failure = measured.failure;
+  p.reached_time = measured.last_time;
+  p.error = error.result(measured.ok);
+  if (measured.ok && !std::isfinite(p.error.max_error)) {
+    p.ok = false;
+    p.failure = "non-finite value in the path";
+  }
+  if (!p.ok) return p;  // the time to failure is no result
+  // The timed runs report only the scene's output points, so that the time is the
+  // integrator's, not the error measurement's.
+  const PointObserver nothing = [](double, double, int) {};
+  std::vector<double> times;
+  double spent = 0.0;
+  do {
+    const RunResult timed = problem.run(setting, Report::scene_points, nothing);
+    times.push_back(timed.seconds);
+    spent += timed.seconds;
+  } while (static_cast<int>(times.size()) < options.repeat &&
+           spent + times.front() <= options.repeat_budget_seconds);
+  p.median_seconds = median(times);
+  p.repeats = static_cast<int>(times.size());
+  return p;
+}
+
+namespace {
+
+// The run time of a fixed-step point at factor `next`. From a successful point: its time per
+// increment times the increments planned. From a failed one (it stopped early, after costly
+// cutbacks, so its rate says little): its time scaled by the factor.
+double predicted_seconds(const PointResult& previous, double next, long base_increments) {
+  if (!previous.ok) return previous.measured_seconds * next / previous.setting.value;
+  const double per_increment =
+      previous.measured_seconds / static_cast<double>(std::max(1L, previous.reported_points));
+  return per_increment * static_cast<double>(base_increments) * next;
+}
+
+// Runs the reference (or one of its companions); a failure stops the study.
+RunResult run_reference_setting(const Problem& problem, const Setting& setting, Trajectory& path) {
+  RunResult r = record(problem, setting, Report::every_step, path);
+  if (!r.ok) {
+    throw ReferenceFailure("the reference run (" + std::string(to_string(setting.integrator)) +
+                           " " + format_setting(setting) + ") failed: " + r.failure);
+  }
+  return r;
+}
+
+// A fixed-step reference: the runs at R, R/2 and R/4 increment factors give the extrapolated
+// path at R (from R and R/2) and its coarser companion (from R/2 and R/4).
+void fixed_reference(const Problem& problem, const StudyOptions& options, ReferenceResult& ref,
+                     std::optional<Trajectory>& check) {
+  const double r = ref.setting.value;
+  ref.run = run_reference_setting(problem, ref.setting, ref.path);
+  ref.check = {ref.setting.integrator, 0.5 * r, ref.setting.uniform};
+  Trajectory half;
+  const RunResult half_run = run_reference_setting(problem, ref.check, half);
+  if (!options.richardson) {
+    check = std::move(half);
+    return;
+  }
+  ref.extrapolated = true;
+  Trajectory quarter;
+  if (record(problem, {ref.setting.integrator, 0.25 * r, ref.setting.uniform}, Report::every_step,
+             quarter)
+          .ok) {
+    check = richardson(half, quarter);
+  }
+  ref.path = richardson(ref.path, half);
+  ref.run.seconds += half_run.seconds;
+}
+
+ReferenceResult run_reference(const Problem& problem, const StudyOptions& options) {
+  ReferenceResult ref;
+  ref.setting = options.reference;
+  std::optional<Trajectory> check;
+  if (is_fixed_step(ref.setting.integrator)) {
+    fixed_reference(problem, options, ref, check);
+  } else {
+    ref.run = run_reference_setting(problem, ref.setting, ref.path);
+    ref.check = {ref.setting.integrator, 10.0 * ref.setting.value};
+    Trajectory looser;
+    if (record(problem, ref.check, Report::every_step, looser).ok) check = std::move(looser);
+  }
+  ref.scale = problem.error_scale(ref.path);
+  const PathInterpolant interpolant(ref.path);
+  ref.interpolation_error = interpolant.estimated_error() / ref.scale;
+  if (check) ref.self_convergence = measure_error(*check, interpolant, ref.scale, true).max_error;
+  if (problem.supports(Integrator::cvode)) {
+    const Setting check{Integrator::cvode, options.cvode_check_rtol, false, 1.0};
+    ref.cvode =
+        record(problem, check, Report::every_step, ref.cvode_path, options.cvode_check_seconds);
+    if (ref.cvode->ok) {
+      ref.cvode_difference = measure_error(ref.cvode_path, interpolant, ref.scale, true).max_error;
+    }
+  }
+  return ref;
+}
+
+std::string describe_reference(const Problem& problem, const ReferenceResult& ref) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "reference: %s %s%s, %ld steps, %.3g s; self-convergence (%s) %.2e, "
+                "interpolation %.2e, CVODE difference %.2e (errors relative to %s)",
+                std::string(to_string(ref.setting.integrator)).c_str(),
+                format_setting(ref.setting).c_str(), ref.extrapolated ? " extrapolated" : "",
+                ref.run.counters.steps, ref.run.seconds, format_setting(ref.check).c_str(),
+                ref.self_convergence, ref.interpolation_error, ref.cvode_difference,
+                problem.error_scale_description().c_str());
+  return buf;
+}
+
+}  // namespace
+
+StudyResult run_study(const Problem& problem, const StudyOptions& options) {
+  StudyResult out;
+  out.quantity = problem.quantity();
+  out.scale_description = problem.error_scale_description();
+  out.base_increments = problem.base_increments();
+  out.reference = run_reference(problem, options);
+  say(options, describe_reference(problem, out.reference));
+  const PathInterpolant reference(out.reference.path);
+  for (const Ladder& ladder : options.ladders) {
+    if (!problem.supports(ladder.integrator)) {
+      out.notes.push_back(std::string(to_string(ladder.integrator)) + ": not available");
+      say(options, out.notes.back());
+      continue;
+    }
+    std::vector<double> values = ladder.values;
+    std::optional<std::size_t> previous;  // index into out.points
+    for (std::size_t k = 0;; ++k) {
+      if (k == values.size()) {
+        if (!ladder.extend_until_budget || !previous) break;
+        values.push_back(4.0 * values.back());
+      }
+      const Setting setting{ladder.integrator, values[k], ladder.uniform, ladder.atol_scale};
+      if (previous) {
+        const PointResult& last = out.points[*previous];
+        const double expected = is_fixed_step(ladder.integrator)
+                                    ? predicted_seconds(last, setting.value, out.base_increments)
+                                    : last.median_seconds;
+        if (expected > options.max_run_seconds) {
+          char buf[160];
+          std::snprintf(buf, sizeof buf, " and finer: skipped (expected %.3g s > %.3g s a run)",
+                        expected, options.max_run_seconds);
+          out.notes.push_back(std::string(to_string(ladder.integrator)) + " " +
+                              format_setting(setting) + buf);
+          say(options, out.notes.back());
+          break;
+        }
+      }
+      out.points.push_back(
+          measure_point(problem, setting, reference, out.reference.scale, options));
+      say(options, describe_point(out.points.back()));
+      previous = out.points.size() - 1;
+      if (out.points.back().over_budget) break;  // finer points only take longer
+    }
+  }
+  return out;
+}
+
+double cheapest_time(const StudyResult& study, Integrator integrator, double error) {
+  double best = kNaN;
+  for (const auto& p : study.points) {
+    if (p.setting.integrator != integrator || !p.ok || !(p.error.max_error <= error)) continue;
+    if (!(p.median_seconds >= best)) best = p.median_seconds;
+  }
+  return best;
+}
+
+std::vector<Integrator> measured_integrators(const StudyResult& study) {
+  std::vector<Integrator> out;
+  for (const auto& p : study.points) {
+    if (p.ok && std::find(out.begin(), out.end(), p.setting.integrator) == out.end())
+      out.push_back(p.setting.integrator);
+  }
+  return out;
+}
+
+}  // namespace subslip::study

@@ -1,0 +1,530 @@
+// The work-precision study (subslip accuracy): interpolation of the reference, nested
+// refinement, first-order convergence of the fixed-step integrators as measured by the study,
+// consistency of the measured errors with the reference's own self-convergence (and with CVODE
+// when it is built in), failures as data points, and the output files.
+//
+// Expected values are exact properties (polynomials, geometric sums), convergence orders, or
+// relations between independently computed runs; nothing is copied from a run of the code.
+// Measured numbers are printed with the prefix "[ measured ]". No wall times are asserted.
+#include <gtest/gtest.h>
+#include <omp.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "subslip/contact/contact_point.hpp"
+#include "subslip/crystal/elasticity.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/io/accuracy_output.hpp"
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/study/work_precision.hpp"
+
+namespace fs = std::filesystem;
+namespace law = subslip::law;
+namespace ct = subslip::contact;
+namespace cr = subslip::crystal;
+namespace io = subslip::io;
+using namespace subslip::study;
+
+namespace {
+
+std::ostream& measured() {
+  return std::cout << std::setprecision(4) << "[ measured ] ";
+}
+
+// The slope of log(error) against log(factor), least squares: errors fall as factor^-order.
+double observed_order(const std::vector<double>& factor, const std::vector<double>& error) {
+  const std::size_t n = factor.size();
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double x = std::log(factor[k]), y = std::log(error[k]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  return -(n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+// ---- a small contact case: the paper's law at a soft contact (alpha = 1e3 MPa/mm, where
+// forward Euler is stable at moderate steps), 0.2 mm of sliding at 1 mm/min over the onset of
+// sliding and the peak, in graded increments (the first 1.6e-5 mm) that resolve the onset.
+constexpr double kFn = 5.56;
+
+law::LawParameters paper_law() {
+  law::LawParameters p;
+  p.friction = {0.097, 0.085, 0.2, 0.009};
+  p.subloading = {law::SubloadingFunction::cot, 80.0};
+  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
+  return p;
+}
+
+ct::ContactModel contact_model(double alpha) {
+  ct::ContactModel m;
+  m.law = paper_law();
+  m.initial_law_state = {m.law.friction.mu_s, 0.0};
+  m.stiffness = {alpha, alpha};
+  m.initial_normal_traction = kFn;
+  return m;
+}
+
+ct::Segment slide(double speed, double distance, int increments, double growth,
+                  int output_every = 1) {
+  ct::Segment s;
+  s.velocity = ct::Vec2(speed, 0.0);
+  s.duration = distance / speed;
+  s.normal_traction = kFn;
+  s.increments = increments;
+  s.growth = growth;
+  s.output_every = output_every;
+  return s;
+}
+
+ContactProblem soft_contact(int increments = 200) {
+  return ContactProblem(contact_model(1e3), {slide(1.0, 0.2, increments, 1.03, 10)},
+                        ct::IntegratorOptions{});
+}
+
+StudyOptions quiet_options(double reference_factor) {
+  StudyOptions o;
+  o.reference = {Integrator::implicit, reference_factor};
+  o.repeat = 1;
+  o.max_run_seconds = 60.0;
+  return o;
+}
+
+const PointResult& point(const StudyResult& s, Integrator i, double value) {
+  for (const auto& p : s.points)
+    if (p.setting.integrator == i && p.setting.value == value) return p;
+  throw std::out_of_range("no such point");
+}
+
+// ---- a small crystal: one FCC grain in uniaxial tension with soft elasticity and a strongly
+// rate-dependent law, so that forward Euler is stable at moderate steps; graded increments.
+cr::PhaseDescription soft_fcc() {
+  cr::PhaseDescription d;
+  d.families = {cr::SlipFamily::fcc_111_110};
+  cr::SlipGroupSettings g;
+  g.tau0 = 10.0;
+  g.law.friction = {1.6, 4.0, 20.0, 0.0};
+  g.law.subloading = {law::SubloadingFunction::cot, 200.0};
+  g.law.overstress = {law::OverstressForm::exponential, 1000.0, 2.0, 1.6};
+  d.family_settings = {g};
+  d.stiffness = cr::isotropic_from_G_nu(2000.0, 0.3);
+  return d;
+}
+
+cr::LoadSegment tension(int increments) {
+  cr::LoadSegment s;
+  s.velocity_gradient(0, 0) = 1e-3;
+  s.free(1, 1) = s.free(2, 2) = true;
+  s.duration = 20.0;  // 2 % strain
+  s.increments = increments;
+  s.growth = 1.1;
+  return s;
+}
+
+CrystalProblem soft_crystal(int increments = 40) {
+  // Near [-123]: single slip first, then more systems.
+  const auto g = cr::Orientation::from_euler(Eigen::Vector3d(0.3, 0.7, 0.2));
+  return CrystalProblem(soft_fcc(), {g}, {tension(increments)}, cr::AggregateOptions{}, {0, 0});
+}
+
+struct SingleThread {
+  int saved = omp_get_max_threads();
+  SingleThread() { omp_set_num_threads(1); }
+  ~SingleThread() { omp_set_num_threads(saved); }
+  SingleThread(const SingleThread&) = delete;
+  SingleThread& operator=(const SingleThread&) = delete;
+};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Interpolation of the reference.
+// ---------------------------------------------------------------------------------------------
+
+// Exact for polynomials up to degree 3 on non-uniform nodes, and each segment is interpolated on
+// its own nodes: a path with a kink between two segments is reproduced exactly on both sides.
+TEST(AccuracyInterpolation, ExactForPolynomialPiecesWithKinks) {
+  Trajectory path;
+  path.add(0.0, 1.0, -1);
+  double t = 0.0;
+  const auto piece0 = [](double x) { return 1.0 + 3.0 * x - 0.5 * x * x + 0.25 * x * x * x; };
+  const auto piece1 = [&](double x) { return piece0(2.0) - 7.0 * (x - 2.0); };  // a kink at 2
+  for (double h = 0.01; t + h <= 2.0 + 1e-12; h *= 1.3) {
+    t = std::min(2.0, t + h);
+    path.add(t, piece0(t), 0);
+  }
+  if (t < 2.0) path.add(2.0, piece0(2.0), 0);
+  for (t = 2.0; t < 3.0;) {
+    t = std::min(3.0, t + 0.137);
+    path.add(t, piece1(t), 1);
+  }
+  const PathInterpolant interp(path);
+  double worst = 0.0;
+  for (double x = 0.0; x <= 2.0; x += 0.0173)
+    worst = std::max(worst, std::abs(interp.at(x, 0) - piece0(x)));
+  for (double x = 2.0; x <= 3.0; x += 0.0191)
+    worst = std::max(worst, std::abs(interp.at(x, 1) - piece1(x)));
+  EXPECT_LT(worst, 1e-13);
+  EXPECT_DOUBLE_EQ(interp.at(0.0, -1), 1.0);
+  // Linear data: the estimated interpolation error is round-off.
+  EXPECT_LT(PathInterpolant(path).estimated_error(), 1e-12);
+}
+
+// The estimate (interpolation on every second node, at the dropped nodes) bounds the actual
+// error of the full interpolant on smooth data, and falls as h^4.
+TEST(AccuracyInterpolation, EstimatedErrorBoundsTheActualError) {
+  std::vector<double> estimate, actual;
+  for (int n : {40, 80}) {
+    Trajectory path;
+    for (int k = 0; k <= n; ++k) {
+      const double x = 3.0 * k / n;
+      path.add(x, std::sin(2.0 * x), k == 0 ? -1 : 0);
+    }
+    const PathInterpolant interp(path);
+    double worst = 0.0;
+    for (double x = 0.0; x <= 3.0; x += 0.0011)
+      worst = std::max(worst, std::abs(interp.at(x, 0) - std::sin(2.0 * x)));
+    estimate.push_back(interp.estimated_error());
+    actual.push_back(worst);
+    measured() << "n = " << n << ": interpolation error " << worst << ", estimate "
+               << estimate.back() << "\n";
+    EXPECT_GT(estimate.back(), worst);
+  }
+  const double order = std::log2(actual[0] / actual[1]);
+  EXPECT_GT(order, 3.6);
+  EXPECT_LT(order, 4.5);
+}
+
+// Richardson extrapolation removes an error proportional to the step exactly: from paths
+// f + h g and f + 2h g (nested nodes, graded), it returns f at every fine node (the correction
+// -h g is interpolated between the coarse nodes, exactly for a cubic g).
+TEST(AccuracyInterpolation, RichardsonRemovesAFirstOrderError) {
+  const auto f = [](double t) { return std::sin(3.0 * t) + t; };
+  const auto g = [](double t) { return 2.0 - t + 0.3 * t * t * t; };
+  const double h = 1e-2;
+  Trajectory fine, coarse;
+  std::vector<double> times{0.0};
+  for (int k = 1; k <= 64; ++k)
+    times.push_back(2.0 * (std::pow(1.03, k) - 1.0) / (std::pow(1.03, 64) - 1.0));
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    const double t = times[k];
+    const int seg = k == 0 ? -1 : 0;
+    fine.add(t, f(t) + h * g(t), seg);
+    if (k % 2 == 0) coarse.add(t, f(t) + 2.0 * h * g(t), seg);
+  }
+  const Trajectory r = richardson(fine, coarse);
+  ASSERT_EQ(r.size(), fine.size());
+  double worst = 0.0;
+  for (std::size_t k = 0; k < r.size(); ++k)
+    worst = std::max(worst, std::abs(r.value[k] - f(r.time[k])));
+  EXPECT_LT(worst, 1e-13);
+}
+
+TEST(AccuracyError, MaximumAndEndAgainstAKnownReference) {
+  Trajectory ref;
+  for (int k = 0; k <= 10; ++k) ref.add(0.1 * k, 2.0 * k, k == 0 ? -1 : 0);  // 20 t
+  Trajectory run;
+  run.add(0.0, 0.0, -1);
+  run.add(0.35, 7.0 + 0.4, 0);  // off by 0.4 between nodes
+  run.add(1.0, 20.0 - 0.1, 0);
+  const auto e = measure_error(run, PathInterpolant(ref), 2.0, true);
+  EXPECT_NEAR(e.max_error, 0.2, 1e-12);
+  EXPECT_NEAR(e.end_error, 0.05, 1e-12);
+  const auto failed = measure_error(run, PathInterpolant(ref), 2.0, false);
+  EXPECT_TRUE(std::isnan(failed.max_error));
+  EXPECT_DOUBLE_EQ(median({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_DOUBLE_EQ(median({4.0, 1.0, 2.0, 3.0}), 2.5);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Refinement.
+// ---------------------------------------------------------------------------------------------
+
+// Integer factors split every graded increment into exactly `factor` pieces (the geometric
+// sums nest), and the scene's output points are kept.
+TEST(AccuracyRefine, IntegerFactorsSubdivideGradedIncrements) {
+  const ct::Segment s = slide(1.0, 2.0, 50, 1.07, 5);
+  const auto coarse = ct::increment_lengths(s);
+  for (int factor : {2, 4, 16}) {
+    const auto refined = refine(std::vector<ct::Segment>{s}, factor, false, false).front();
+    EXPECT_EQ(refined.increments, 50 * factor);
+    EXPECT_EQ(refined.output_every, 5 * factor);
+    const auto fine = ct::increment_lengths(refined);
+    for (std::size_t i = 0; i < coarse.size(); ++i) {
+      const double sum = std::accumulate(fine.begin() + static_cast<long>(i) * factor,
+                                         fine.begin() + static_cast<long>(i + 1) * factor, 0.0);
+      EXPECT_NEAR(sum, coarse[i], 1e-13 * s.duration) << "factor " << factor << ", increment " << i;
+    }
+    EXPECT_EQ(refine(std::vector<ct::Segment>{s}, factor, false, true).front().output_every, 1);
+  }
+  const auto halved = refine(std::vector<ct::Segment>{s}, 0.5, false, false).front();
+  EXPECT_EQ(halved.increments, 25);
+  EXPECT_NEAR(halved.growth, 1.07 * 1.07, 1e-14);  // each new increment is two old ones
+}
+
+// ---------------------------------------------------------------------------------------------
+// Convergence as the study measures it.
+// ---------------------------------------------------------------------------------------------
+
+// Forward Euler and the fixed-step implicit integrator are first order: the maximum error over
+// the path falls as 1/factor. The window [0.8, 1.2] rejects order 0.5 or 2.
+TEST(AccuracyContact, FixedStepErrorsFallAtFirstOrder) {
+  const ContactProblem problem = soft_contact();
+  StudyOptions o = quiet_options(512.0);
+  o.ladders = {{Integrator::forward_euler, {128, 256, 512, 1024}, false},
+               {Integrator::implicit, {1, 2, 4, 8}, false}};
+  const StudyResult s = run_study(problem, o);
+  for (Integrator i : {Integrator::forward_euler, Integrator::implicit}) {
+    std::vector<double> f, e;
+    for (const auto& p : s.points) {
+      if (p.setting.integrator != i) continue;
+      ASSERT_TRUE(p.ok) << p.failure;
+      f.push_back(p.setting.value);
+      e.push_back(p.error.max_error);
+      measured() << to_string(i) << " x" << f.back() << ": max error " << e.back() << ", end error "
+                 << p.error.end_error << "\n";
+    }
+    for (std::size_t k = 1; k < e.size(); ++k) EXPECT_LT(e[k], e[k - 1]);
+    const double order = observed_order(f, e);
+    measured() << to_string(i) << " observed order " << order << "\n";
+    EXPECT_GT(order, 0.8);
+    EXPECT_LT(order, 1.2);
+    // The reference is far finer than the finest point: its own error is negligible.
+    EXPECT_LT(s.reference.self_convergence, 0.1 * e.back());
+  }
+}
+
+// For a first-order method e(F) ~ C / F, so the error the study measures at factor F against a
+// plain (not extrapolated) reference at R is C (1/F - 1/R), and the reference's
+// self-convergence |ref(R) - ref(R/2)| is C / R: their ratio must be R/F - 1. This ties the
+// measured errors to the reference's own convergence (a wrong interpolation or a mismatched
+// time axis would break it).
+TEST(AccuracyContact, ErrorsAgreeWithTheReferenceSelfConvergence) {
+  const ContactProblem problem = soft_contact();
+  StudyOptions o = quiet_options(256.0);
+  o.richardson = false;
+  o.ladders = {{Integrator::implicit, {8, 16, 32}, false}};
+  const StudyResult s = run_study(problem, o);
+  const double self = s.reference.self_convergence;
+  ASSERT_GT(self, 0.0);
+  for (const auto& p : s.points) {
+    const double expected = self * (256.0 / p.setting.value - 1.0);
+    measured() << "implicit x" << p.setting.value << ": max error " << p.error.max_error
+               << ", predicted from the reference's self-convergence " << expected << "\n";
+    EXPECT_NEAR(p.error.max_error / expected, 1.0, 0.1);
+  }
+  EXPECT_LT(s.reference.interpolation_error, 1e-3 * s.points.back().error.max_error);
+}
+
+// The extrapolated reference (the default) is second order: its companion from R/2 and R/4
+// differs from it by far less than the plain reference's own error.
+TEST(AccuracyContact, ExtrapolatedReferenceIsFarMoreAccurate) {
+  const ContactProblem problem = soft_contact();
+  StudyOptions plain = quiet_options(128.0);
+  plain.richardson = false;
+  StudyOptions extrapolated = quiet_options(128.0);
+  const double plain_error = run_study(problem, plain).reference.self_convergence;
+  const double extrapolated_bound = run_study(problem, extrapolated).reference.self_convergence;
+  measured() << "reference x128: plain self-convergence " << plain_error
+             << ", extrapolated companion difference " << extrapolated_bound << "\n";
+  EXPECT_LT(extrapolated_bound, 0.05 * plain_error);
+}
+
+// CVODE is an independent integration of the same ODE: at a tight rtol its difference from a
+// plain fixed-step reference is the reference's own error, which the self-convergence
+// estimates. The paper's stiff contact over its onset of sliding (graded to 1.7e-9 mm).
+TEST(AccuracyContact, CvodeConfirmsTheReferenceError) {
+  if (!cvode_available()) GTEST_SKIP() << "built without CVODE";
+  const ContactProblem problem(contact_model(1e6), {slide(1.0, 0.1, 200, 1.08, 10)},
+                               ct::IntegratorOptions{});
+  StudyOptions o = quiet_options(64.0);
+  o.richardson = false;
+  const StudyResult s = run_study(problem, o);
+  measured() << "reference x64: self-convergence " << s.reference.self_convergence
+             << ", CVODE difference " << s.reference.cvode_difference << "\n";
+  ASSERT_TRUE(s.reference.cvode && s.reference.cvode->ok);
+  EXPECT_NEAR(s.reference.cvode_difference / s.reference.self_convergence, 1.0, 0.2);
+}
+
+// Forward Euler beyond its stability limit (the paper's stiff contact, coarse steps) fails with
+// a message; the study records it as a data point and goes on.
+TEST(AccuracyContact, UnstableForwardEulerIsADataPoint) {
+  const ContactProblem problem(contact_model(1e6), {slide(1.0, 0.1, 100, 1.0, 10)},
+                               ct::IntegratorOptions{});
+  StudyOptions o = quiet_options(16.0);
+  o.ladders = {{Integrator::forward_euler, {1}, false}, {Integrator::implicit, {1}, false}};
+  const StudyResult s = run_study(problem, o);
+  const PointResult& fe = point(s, Integrator::forward_euler, 1);
+  EXPECT_FALSE(fe.ok);
+  EXPECT_NE(fe.failure.find("contact step failed"), std::string::npos) << fe.failure;
+  EXPECT_TRUE(std::isnan(fe.error.max_error));
+  const PointResult& im = point(s, Integrator::implicit, 1);
+  EXPECT_TRUE(im.ok);
+  EXPECT_TRUE(std::isfinite(im.error.max_error));
+}
+
+TEST(AccuracyCrystal, FixedStepErrorsFallAtFirstOrder) {
+  const SingleThread one;
+  const CrystalProblem problem = soft_crystal();
+  StudyOptions o = quiet_options(256.0);
+  o.ladders = {{Integrator::forward_euler, {4, 8, 16, 32}, false},
+               {Integrator::implicit, {1, 2, 4, 8}, false}};
+  const StudyResult s = run_study(problem, o);
+  EXPECT_EQ(s.quantity, "sigma_11");
+  for (Integrator i : {Integrator::forward_euler, Integrator::implicit}) {
+    std::vector<double> f, e;
+    for (const auto& p : s.points) {
+      if (p.setting.integrator != i) continue;
+      ASSERT_TRUE(p.ok) << p.failure;
+      f.push_back(p.setting.value);
+      e.push_back(p.error.max_error);
+      measured() << "crystal " << to_string(i) << " x" << f.back() << ": max error " << e.back()
+                 << "\n";
+    }
+    for (std::size_t k = 1; k < e.size(); ++k) EXPECT_LT(e[k], e[k - 1]);
+    const double order = observed_order(f, e);
+    measured() << "crystal " << to_string(i) << " observed order " << order << "\n";
+    EXPECT_GT(order, 0.8);
+    EXPECT_LT(order, 1.2);
+  }
+  // The scale is the largest |sigma_11| of the reference: the flow stress reached.
+  double largest = 0.0;
+  for (double v : s.reference.path.value) largest = std::max(largest, std::abs(v));
+  EXPECT_DOUBLE_EQ(s.reference.scale, largest);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output files.
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("subslip_accuracy_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::vector<std::string> lines_of(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> out;
+  for (std::string line; std::getline(in, line);) out.push_back(line);
+  return out;
+}
+
+}  // namespace
+
+TEST(AccuracyOutput, WritesTablesAndReferenceAndRefusesOverwrite) {
+  const ContactProblem problem = soft_contact(40);
+  StudyOptions o = quiet_options(16.0);
+  o.ladders = {{Integrator::forward_euler, {1, 2}, false}, {Integrator::implicit, {0.5, 1}, false}};
+  io::AccuracyReport report;
+  report.scene_file = "inline";
+  report.scene_kind = "contact";
+  report.units = {{"stress", "MPa"}, {"length", "mm"}, {"time", "min"}};
+  report.cases.push_back({"base", "1", run_study(problem, o)});
+  const fs::path dir = scratch("output");
+  io::check_accuracy_output(dir, false);
+  io::write_accuracy_report(dir, report);
+  for (const auto& f : io::accuracy_files(dir)) EXPECT_TRUE(fs::exists(f)) << f;
+  EXPECT_THROW(io::check_accuracy_output(dir, false), io::h5::OutputPathError);
+  EXPECT_NO_THROW(io::check_accuracy_output(dir, true));
+
+  const auto csv = lines_of(dir / "accuracy.csv");
+  ASSERT_EQ(csv.size(), 1 + report.cases[0].result.points.size());
+  EXPECT_EQ(csv[0].rfind("case,integrator,setting_kind,setting,", 0), 0u);
+
+  const auto file = io::h5::File::open_read(dir / "accuracy.h5");
+  const auto root = file.root();
+  EXPECT_EQ(root.attribute_int("completed"), 1);
+  const auto table = root.open_group("cases").open_group("base").open_group("table");
+  const auto max_error = table.open_dataset("max_error");
+  EXPECT_EQ(max_error.attribute_string("unit"), "1");
+  EXPECT_EQ(table.open_dataset("median_time").attribute_string("unit"), "s");
+  const auto errors = max_error.read_doubles();
+  ASSERT_EQ(errors.size(), report.cases[0].result.points.size());
+  for (std::size_t k = 0; k < errors.size(); ++k) {
+    const double e = report.cases[0].result.points[k].error.max_error;
+    if (std::isnan(e)) {
+      EXPECT_TRUE(std::isnan(errors[k]));
+    } else {
+      EXPECT_DOUBLE_EQ(errors[k], e);
+    }
+  }
+  const auto ref = root.open_group("cases").open_group("base").open_group("reference");
+  EXPECT_EQ(ref.open_dataset("time").attribute_string("unit"), "min");
+  EXPECT_EQ(ref.open_dataset("value").read_doubles().size(),
+            report.cases[0].result.reference.path.size());
+  fs::remove_all(dir);
+}
+
+// The "time to reach an error" table: the cheapest successful run at or below each level, and
+// the decades from the largest error (at most 1e-1) down to the smallest.
+TEST(AccuracyOutput, TimeToReachAnError) {
+  StudyResult s;
+  const auto add = [&s](Integrator i, double error, double seconds, bool ok) {
+    PointResult p;
+    p.setting.integrator = i;
+    p.ok = ok;
+    p.error.max_error = error;
+    p.median_seconds = seconds;
+    s.points.push_back(p);
+  };
+  add(Integrator::implicit, 0.5, 1.0, true);
+  add(Integrator::implicit, 3e-3, 2.0, true);
+  add(Integrator::implicit, 2e-5, 8.0, true);
+  add(Integrator::cvode, 1e-4, 0.5, true);
+  add(Integrator::forward_euler, kNaN, kNaN, false);
+  EXPECT_EQ(io::error_levels(s), (std::vector<double>{1e-1, 1e-2, 1e-3, 1e-4}));
+  EXPECT_DOUBLE_EQ(cheapest_time(s, Integrator::implicit, 1e-2), 2.0);
+  EXPECT_DOUBLE_EQ(cheapest_time(s, Integrator::implicit, 1e-4), 8.0);
+  EXPECT_DOUBLE_EQ(cheapest_time(s, Integrator::cvode, 1e-2), 0.5);
+  EXPECT_TRUE(std::isnan(cheapest_time(s, Integrator::forward_euler, 1.0)));
+  EXPECT_EQ(measured_integrators(s),
+            (std::vector<Integrator>{Integrator::implicit, Integrator::cvode}));
+}
+
+// The subcommand end to end on a tiny scene: files written, a second run refused (exit 2).
+TEST(AccuracyOutput, CommandWritesAndRefusesOverwrite) {
+  const fs::path dir = scratch("cli");
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.yaml") << R"(scene: contact
+units: {stress: MPa, length: mm, time: min}
+law:
+  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
+contact: {alpha_n: 1.0e3, alpha_t: 1.0e3, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1, distance: 0.1}
+    increments: 20
+)";
+  const std::string command = "cd '" + dir.string() + "' && '" + SUBSLIP_BINARY +
+                              "' accuracy scene.yaml -o study --no-plot --quiet --repeat 1 "
+                              "--integrators implicit forward_euler --implicit 1 2 --fe 4 "
+                              "--max-run-seconds 1 2>err.txt";
+  const int first = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(first));
+  EXPECT_EQ(WEXITSTATUS(first), 0);
+  for (const auto& f : io::accuracy_files(dir / "study")) EXPECT_TRUE(fs::exists(f)) << f;
+  const int second = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(second));
+  EXPECT_EQ(WEXITSTATUS(second), 2);
+  const auto err = lines_of(dir / "err.txt");
+  ASSERT_FALSE(err.empty());
+  EXPECT_NE(err[0].find("already exists; use --force"), std::string::npos) << err[0];
+  fs::remove_all(dir);
+}

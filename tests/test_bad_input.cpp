@@ -1,0 +1,300 @@
+// Bad input, one row per class (issue 5): every broken scene or orientation file must give one
+// InputError "FILE:LINE: KEY: MESSAGE" naming the file, the line and the key at fault, and the
+// executable must exit with code 2 before it creates or touches a result file.
+//
+// The files are small broken copies of a valid scene in tests/data/bad/; rows for classes that
+// the parser tables of test_scene.cpp, test_crystal_scene.cpp and test_orientation_file.cpp
+// already hold a file for reuse that file (paths are relative to tests/data).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <ostream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "subslip/io/contact_scene.hpp"
+#include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/input_error.hpp"
+#include "subslip/io/orientation_file.hpp"
+#include "subslip/io/scene_common.hpp"
+#include "subslip/io/yaml_checked.hpp"
+
+namespace fs = std::filesystem;
+using namespace subslip;
+using namespace subslip::io;
+
+namespace {
+
+const fs::path kData = fs::path(SUBSLIP_SOURCE_DIR) / "tests/data";
+const std::string kBinary = SUBSLIP_BINARY;
+
+struct BadInput {
+  const char* file;             // relative to tests/data
+  const char* key;              // part of the key path the error names ("" : the error has no key)
+  int line;                     // 1-based; 0: the error has no line (missing or empty file)
+  const char* fragment;         // part of the message
+  const char* error_file = "";  // when the error is in another file (relative to tests/data)
+};
+
+void PrintTo(const BadInput& b, std::ostream* os) {
+  *os << b.file;
+}
+
+// Scenes by their `scene:` kind, everything else as an orientation file.
+void load(const fs::path& path) {
+  if (path.extension() != ".yaml") {
+    read_orientation_file(path.string());
+    return;
+  }
+  const YamlDocument document = YamlDocument::from_file(path);
+  if (scene_kind(document, {"contact", "crystal"}) == "contact") {
+    parse_contact_scene(document);
+  } else {
+    parse_crystal_scene(document);
+  }
+}
+
+// clang-format off
+const BadInput kTable[] = {
+    // YAML itself
+    {"scenes/malformed.yaml", "", 14, "YAML syntax error"},
+    {"scenes/empty.yaml", "", 0, "expected a mapping"},
+    {"scenes/duplicate_key.yaml", "contact.alpha_t", 12, "duplicate key"},
+    // unknown or misspelt keys and names: the nearest valid one, or the list when none is near
+    {"scenes/unknown_key.yaml", "law.overstress.eta", 7, "unknown key 'eta'; did you mean 'eta_v'?"},
+    {"crystal_scenes/unknown_key.yaml", "phase.tau_0", 7, "did you mean 'tau0'?"},
+    {"bad/scenes/unknown_key_no_match.yaml", "contact.tangential_stiffness", 11,
+     "expected one of: alpha_n, alpha_t, normal_traction"},
+    {"scenes/bad_scene_kind.yaml", "scene", 1, "did you mean 'contact'?"},
+    {"crystal_scenes/bad_family.yaml", "phase.families[0]", 5, "did you mean 'fcc_111_110'?"},
+    // missing required keys
+    {"scenes/missing_key.yaml", "law.friction.xi", 5, "missing required key"},
+    {"crystal_scenes/missing_orientations.yaml", "orientations", 0, "missing required key"},
+    // wrong types
+    {"scenes/wrong_type.yaml", "law.friction.mu_s", 5, "expected a number, got 'abc'"},
+    {"scenes/quoted_number.yaml", "law.subloading.u_tilde", 6, "quoted string"},
+    {"bad/scenes/mapping_expected.yaml", "law.friction", 6, "expected a mapping"},
+    {"bad/scenes/number_expected.yaml", "contact.alpha_n", 10, "expected a number, got a sequence"},
+    {"bad/scenes/integer_expected.yaml", "loading[0].increments", 15, "expected an integer"},
+    {"scenes/short_direction.yaml", "loading[0].slide.direction", 13, "expected 2 numbers"},
+    {"crystal_scenes/bad_matrix_shape.yaml", "loading[0].L", 15, "3 rows of 3 entries"},
+    {"scenes/nan_value.yaml", "law.friction.kappa", 5, "finite"},
+    // units: only the listed names, stated once (a unit on a value is refused), never swept
+    {"scenes/bad_unit.yaml", "units.stress", 3, "did you mean 'MPa'?"},
+    {"scenes/missing_units.yaml", "units", 0, "missing required key"},
+    {"bad/scenes/value_with_unit.yaml", "contact.normal_traction", 12, "write the bare number"},
+    {"scenes/sweep_units.yaml", "units.stress", 17, "cannot be swept"},
+    // physical ranges of the law
+    {"bad/scenes/range_eta_v.yaml", "law.overstress.eta_v", 8, "must be > 0, got 0"},
+    {"bad/scenes/range_n.yaml", "law.overstress.n", 8, "must be > 0, got -2"},
+    {"scenes/range_r_hat.yaml", "law.overstress.r_hat", 7, "must be > 1, got 0.9"},
+    {"bad/scenes/range_mu_s.yaml", "law.friction.mu_s", 6, "must be > 0, got 0"},
+    {"bad/scenes/range_mu_k.yaml", "law.friction.mu_k", 6, "must be > 0, got -0.085"},
+    {"bad/scenes/range_kappa.yaml", "law.friction.kappa", 6, "must be >= 0, got -0.2"},
+    {"scenes/rate_independent_eta.yaml", "law.overstress.eta_v", 7, "rate_independent"},
+    // stiffness and reference stresses
+    {"scenes/range_alpha.yaml", "contact.alpha_t", 10, "must be > 0"},
+    {"scenes/range_normal_traction.yaml", "contact.normal_traction", 11, "must be > 0"},
+    {"crystal_scenes/non_pd_elasticity.yaml", "phase.elasticity", 6, "not positive definite"},
+    {"bad/crystal_scenes/range_tau0.yaml", "phase.tau0", 8, "must be > 0, got 0"},
+    {"bad/crystal_scenes/range_c_over_a.yaml", "phase.c_over_a", 7, "must be in [0.1, 10]"},
+    // durations and stepping
+    {"bad/scenes/range_duration.yaml", "loading[0].hold.duration", 14, "must be > 0, got 0"},
+    {"bad/crystal_scenes/range_duration.yaml", "loading[0].duration", 18, "must be > 0, got -1"},
+    {"scenes/range_increments.yaml", "loading[0].increments", 14, "must be >= 1"},
+    {"scenes/range_growth.yaml", "loading[0].growth", 15, "must be > 0"},
+    {"bad/scenes/growth_overflow.yaml", "loading[0].growth", 16, "overflows"},
+    {"bad/scenes/increment_underflow.yaml", "loading[0].increments", 15, "underflows"},
+    {"bad/scenes/duration_overflow.yaml", "loading[0].slide.distance", 14, "not a usable duration"},
+    {"bad/scenes/normal_ramp_overflow.yaml", "loading[0].normal.velocity", 17, "overflows"},
+    {"bad/crystal_scenes/strain_without_rate.yaml", "loading[0].strain", 18,
+     "needs a non-zero prescribed component of L"},
+    {"scenes/distance_and_duration.yaml", "loading[0].slide.duration", 13, "not both"},
+    // mixed control: a free L_ij needs a prescribed stress_ij, and a prescribed stress_ij a free L_ij
+    {"crystal_scenes/free_without_stress.yaml", "loading[0].L[0][0]", 15, "no 'stress'"},
+    {"crystal_scenes/both_given.yaml", "loading[0].stress[2][2]", 16,
+     "L_33 and stress_33 are both given; exactly one of them must be x"},
+    {"crystal_scenes/both_free.yaml", "loading[0].stress[2][2]", 16, "are both x"},
+    {"crystal_scenes/asymmetric_pair.yaml", "loading[0].stress[1][0]", 16,
+     "stress_21 must equal stress_12"},
+    // orientations given in the scene
+    {"bad/crystal_scenes/euler_out_of_range.yaml", "orientations.euler_deg[1]", 14,
+     "[-360, 360]"},
+    {"bad/crystal_scenes/weight_sum_overflow.yaml", "orientations.euler_deg", 14, "sum to more"},
+    {"bad/crystal_scenes/too_many_grains.yaml", "orientations.random.count", 14,
+     "must be in [1, 10000000]"},
+    {"crystal_scenes/bad_orientation_file.yaml", "Phi", 3, "(orientation file given at",
+     "crystal_scenes/bad_orientations.txt"},
+    // sweeps
+    {"scenes/bad_sweep_path.yaml", "sweep[\"loading[0].slide.sped\"]", 17, "did you mean 'speed'?"},
+    {"scenes/bad_sweep_value.yaml", "law.overstress.eta_v", 18, "(in sweep case 'eta_v=-1')"},
+    {"bad/scenes/non_scalar_sweep_key.yaml", "sweep", 18, "plain names"},
+    // orientation files
+    {"orientations/empty.txt", "orientations", 0, "empty file"},
+    {"orientations/header_only.txt", "orientations", 0, "no orientations"},
+    {"orientations/missing_header.txt", "header", 1, "the first line must be the header"},
+    {"orientations/unknown_convention.txt", "convention", 1, "unknown convention"},
+    {"orientations/active_convention.txt", "header", 1, "only P=-1 is supported"},
+    {"orientations/wrong_column_count.txt", "columns", 5, "expected 3 numbers"},
+    {"orientations/inconsistent_weights.txt", "columns", 3, "on every line or on none"},
+    {"orientations/not_a_number.txt", "Phi", 3, "'abc' is not a number"},
+    {"orientations/nan_value.txt", "phi1", 2, "not finite"},
+    {"orientations/inf_value.txt", "w", 3, "not finite"},
+    {"orientations/quaternion_not_unit.txt", "quaternion", 4, "differs from 1 by more than 1e-3"},
+    {"orientations/zero_quaternion.txt", "quaternion", 2, "differs from 1"},
+    {"orientations/euler_Phi_out_of_range.txt", "Phi", 2, "outside [0, 180]"},
+    {"orientations/negative_weight.txt", "weight", 3, "must be positive"},
+};
+// clang-format on
+
+// "FILE:LINE: ", or "FILE: " without a line (as InputError::format writes it).
+std::string location(const std::string& file, int line) {
+  return InputError::format(file, line, "", "");
+}
+
+class BadInputTable : public ::testing::TestWithParam<BadInput> {};
+
+}  // namespace
+
+TEST_P(BadInputTable, OneErrorNamingFileLineAndKey) {
+  const BadInput& b = GetParam();
+  const fs::path path = kData / b.file;
+  ASSERT_TRUE(fs::exists(path)) << path;
+  const std::string file = (*b.error_file ? kData / b.error_file : path).string();
+  try {
+    load(path);
+    FAIL() << b.file << " was accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(e.file, file) << what;
+    EXPECT_EQ(e.line, b.line) << what;
+    EXPECT_NE(e.key.find(b.key), std::string::npos) << what;
+    EXPECT_EQ(what.rfind(location(file, b.line), 0), 0u) << what;
+    if (*b.key) {
+      EXPECT_NE(what.find(e.key + ": "), std::string::npos) << what;
+    }
+    EXPECT_NE(what.find(b.fragment), std::string::npos) << what;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Classes, BadInputTable, ::testing::ValuesIn(kTable),
+                         [](const ::testing::TestParamInfo<BadInput>& info) {
+                           std::string name = info.param.file;
+                           name = name.substr(0, name.rfind('.'));
+                           std::replace_if(
+                               name.begin(), name.end(),
+                               [](char c) { return !std::isalnum(static_cast<unsigned char>(c)); },
+                               '_');
+                           return name;
+                         });
+
+// Every file in tests/data/bad has a row (a new broken file needs one).
+TEST(BadInputFiles, TableCoversEveryFile) {
+  std::set<std::string> rows;
+  for (const BadInput& b : kTable) rows.insert(b.file);
+  for (const auto& entry : fs::recursive_directory_iterator(kData / "bad")) {
+    if (!entry.is_regular_file()) continue;
+    const std::string relative = fs::relative(entry.path(), kData).string();
+    EXPECT_TRUE(rows.count(relative)) << relative << " has no row in the table";
+  }
+}
+
+// ---------------------------------------------------------------- the executable
+
+namespace {
+
+struct Outcome {
+  int code;
+  std::string err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+fs::path scratch_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::temp_directory_path() / ("subslip_bad_" + std::string(info->name()) +
+                                                    "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Runs `subslip ARGS` in `dir`; stdout is discarded, stderr captured.
+Outcome run(const fs::path& dir, const std::string& args) {
+  const fs::path err = dir / "stderr.txt";
+  const std::string command = "cd '" + dir.string() + "' && '" + kBinary + "' " + args +
+                              " >/dev/null 2>'" + err.string() + "'";
+  const int status = std::system(command.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(err)};
+}
+
+// The rows the executable is run on: a scene error, an error in an orientation file read by a
+// scene, and errors without a line.
+std::vector<BadInput> cli_rows() {
+  std::vector<BadInput> rows;
+  for (const BadInput& b : kTable) {
+    const std::string f = b.file;
+    if (f == "bad/scenes/range_eta_v.yaml" || f == "crystal_scenes/asymmetric_pair.yaml" ||
+        f == "crystal_scenes/bad_orientation_file.yaml" || f == "scenes/missing_units.yaml" ||
+        f == "bad/crystal_scenes/too_many_grains.yaml" || f == "scenes/malformed.yaml")
+      rows.push_back(b);
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST(BadInputCli, ExitsWithCode2AndOneLineBeforeCreatingOutput) {
+  const fs::path dir = scratch_dir();
+  const auto rows = cli_rows();
+  ASSERT_EQ(rows.size(), 6u);
+  for (const BadInput& b : rows) {
+    SCOPED_TRACE(b.file);
+    const fs::path scene = kData / b.file;
+    const fs::path out = dir / "out.h5";
+    const Outcome o = run(dir, "run '" + scene.string() + "' -o '" + out.string() + "'");
+    EXPECT_EQ(o.code, 2) << o.err;
+    const std::string file = (*b.error_file ? kData / b.error_file : scene).string();
+    // Exactly one line: "subslip: error: FILE:LINE: KEY: MESSAGE".
+    EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+    EXPECT_EQ(o.err.rfind("subslip: error: " + location(file, b.line), 0), 0u) << o.err;
+    EXPECT_NE(o.err.find(b.key), std::string::npos) << o.err;
+    EXPECT_NE(o.err.find(b.fragment), std::string::npos) << o.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // The default output location (results/<scene>.h5, directory included) is not created either.
+  const Outcome o = run(dir, "run '" + (kData / cli_rows().front().file).string() + "'");
+  EXPECT_EQ(o.code, 2);
+  EXPECT_FALSE(fs::exists(dir / "results"));
+  fs::remove_all(dir);
+}
+
+TEST(BadInputCli, ExistingResultIsNotTouchedEvenWithForce) {
+  const fs::path dir = scratch_dir();
+  const fs::path out = dir / "old.h5";
+  const std::string old_content = "an earlier result\n";
+  std::ofstream(out, std::ios::binary) << old_content;
+  const auto old_time = fs::last_write_time(out);
+  for (const char* force : {"", " --force"}) {
+    SCOPED_TRACE(force);
+    const Outcome o = run(dir, "run '" + (kData / "bad/scenes/range_n.yaml").string() + "' -o '" +
+                                   out.string() + "'" + force);
+    EXPECT_EQ(o.code, 2) << o.err;
+    EXPECT_NE(o.err.find("law.overstress.n: must be > 0"), std::string::npos) << o.err;
+    EXPECT_EQ(slurp(out), old_content);
+    EXPECT_EQ(fs::last_write_time(out), old_time);
+  }
+  fs::remove_all(dir);
+}

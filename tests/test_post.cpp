@@ -1,0 +1,450 @@
+// subslip post (src/io/result_post.cpp, src/cli/post.cpp): the summary names the cases, units
+// and datasets; CSV export gives back every number of a dataset exactly (compared with reading
+// the HDF5 file directly); bad names are one clear error; nothing is overwritten silently.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "subslip/io/contact_output.hpp"
+#include "subslip/io/contact_scene.hpp"
+#include "subslip/io/crystal_output.hpp"
+#include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/io/input_error.hpp"
+#include "subslip/io/result_post.hpp"
+#include "subslip/io/yaml_checked.hpp"
+
+namespace fs = std::filesystem;
+using namespace subslip;
+using namespace subslip::io;
+
+namespace {
+
+const fs::path kSource = SUBSLIP_SOURCE_DIR;
+const fs::path kData = kSource / "tests" / "data" / "post";
+
+// The two small results the tests read, each written once per process (on first use: the
+// crystal one takes a moment) into one directory per process, removed at exit.
+struct ScratchRoot : ::testing::Environment {
+  static fs::path path() {
+    return fs::temp_directory_path() / ("subslip_post_" + std::to_string(::getpid()));
+  }
+  void TearDown() override { fs::remove_all(path()); }
+};
+const auto* const kScratchRoot = ::testing::AddGlobalTestEnvironment(new ScratchRoot);
+
+const fs::path& contact_result() {
+  static const fs::path path = [] {
+    fs::create_directories(ScratchRoot::path());
+    const fs::path out = ScratchRoot::path() / "contact.h5";
+    const auto scene = parse_contact_scene(YamlDocument::from_file(kData / "contact_small.yaml"));
+    h5::File file = h5::File::create(out, true);
+    for (const auto& c : run_contact_scene(scene, file)) EXPECT_TRUE(c.failure.empty());
+    return out;
+  }();
+  return path;
+}
+
+const fs::path& crystal_result() {
+  static const fs::path path = [] {
+    fs::create_directories(ScratchRoot::path());
+    const fs::path out = ScratchRoot::path() / "crystal.h5";
+    const auto scene = parse_crystal_scene(YamlDocument::from_file(kData / "crystal_small.yaml"));
+    h5::File file = h5::File::create(out, true);
+    for (const auto& c : run_crystal_scene(scene, file, {})) EXPECT_TRUE(c.failure.empty());
+    return out;
+  }();
+  return path;
+}
+
+fs::path scratch_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = ScratchRoot::path() / info->name();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string summary(const fs::path& file, const std::string& case_name = "") {
+  std::ostringstream out;
+  post::print_summary(out, file, case_name);
+  return out.str();
+}
+
+bool contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
+// A CSV file: the header fields and the rows as text fields (quoted fields unquoted).
+struct Csv {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+};
+
+std::vector<std::string> csv_fields(const std::string& line) {
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted && c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+      fields.back() += '"';
+      ++i;
+    } else if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
+  return fields;
+}
+
+Csv read_csv(const fs::path& p) {
+  std::ifstream in(p);
+  Csv csv;
+  std::string line;
+  if (std::getline(in, line)) csv.header = csv_fields(line);
+  while (std::getline(in, line)) csv.rows.push_back(csv_fields(line));
+  return csv;
+}
+
+double number(const std::string& text) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  EXPECT_EQ(*end, '\0') << "not a number: '" << text << "'";
+  return v;
+}
+
+std::vector<double> read_dataset(const fs::path& file, const std::string& path) {
+  const h5::File f = h5::File::open_read(file);
+  return f.root().open_dataset(path).read_doubles();
+}
+
+post::CsvOptions csv_options(const fs::path& dir, const std::string& case_name,
+                             std::vector<std::string> datasets) {
+  post::CsvOptions o;
+  o.directory = dir;
+  o.case_name = case_name;
+  o.datasets = std::move(datasets);
+  return o;
+}
+
+const std::string kCrystalCase = "L[2][2]=1.0e-3";
+
+}  // namespace
+
+// ---------------------------------------------------------------- summary
+
+TEST(PostSummary, ContactNamesCasesUnitsAndDatasets) {
+  const std::string s = summary(contact_result());
+  EXPECT_TRUE(contains(s, "format:      subslip, format_version 1")) << s;
+  EXPECT_TRUE(contains(s, "scene kind:  contact")) << s;
+  EXPECT_TRUE(contains(s, "title:       post test: figure 11a law")) << s;
+  EXPECT_TRUE(contains(s, "completed:   yes")) << s;
+  EXPECT_TRUE(contains(s, "units:       stress MPa, length mm, time min")) << s;
+  EXPECT_TRUE(contains(s, "cases:       2: speed=1, speed=200")) << s;
+  EXPECT_TRUE(contains(s, "\ncase speed=1 (index 0)\n")) << s;
+  EXPECT_TRUE(contains(s, "\ncase speed=200 (index 1)\n")) << s;
+  // Attributes carry their `.unit` sibling; the value is the attribute read directly.
+  const h5::File f = h5::File::open_read(contact_result());
+  const h5::Group g = f.root().open_group("cases/speed=200");
+  char eta[32];
+  std::snprintf(eta, sizeof eta, "%.6g", g.attribute_double("eta_v"));
+  EXPECT_TRUE(contains(s, std::string("eta_v") + " ")) << s;
+  EXPECT_TRUE(contains(s, std::string(" = ") + eta + " min/mm\n")) << s;
+  EXPECT_FALSE(contains(s, "eta_v.unit")) << s;
+  // Every dataset with its shape (101 rows: the initial state and 100 increments) and unit.
+  for (const char* line : {"slip_path  [101]     [mm]", "slip       [101, 2]  [mm]",
+                           "ratio      [101]     [1]", "time       [101]     [min]"}) {
+    EXPECT_TRUE(contains(s, line)) << line << "\n" << s;
+  }
+}
+
+TEST(PostSummary, CrystalListsGrainDatasetsWithTheirShapes) {
+  // crystal_small.yaml: 20 increments (+ the initial state), 20 grains, 12 FCC systems.
+  const std::string s = summary(crystal_result(), kCrystalCase);
+  EXPECT_TRUE(contains(s, "scene kind:  crystal")) << s;
+  EXPECT_TRUE(contains(s, "units:       stress MPa, time s")) << s;
+  EXPECT_TRUE(contains(s, "case L[2][2]=1.0e-3 (index 0)")) << s;
+  EXPECT_FALSE(contains(s, "case L[2][2]=1.0e-1 (index")) << "--case selects one case\n" << s;
+  EXPECT_TRUE(contains(s, "macro/stress                [21, 9]       [MPa]")) << s;
+  EXPECT_TRUE(contains(s, "grains/crss                 [21, 20, 12]  [MPa]")) << s;
+  EXPECT_TRUE(contains(s, "grains/orientation          [21, 20, 4]   [1]")) << s;
+  EXPECT_TRUE(contains(s, "tau0                     = 10 (x12) MPa")) << s;
+}
+
+namespace {
+
+// A run killed in its first case: case `a` wrote 5 valid rows of `time` and `ratio` after which
+// its series hold reserved rows (NaN here), case `b` has a group but never started; /progress
+// says so (docs/scenes.md). Written with the plain array API, as any writer could.
+fs::path write_interrupted_run(const fs::path& dir) {
+  const fs::path path = dir / "partial.h5";
+  h5::File file = h5::File::create(path, false);
+  h5::write_result_header(file,
+                          {"contact", "x.yaml", "scene: contact\n", "partial", {{"time", "min"}}});
+  const h5::Group cases = file.root().create_group("cases");
+  cases.set_attribute("names", std::vector<std::string>{"a", "b"});
+  {
+    const h5::Group a = cases.create_group("a");
+    h5::Series time = a.create_series({"time", 0, h5::Type::float64, "min", "time"});
+    h5::Series ratio = a.create_series({"ratio", 0, h5::Type::float64, "1", "f_t / f_n"});
+    for (int i = 0; i < 8; ++i) {
+      time.append(i < 5 ? 0.5 * i : std::nan(""));
+      ratio.append(i < 5 ? 0.1 * i : std::nan(""));
+    }
+    time.commit();
+    ratio.commit();
+  }
+  cases.create_group("b");
+  const h5::Group progress = file.root().create_group("progress");
+  const std::size_t two[1] = {2};
+  progress.write_array("rows", two, std::vector<double>{5, 0}, "1", "valid rows");
+  progress.write_array("state", two, std::vector<double>{1, 0}, "1", "0 not started, 1 running");
+  return path;
+}
+
+}  // namespace
+
+TEST(PostSummary, AnInterruptedRunShowsItsValidRowsAndUnstartedCases) {
+  const fs::path file = write_interrupted_run(scratch_dir());
+  const std::string s = summary(file);
+  EXPECT_TRUE(contains(s, "completed:   NO")) << s;
+  EXPECT_TRUE(contains(s, "case a: RUNNING or interrupted, 5 valid rows\n")) << s;
+  EXPECT_TRUE(contains(s, "ratio  [5]  [1]")) << s;
+  EXPECT_TRUE(contains(s, "case b: not started")) << s;
+}
+
+// ---------------------------------------------------------------- CSV export
+
+TEST(PostCsv, A2DSeriesRoundTripsExactly) {
+  const fs::path dir = scratch_dir();
+  const auto written =
+      post::export_csv(crystal_result(), csv_options(dir, kCrystalCase, {"macro/stress"}));
+  ASSERT_EQ(written.size(), 1u);
+  EXPECT_EQ(written[0], dir / "L_2__2_=1.0e-3_macro_stress.csv");
+  const Csv csv = read_csv(written[0]);
+  const std::vector<std::string> header{"step",
+                                        "time [s]",
+                                        "stress_11 [MPa]",
+                                        "stress_12 [MPa]",
+                                        "stress_13 [MPa]",
+                                        "stress_21 [MPa]",
+                                        "stress_22 [MPa]",
+                                        "stress_23 [MPa]",
+                                        "stress_31 [MPa]",
+                                        "stress_32 [MPa]",
+                                        "stress_33 [MPa]"};
+  EXPECT_EQ(csv.header, header);
+  const std::string base = "cases/" + kCrystalCase + "/macro/";
+  const auto stress = read_dataset(crystal_result(), base + "stress");
+  const auto time = read_dataset(crystal_result(), base + "time");
+  ASSERT_EQ(csv.rows.size(), time.size());
+  for (std::size_t i = 0; i < csv.rows.size(); ++i) {
+    ASSERT_EQ(csv.rows[i].size(), 11u);
+    EXPECT_EQ(number(csv.rows[i][0]), static_cast<double>(i));
+    EXPECT_EQ(number(csv.rows[i][1]), time[i]);
+    for (std::size_t k = 0; k < 9; ++k) EXPECT_EQ(number(csv.rows[i][2 + k]), stress[9 * i + k]);
+  }
+}
+
+TEST(PostCsv, PerGrainSeriesRoundTripInLongFormatAndForOneGrain) {
+  const fs::path dir = scratch_dir();
+  const std::string path = "cases/" + kCrystalCase + "/grains/";
+  const auto crss = read_dataset(crystal_result(), path + "crss");  // [21, 20, 12]
+  const std::size_t n = 21, grains = 20, k = 12;
+  ASSERT_EQ(crss.size(), n * grains * k);
+  const h5::File f = h5::File::open_read(crystal_result());
+  const auto labels = f.root().open_dataset(path + "slip_systems").attribute_strings("labels");
+  ASSERT_EQ(labels.size(), k);
+
+  // Long: one row per (step, grain), columns step, time, grain, then one per slip system.
+  const auto long_files = post::export_csv(
+      crystal_result(), csv_options(dir, "", {"/cases/" + kCrystalCase + "/grains/crss"}));
+  ASSERT_EQ(long_files.size(), 1u);
+  const Csv csv = read_csv(long_files[0]);
+  ASSERT_EQ(csv.header.size(), 3 + k);
+  EXPECT_EQ(csv.header[2], "grain");
+  for (std::size_t a = 0; a < k; ++a) EXPECT_EQ(csv.header[3 + a], "crss_" + labels[a] + " [MPa]");
+  ASSERT_EQ(csv.rows.size(), n * grains);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t g = 0; g < grains; ++g) {
+      const auto& row = csv.rows[i * grains + g];
+      EXPECT_EQ(number(row[0]), static_cast<double>(i));
+      EXPECT_EQ(number(row[2]), static_cast<double>(g));
+      for (std::size_t a = 0; a < k; ++a)
+        EXPECT_EQ(number(row[3 + a]), crss[(i * grains + g) * k + a]);
+    }
+  }
+
+  // One grain: one row per step, no grain column.
+  auto options = csv_options(dir, kCrystalCase, {"grains/crss"});
+  options.grain = 7;
+  const auto one = post::export_csv(crystal_result(), options);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_EQ(one[0].filename(), "L_2__2_=1.0e-3_grains_crss_grain7.csv");
+  const Csv g7 = read_csv(one[0]);
+  ASSERT_EQ(g7.header.size(), 2 + k);
+  ASSERT_EQ(g7.rows.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t a = 0; a < k; ++a)
+      EXPECT_EQ(number(g7.rows[i][2 + a]), crss[(i * grains + 7) * k + a]);
+  }
+}
+
+TEST(PostCsv, ContactSeriesOfEveryCaseWithNamedColumns) {
+  const fs::path dir = scratch_dir();
+  const auto written = post::export_csv(contact_result(), csv_options(dir, "", {"slip", "ratio"}));
+  ASSERT_EQ(written.size(), 4u);  // two datasets of two cases
+  const Csv slip = read_csv(dir / "speed=200_slip.csv");
+  EXPECT_EQ(slip.header,
+            (std::vector<std::string>{"step", "time [min]", "slip_x [mm]", "slip_y [mm]"}));
+  const Csv ratio = read_csv(dir / "speed=200_ratio.csv");
+  EXPECT_EQ(ratio.header, (std::vector<std::string>{"step", "time [min]", "ratio [1]"}));
+  const auto expected = read_dataset(contact_result(), "cases/speed=200/ratio");
+  ASSERT_EQ(ratio.rows.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i)
+    EXPECT_EQ(number(ratio.rows[i][2]), expected[i]);
+}
+
+TEST(PostCsv, BadNamesAreOneClearErrorAndWriteNothing) {
+  const fs::path dir = scratch_dir() / "out";
+  const auto expect_input_error = [&](const fs::path& file, const post::CsvOptions& o,
+                                      const std::string& part) {
+    try {
+      post::export_csv(file, o);
+      ADD_FAILURE() << "no error; expected one containing: " << part;
+    } catch (const InputError& e) {
+      EXPECT_TRUE(contains(e.what(), part)) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir)) << "nothing may be written before every name is checked";
+  };
+  expect_input_error(crystal_result(), csv_options(dir, "", {"macro/stress", "macro/stres"}),
+                     "--dataset: no dataset 'macro/stres' in case 'L[2][2]=1.0e-3'");
+  expect_input_error(crystal_result(), csv_options(dir, "", {"/cases/nope/macro/stress"}),
+                     "no dataset or group '/cases/nope/macro/stress'");
+  expect_input_error(crystal_result(), csv_options(dir, "", {"/scene"}), "holds text");
+  expect_input_error(crystal_result(), csv_options(dir, "nope", {}), "--case: no case 'nope'");
+  auto grain = csv_options(dir, kCrystalCase, {"grains/crss"});
+  grain.grain = 20;
+  expect_input_error(crystal_result(), grain, "--grain: grain 20 is out of range");
+  expect_input_error(kData / "crystal_small.yaml", csv_options(dir, "", {}), "not an HDF5 file");
+  expect_input_error(dir.parent_path() / "missing.h5", csv_options(dir, "", {}), "no such file");
+  // An HDF5 file that subslip did not write.
+  { h5::File other = h5::File::create(dir.parent_path() / "other.h5", false); }
+  expect_input_error(dir.parent_path() / "other.h5", csv_options(dir, "", {}),
+                     "not a subslip result file");
+}
+
+TEST(PostCsv, ExistingFilesAreNotOverwrittenWithoutForce) {
+  const fs::path dir = scratch_dir();
+  const auto options = csv_options(dir, "speed=1", {"ratio", "mu"});
+  const auto written = post::export_csv(contact_result(), options);
+  ASSERT_EQ(written.size(), 2u);
+  std::ofstream(written[1]) << "sentinel\n";
+  fs::remove(written[0]);
+  try {
+    post::export_csv(contact_result(), options);
+    ADD_FAILURE() << "overwrote " << written[1];
+  } catch (const h5::OutputPathError& e) {
+    EXPECT_TRUE(contains(e.what(), written[1].string() + ": already exists; use --force"))
+        << e.what();
+  }
+  EXPECT_EQ(read_csv(written[1]).header, std::vector<std::string>{"sentinel"});
+  EXPECT_FALSE(fs::exists(written[0])) << "all files are checked before the first is written";
+  auto forced = options;
+  forced.force = true;
+  EXPECT_EQ(post::export_csv(contact_result(), forced), written);
+  EXPECT_EQ(read_csv(written[1]).header,
+            (std::vector<std::string>{"step", "time [min]", "mu [1]"}));
+}
+
+TEST(PostCsv, AnInterruptedRunExportsOnlyItsValidRows) {
+  const fs::path dir = scratch_dir();
+  const fs::path file = write_interrupted_run(dir);
+  const auto written = post::export_csv(file, csv_options(dir / "csv", "", {"ratio"}));
+  ASSERT_EQ(written.size(), 1u) << "case b never started";
+  const Csv csv = read_csv(written[0]);
+  EXPECT_EQ(csv.header, (std::vector<std::string>{"step", "time [min]", "ratio [1]"}));
+  ASSERT_EQ(csv.rows.size(), 5u);
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ(number(csv.rows[i][1]), 0.5 * static_cast<double>(i));
+    EXPECT_EQ(number(csv.rows[i][2]), 0.1 * static_cast<double>(i));
+  }
+  try {
+    post::export_csv(file, csv_options(dir / "csv", "b", {}));
+    ADD_FAILURE() << "case b was exported";
+  } catch (const InputError& e) {
+    EXPECT_TRUE(contains(e.what(), "--case: case 'b' was not started")) << e.what();
+  }
+}
+
+// ---------------------------------------------------------------- the command line
+
+namespace {
+
+struct Outcome {
+  int code;
+  std::string out, err;
+};
+
+Outcome run_subslip(const fs::path& dir, const std::string& args) {
+  const fs::path err = dir / "stderr.txt";
+  // append(): GCC 12 gives a false -Wrestrict warning on "literal" + std::string&&.
+  std::string command = "cd '";
+  command.append(dir.string()).append("' && '").append(SUBSLIP_BINARY).append("' ");
+  command.append(args).append(" 2>'").append(err.string()).append("'");
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "", "popen failed"};
+  std::string out;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+  const int status = ::pclose(pipe);
+  std::ifstream in(err);
+  std::stringstream e;
+  e << in.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, e.str()};
+}
+
+}  // namespace
+
+TEST(PostCli, SummaryExportAndErrorsWithExitCodes) {
+  const fs::path dir = scratch_dir();
+  const std::string file = std::string("'").append(contact_result().string()).append("'");
+  const Outcome s = run_subslip(dir, "post " + file + " --case speed=1");
+  EXPECT_EQ(s.code, 0) << s.err;
+  EXPECT_TRUE(contains(s.out, "case speed=1 (index 0)")) << s.out;
+
+  const Outcome e = run_subslip(dir, "post " + file + " --csv csv --dataset ratio");
+  EXPECT_EQ(e.code, 0) << e.err;
+  EXPECT_TRUE(fs::exists(dir / "csv" / "speed=1_ratio.csv"));
+  EXPECT_TRUE(fs::exists(dir / "csv" / "speed=200_ratio.csv"));
+
+  const Outcome again = run_subslip(dir, "post " + file + " --csv csv --dataset ratio");
+  EXPECT_EQ(again.code, 2);
+  EXPECT_EQ(again.err,
+            "subslip: error: csv/speed=1_ratio.csv: already exists; use --force to "
+            "overwrite it\n");
+  EXPECT_EQ(run_subslip(dir, "post " + file + " --csv csv --dataset ratio --force").code, 0);
+
+  const Outcome bad = run_subslip(dir, "post " + file + " --csv csv --dataset ratoi");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_TRUE(contains(bad.err, "--dataset: no dataset 'ratoi' in case 'speed=1'")) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << "one line\n" << bad.err;
+
+  EXPECT_EQ(run_subslip(dir, "post missing.h5").code, 2);
+  EXPECT_EQ(run_subslip(dir, "post " + file + " --dataset ratio").code, 2)
+      << "--dataset needs --csv";
+}

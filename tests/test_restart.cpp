@@ -1,0 +1,493 @@
+// Checkpoints and `subslip run --restart`: the aggregate continued from a checkpoint gives the
+// uninterrupted run bit for bit; the checkpoint store survives a kill while it writes; a real
+// run killed part-way (SIGKILL) and restarted (even twice) writes a file whose every dataset
+// equals the uninterrupted run's; and --restart refuses what it cannot continue, with a clear
+// message and exit code 2.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "child_process.hpp"
+#include "grain_recorder.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/io/checkpoint.hpp"
+#include "subslip/io/crystal_output.hpp"
+#include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/io/restart.hpp"
+
+namespace fs = std::filesystem;
+using namespace subslip;
+using namespace subslip::io;
+using subslip::testing::read_text;
+using subslip::testing::run_subslip;
+
+namespace {
+
+fs::path scratch_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::temp_directory_path() / ("subslip_restart_" + std::string(info->name()) +
+                                                    "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Copper-like FCC: tension along z under mixed control with a lateral stress ramped to 5 MPa,
+// then shear with graded increments while that stress is ramped back to 0: segments, free
+// components of L and both stress ramps cross the checkpoints.
+std::string crystal_scene(int grains, int increments, const std::string& extra = "") {
+  return R"(scene: crystal
+title: "restart test"
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.01}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations:
+  random: {count: )" +
+         std::to_string(grains) + R"(, seed: 5}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[5, x, x], [x, 0, x], [x, x, x]]
+    duration: 10
+    increments: )" +
+         std::to_string(increments) + R"(
+    output_every: 3
+  - L: [[x, 1.0e-3, 0], [0, x, 0], [0, 0, 0]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 5
+    increments: )" +
+         std::to_string(increments / 2) + R"(
+    growth: 1.05
+)" + extra;
+}
+
+CrystalScene scene_of(const std::string& text) {
+  return parse_crystal_scene(YamlDocument::from_string(text, "restart_test.yaml"));
+}
+
+struct Stop {};  // thrown out of the run to interrupt it
+
+bool same_bits(double a, double b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+void expect_same_snapshot(const subslip::testing::GrainSnapshot& a,
+                          const subslip::testing::GrainSnapshot& b) {
+  EXPECT_TRUE(same_bits(a.macro.time, b.macro.time));
+  EXPECT_EQ(a.macro.segment, b.macro.segment);
+  for (int i = 0; i < 9; ++i) {
+    EXPECT_TRUE(same_bits(a.macro.stress.data()[i], b.macro.stress.data()[i]));
+    EXPECT_TRUE(
+        same_bits(a.macro.deformation_gradient.data()[i], b.macro.deformation_gradient.data()[i]));
+    EXPECT_TRUE(
+        same_bits(a.macro.velocity_gradient.data()[i], b.macro.velocity_gradient.data()[i]));
+  }
+  auto same = [](const std::vector<double>& x, const std::vector<double>& y) {
+    if (x.size() != y.size()) return false;
+    for (std::size_t i = 0; i < x.size(); ++i)
+      if (!same_bits(x[i], y[i])) return false;
+    return true;
+  };
+  EXPECT_TRUE(same(a.stress, b.stress));
+  EXPECT_TRUE(same(a.orientation, b.orientation));
+  EXPECT_TRUE(same(a.slip, b.slip));
+  EXPECT_TRUE(same(a.rate, b.rate));
+  EXPECT_TRUE(same(a.crss, b.crss));
+  EXPECT_TRUE(same(a.r_s, b.r_s));
+}
+
+// Runs the case uninterrupted, then again interrupted after increment `stop_after` (counting
+// over all segments), and continues a fresh aggregate from the checkpoint taken there.
+void check_resume_is_bitwise(const CrystalCase& c, long stop_after) {
+  subslip::testing::GrainRecorder whole;
+  const auto a = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  const auto full = a->run(c.segments, c.options, whole.observer());
+
+  subslip::testing::GrainRecorder first, second;
+  const auto b = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  crystal::AggregateCheckpoint saved;
+  long done = 0;
+  crystal::RunControl stop;
+  stop.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState&) {
+    if (++done < stop_after) return;
+    saved = b->checkpoint();
+    throw Stop{};
+  };
+  EXPECT_THROW(b->run(c.segments, c.options, first.observer(), stop), Stop);
+  ASSERT_EQ(saved.stats.increments, stop_after);
+
+  const auto resumed_aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  crystal::RunControl resume;
+  resume.resume = &saved;
+  const auto stats = resumed_aggregate->run(c.segments, c.options, second.observer(), resume);
+
+  // The outputs before the stop plus those after the restart are the uninterrupted run's.
+  ASSERT_EQ(first.snaps.size() + second.snaps.size(), whole.snaps.size());
+  for (std::size_t i = 0; i < whole.snaps.size(); ++i) {
+    SCOPED_TRACE("output " + std::to_string(i));
+    const auto& got =
+        i < first.snaps.size() ? first.snaps[i] : second.snaps[i - first.snaps.size()];
+    expect_same_snapshot(whole.snaps[i], got);
+  }
+  EXPECT_EQ(stats.increments, full.increments);
+  EXPECT_EQ(stats.substeps, full.substeps);
+  EXPECT_EQ(stats.grain_solves, full.grain_solves);
+  EXPECT_EQ(stats.newton_iterations, full.newton_iterations);
+  EXPECT_EQ(stats.cutbacks, full.cutbacks);
+  EXPECT_EQ(stats.rejected, full.rejected);
+  EXPECT_EQ(stats.mixed_iterations, full.mixed_iterations);
+}
+
+}  // namespace
+
+TEST(Restart, AggregateContinuesBitwiseFromACheckpoint) {
+  const CrystalScene scene = scene_of(crystal_scene(6, 20));
+  const CrystalCase& c = scene.cases.at(0);
+  // Inside the first segment between outputs, at its end, and inside the graded second one.
+  for (long stop : {7L, 20L, 26L}) {
+    SCOPED_TRACE("stopped after increment " + std::to_string(stop));
+    check_resume_is_bitwise(c, stop);
+  }
+}
+
+TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
+  const CrystalScene scene =
+      scene_of(crystal_scene(4, 10, "integrator: {method: implicit, tolerance: 1.0e-3}\n"));
+  const CrystalCase& c = scene.cases.at(0);
+  ASSERT_GT(c.options.tolerance, 0.0);
+  // The step size the next increment tries is part of the state.
+  for (long stop : {3L, 9L}) {
+    SCOPED_TRACE("stopped after increment " + std::to_string(stop));
+    check_resume_is_bitwise(c, stop);
+  }
+}
+
+TEST(Restart, RestoreRefusesAnotherAggregate) {
+  const CrystalScene scene = scene_of(crystal_scene(3, 4));
+  const CrystalCase& c = scene.cases.at(0);
+  const auto a = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  a->run(c.segments, c.options, [](const crystal::MacroState&, const crystal::GrainFields&) {});
+  crystal::AggregateCheckpoint saved = a->checkpoint();
+  EXPECT_EQ(saved.values_per_grain, 15 + 4 * 12);
+  EXPECT_EQ(saved.grains.size(), 3u * static_cast<std::size_t>(saved.values_per_grain));
+  const CrystalScene other = scene_of(crystal_scene(4, 4));
+  const auto b = crystal::build_taylor_aggregate(other.cases[0].phase, other.cases[0].orientations);
+  EXPECT_THROW(b->restore(saved), std::invalid_argument);
+}
+
+// ---- the checkpoint store
+
+namespace {
+
+// A checkpoint whose every number is derived from `k`, so that a torn one is recognisable.
+crystal::AggregateCheckpoint numbered_checkpoint(long k, std::size_t grains, int per_grain) {
+  crystal::AggregateCheckpoint c;
+  const double x = static_cast<double>(k);
+  c.position = {static_cast<int>(k % 3), k, 0.5 * x, 0.25 * x};
+  c.macro.time = x;
+  c.macro.segment = static_cast<int>(k % 3);
+  c.macro.velocity_gradient.setConstant(x + 0.1);
+  c.macro.deformation_gradient.setConstant(x + 0.2);
+  c.macro.strain.setConstant(x + 0.3);
+  c.macro.stress.setConstant(x + 0.4);
+  c.segment_start_stress.setConstant(x + 0.5);
+  c.free_velocity_gradient = Eigen::VectorXd::Constant(2, x + 0.6);
+  c.stats.increments = k;
+  c.stats.substeps = k + 1;
+  c.stats.grain_steps = k + 2;
+  c.stats.grain_solves = k + 3;
+  c.stats.newton_iterations = k + 4;
+  c.stats.cutbacks = k + 5;
+  c.stats.rejected = k + 6;
+  c.stats.mixed_iterations = k + 7;
+  c.stats.wall_seconds = x + 0.7;
+  c.values_per_grain = per_grain;
+  c.grains.assign(grains * static_cast<std::size_t>(per_grain), x);
+  return c;
+}
+
+void expect_numbered(const StoredCheckpoint& s, std::size_t grains, int per_grain) {
+  const long k = s.state.stats.increments;
+  const auto expected = numbered_checkpoint(k, grains, per_grain);
+  const double x = static_cast<double>(k);
+  EXPECT_EQ(s.state.position.increment, k);
+  EXPECT_EQ(s.state.position.segment, static_cast<int>(k % 3));
+  EXPECT_EQ(s.state.position.segment_time, 0.5 * x);
+  EXPECT_EQ(s.state.position.next_step, 0.25 * x);
+  EXPECT_EQ(s.state.macro.time, x);
+  EXPECT_EQ(s.state.macro.stress, expected.macro.stress);
+  EXPECT_EQ(s.state.macro.deformation_gradient, expected.macro.deformation_gradient);
+  EXPECT_EQ(s.state.segment_start_stress, expected.segment_start_stress);
+  EXPECT_EQ(s.state.free_velocity_gradient, expected.free_velocity_gradient);
+  EXPECT_EQ(s.state.stats.mixed_iterations, k + 7);
+  EXPECT_EQ(s.state.stats.wall_seconds, x + 0.7);
+  EXPECT_EQ(s.state.grains, expected.grains);
+  EXPECT_EQ(s.rows, static_cast<std::size_t>(10 * k));
+  EXPECT_EQ(s.last_output.time, x - 0.5);
+}
+
+}  // namespace
+
+TEST(Checkpoint, StoreKeepsTheLatestCompleteSlot) {
+  const fs::path dir = scratch_dir();
+  h5::File file = h5::File::create(dir / "c.h5", false);
+  const h5::Group g = file.root().create_group("case");
+  CheckpointStore store(g);
+  EXPECT_FALSE(store.latest());
+  crystal::MacroState last;
+  for (long k = 1; k <= 3; ++k) {
+    last.time = static_cast<double>(k) - 0.5;
+    store.write(file, numbered_checkpoint(k, 5, 63), static_cast<std::size_t>(10 * k), last);
+    const auto latest = store.latest();
+    ASSERT_TRUE(latest);
+    EXPECT_EQ(latest->sequence, k);
+    expect_numbered(*latest, 5, 63);
+  }
+  // Slots alternate: 1 and 3 in a, 2 in b. A slot torn by a kill (sequence -1, data half
+  // written) is ignored: the other one is the latest.
+  const h5::Group a = g.open_group("checkpoint").open_group("a");
+  const long long torn[1] = {-1};
+  a.open_dataset("sequence").write(torn);
+  a.open_dataset("grains").write(std::vector<double>(5 * 63, 123.0));
+  const auto latest = store.latest();
+  ASSERT_TRUE(latest);
+  EXPECT_EQ(latest->sequence, 2);
+  expect_numbered(*latest, 5, 63);
+  fs::remove_all(dir);
+}
+
+// A child writes checkpoints in a loop and is killed at random moments: the latest complete
+// checkpoint is always one whole checkpoint, never a mix of two.
+TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
+  const fs::path dir = scratch_dir();
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  const std::size_t grains = 2000;  // 1 MB a checkpoint: a write takes a while
+  const int per_grain = 63;
+  int checked = 0;
+  for (int trial = 0; trial < 6; ++trial) {
+    const fs::path path = dir / ("k" + std::to_string(trial) + ".h5");
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      h5::File file = h5::File::create(path, false);
+      h5::write_result_header(file, {"crystal", "k.yaml", "scene: crystal\n", "kill", {}});
+      const h5::Group g = file.root().create_group("case");
+      file.flush();
+      CheckpointStore store(g);
+      crystal::MacroState last;
+      for (long k = 1;; ++k) {
+        last.time = static_cast<double>(k) - 0.5;
+        store.write(file, numbered_checkpoint(k, grains, per_grain),
+                    static_cast<std::size_t>(10 * k), last);
+      }
+    }
+    std::uniform_real_distribution<double> when(0.05, 0.4);
+    std::this_thread::sleep_for(std::chrono::duration<double>(when(rng)));
+    ::kill(child, SIGKILL);
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    const h5::File file = h5::File::open_read(path);
+    const h5::Group g = file.root().open_group("case");
+    const auto latest = CheckpointStore(g).latest();
+    if (!latest) continue;  // killed before the first checkpoint was complete
+    ++checked;
+    expect_numbered(*latest, grains, per_grain);
+    EXPECT_EQ(latest->sequence, latest->state.stats.increments);
+  }
+  EXPECT_GT(checked, 0);
+  fs::remove_all(dir);
+}
+
+// ---- the command
+
+namespace {
+
+std::string log_of(const fs::path& dir) {
+  return read_text(dir / "run.log");
+}
+
+int restart(const fs::path& dir, const std::string& file, std::vector<std::string> more = {}) {
+  std::vector<std::string> args{"run", "--restart", file, "-q"};
+  args.insert(args.end(), more.begin(), more.end());
+  return run_subslip(dir, args, dir / "run.log");
+}
+
+}  // namespace
+
+// The issue's test: a real run killed part-way, restarted, killed again, restarted again: every
+// dataset equals the uninterrupted run's, and the file says it completed.
+TEST(Restart, KilledCrystalRunContinuesBitwise) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml")
+      << crystal_scene(16, 60,
+                       "output:\n  grains: [stress, orientation, slip, r_s]\n"
+                       "  checkpoint_every: 4\nsweep:\n  \"phase.tau0\": [10, 12]\n");
+  double seconds = 0.0;
+  ASSERT_EQ(
+      run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"}, dir / "run.log", &seconds), 0)
+      << log_of(dir);
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> when(0.2 * seconds, 0.7 * seconds);
+  const int first = subslip::testing::run_and_kill(dir, {"run", "scene.yaml", "-o", "out.h5", "-q"},
+                                                   dir / "run.log", when(rng));
+  ASSERT_TRUE(first == 128 + SIGKILL || first == 0) << log_of(dir);
+  if (first != 0) {
+    ASSERT_TRUE(fs::exists(dir / "out.h5"));
+    // Kill the restarted run too (early in it), then let a second restart finish.
+    const int second = subslip::testing::run_and_kill(dir, {"run", "--restart", "out.h5", "-q"},
+                                                      dir / "run.log", 0.3 * when(rng));
+    ASSERT_TRUE(second == 128 + SIGKILL || second == 0) << log_of(dir);
+    if (second != 0) {
+      ASSERT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+    }
+  }
+  const h5::File out = h5::File::open_read(dir / "out.h5");
+  EXPECT_EQ(out.root().attribute_int("completed"), 1);
+  const h5::CaseProgress progress = h5::CaseProgress::open(out.root());
+  for (std::size_t k = 0; k < progress.size(); ++k)
+    EXPECT_EQ(progress.state(k), h5::CaseState::completed);
+  // Finished cases keep no checkpoint.
+  EXPECT_FALSE(out.root().open_group("cases").open_group("tau0=10").has("checkpoint"));
+  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
+// Contact cases take milliseconds: an unfinished one is run again from its start.
+TEST(Restart, KilledContactRunRerunsUnfinishedCases) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml") << R"(scene: contact
+units: {stress: MPa, length: mm, time: min}
+law:
+  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 2.0}
+    increments: 4000
+    growth: 1.001
+sweep:
+  "loading[0].slide.speed": [1, 2, 5, 10, 20, 50, 100, 200]
+  "law.overstress.n": [8, 16, 32]
+)";
+  double seconds = 0.0;
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q", "-j", "1"},
+                        dir / "run.log", &seconds),
+            0)
+      << log_of(dir);
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> when(0.3 * seconds, 0.7 * seconds);
+  const int first = subslip::testing::run_and_kill(
+      dir, {"run", "scene.yaml", "-o", "out.h5", "-q", "-j", "1"}, dir / "run.log", when(rng));
+  ASSERT_TRUE(first == 128 + SIGKILL || first == 0) << log_of(dir);
+  if (first != 0) {
+    ASSERT_TRUE(fs::exists(dir / "out.h5"));
+    ASSERT_EQ(restart(dir, "out.h5", {"-j", "2"}), 0) << log_of(dir);
+  }
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);
+  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
+namespace {
+
+// A crystal run that completed, turned back into an interrupted one (as a kill after its last
+// checkpoint would leave it): completed = 0 and its case marked running.
+void mark_interrupted(const fs::path& file) {
+  h5::File f = h5::File::open_write(file);
+  h5::mark_running(f);
+  h5::CaseProgress progress = h5::CaseProgress::open(f.root());
+  progress.set_state(0, h5::CaseState::running);
+}
+
+void expect_refused(const fs::path& dir, const std::vector<std::string>& args,
+                    const std::string& message) {
+  EXPECT_EQ(run_subslip(dir, args, dir / "run.log"), 2) << log_of(dir);
+  const std::string log = log_of(dir);
+  EXPECT_NE(log.find(message), std::string::npos) << log;
+  EXPECT_NE(log.find("subslip: error: "), std::string::npos) << log;
+}
+
+}  // namespace
+
+TEST(Restart, RefusesWhatItCannotContinue) {
+  const fs::path dir = scratch_dir();
+  const std::string scene = crystal_scene(2, 6, "output:\n  checkpoint_every: 2\n");
+  std::ofstream(dir / "scene.yaml") << scene;
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "done.h5", "-q"}, dir / "run.log"), 0);
+
+  expect_refused(dir, {"run", "--restart", "done.h5"},
+                 "done.h5: completed: cannot restart: the run completed");
+  expect_refused(dir, {"run", "--restart", "missing.h5"},
+                 "missing.h5: cannot restart: no such file");
+  std::ofstream(dir / "text.h5") << "not hdf5\n";
+  expect_refused(dir, {"run", "--restart", "text.h5"},
+                 "text.h5: cannot restart: not a readable HDF5 file");
+  {
+    h5::File other = h5::File::create(dir / "other.h5", false);
+    other.root().set_attribute("creator", "another program");
+  }
+  expect_refused(dir, {"run", "--restart", "other.h5"},
+                 "other.h5: format: cannot restart: not a subslip result file");
+
+  // An interrupted file: a changed scene file, another program version, -o or --force.
+  fs::copy_file(dir / "done.h5", dir / "cut.h5");
+  mark_interrupted(dir / "cut.h5");
+  std::ofstream(dir / "changed.yaml") << scene << "# an edit\n";
+  expect_refused(dir, {"run", "changed.yaml", "--restart", "cut.h5"},
+                 "cut.h5: scene: cannot restart: the scene file given differs");
+  expect_refused(dir, {"run", "--restart", "cut.h5", "-o", "x.h5"}, "drop -o and --force");
+  fs::copy_file(dir / "cut.h5", dir / "old.h5");
+  h5::File::open_write(dir / "old.h5").root().set_attribute("program_version", "0.0.1");
+  expect_refused(dir, {"run", "--restart", "old.h5"},
+                 "old.h5: program_version: cannot restart: written by subslip 0.0.1");
+  // The same scene file is accepted; the case is recomputed (from its start: a finished case
+  // keeps no checkpoint) into the same values.
+  EXPECT_EQ(restart(dir, "cut.h5"), 0) << log_of(dir);
+  EXPECT_EQ(run_subslip(dir, {"run", "scene.yaml", "--restart", "cut.h5"}, dir / "run.log"), 2);
+  subslip::testing::expect_same_datasets(dir / "done.h5", dir / "cut.h5");
+  fs::remove_all(dir);
+}
+
+// The orientations come from a file the scene names: a restart after the file changed would mix
+// two sets of grains, so it is refused.
+TEST(Restart, RefusesChangedOrientations) {
+  const fs::path dir = scratch_dir();
+  std::string scene = crystal_scene(2, 6, "output:\n  checkpoint_every: 2\n");
+  scene.replace(scene.find("random: {count: 2, seed: 5}"),
+                std::string("random: {count: 2, seed: 5}").size(), "file: grains.txt");
+  std::ofstream(dir / "scene.yaml") << scene;
+  const std::string header = "# subslip-orientations convention=bunge-euler-deg passive P=-1\n";
+  std::ofstream(dir / "grains.txt") << header << "10 20 30\n40 50 60\n";
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "out.h5", "-q"}, dir / "run.log"), 0)
+      << log_of(dir);
+  mark_interrupted(dir / "out.h5");
+  std::ofstream(dir / "grains.txt") << header << "10 20 30\n40 50 61\n";
+  expect_refused(dir, {"run", "--restart", "out.h5"}, "the orientations differ");
+  std::ofstream(dir / "grains.txt") << header << "10 20 30\n40 50 60\n";
+  EXPECT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+  fs::remove_all(dir);
+}
