@@ -15,8 +15,8 @@
 // (default: every inputs/extreme/*.yaml). Errors are in units of the yield scale: contact
 // |f_t - f_t,ref| / (f_n mu_s) (the traction vector, f_n the initial normal traction), crystal
 // max_ij |sigma_ij - sigma_ref,ij| / max_a(mu0_a tau0_a) (mu0 the initial friction coefficient).
-#include <CLI/CLI.hpp>
 #include <omp.h>
+#include <CLI/CLI.hpp>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -116,7 +116,7 @@ struct CaseRun {
   long iterations = 0;  // Newton iterations (per grain solve for crystals)
   long solves = 0;      // grain solves (crystals)
   long cutbacks = 0;
-  long rejected = 0;  // adaptive steps refused by the error estimate
+  long rejected = 0;      // adaptive steps refused by the error estimate
   double min_gap = kInf;  // min(r_hat - r) over the outputs, rate-dependent systems
   double wall = 0.0;
   Series series;
@@ -166,8 +166,7 @@ CaseRun run_contact(const io::ContactCase& c, int split_by, bool every_step, dou
           if (out.violation.empty()) out.violation = contact_inadmissible(s, p);
           if (rate_dependent) out.min_gap = std::min(out.min_gap, p.overstress.r_hat - s.r);
           out.series.time.push_back(s.time);
-          out.series.value.push_back(
-              {s.traction_t.x() / out.scale, s.traction_t.y() / out.scale});
+          out.series.value.push_back({s.traction_t.x() / out.scale, s.traction_t.y() / out.scale});
         });
     out.steps = st.substeps;
     out.increments = st.increments;
@@ -220,40 +219,42 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, dou
     const size_t n = static_cast<size_t>(agg->slip_count());
     const size_t cells = n * static_cast<size_t>(agg->grain_count());
     std::vector<double> r(cells), rs(cells), crss(cells);
-    const cr::AggregateStats st = agg->run(
-        split(c.segments, split_by, every_step), opt,
-        [&](const cr::MacroState& m, const cr::GrainFields& f) {
-          f.ratio(r.data());
-          f.subloading_ratio(rs.data());
-          f.crss(crss.data());
-          for (size_t i = 0; i < cells && out.violation.empty(); ++i) {
-            const double rh = r_hat[i % n];
-            std::ostringstream why;
-            if (!std::isfinite(r[i]) || !std::isfinite(rs[i]) || !std::isfinite(crss[i]))
-              why << "non-finite";
-            else if (rs[i] < 0.0)
-              why << "r_s<0";
-            else if (rs[i] > r[i] + 1e-12 * std::max(1.0, r[i]))
-              why << "r_s>r";
-            else if (!(r[i] < rh))
-              why << "r>=r_hat";
-            else if (!(crss[i] > 0.0))
-              why << "crss<=0";
-            if (!why.str().empty()) {
-              why << " at t=" << m.time << " grain " << i / n << " system " << i % n
-                  << " (r=" << r[i] << ", r_s=" << rs[i] << ")";
-              out.violation = why.str();
-            }
-          }
-          if (!m.stress.allFinite() && out.violation.empty())
-            out.violation = "non-finite stress at t=" + std::to_string(m.time);
-          for (size_t i = 0; i < cells; ++i)
-            if (std::isfinite(r_hat[i % n])) out.min_gap = std::min(out.min_gap, r_hat[i % n] - r[i]);
-          out.series.time.push_back(m.time);
-          std::vector<double> v(9);
-          for (int k = 0; k < 9; ++k) v[static_cast<size_t>(k)] = m.stress(k / 3, k % 3) / out.scale;
-          out.series.value.push_back(std::move(v));
-        });
+    const cr::AggregateStats st =
+        agg->run(split(c.segments, split_by, every_step), opt,
+                 [&](const cr::MacroState& m, const cr::GrainFields& f) {
+                   f.ratio(r.data());
+                   f.subloading_ratio(rs.data());
+                   f.crss(crss.data());
+                   for (size_t i = 0; i < cells && out.violation.empty(); ++i) {
+                     const double rh = r_hat[i % n];
+                     std::ostringstream why;
+                     if (!std::isfinite(r[i]) || !std::isfinite(rs[i]) || !std::isfinite(crss[i]))
+                       why << "non-finite";
+                     else if (rs[i] < 0.0)
+                       why << "r_s<0";
+                     else if (rs[i] > r[i] + 1e-12 * std::max(1.0, r[i]))
+                       why << "r_s>r";
+                     else if (!(r[i] < rh))
+                       why << "r>=r_hat";
+                     else if (!(crss[i] > 0.0))
+                       why << "crss<=0";
+                     if (!why.str().empty()) {
+                       why << " at t=" << m.time << " grain " << i / n << " system " << i % n
+                           << " (r=" << r[i] << ", r_s=" << rs[i] << ")";
+                       out.violation = why.str();
+                     }
+                   }
+                   if (!m.stress.allFinite() && out.violation.empty())
+                     out.violation = "non-finite stress at t=" + std::to_string(m.time);
+                   for (size_t i = 0; i < cells; ++i)
+                     if (std::isfinite(r_hat[i % n]))
+                       out.min_gap = std::min(out.min_gap, r_hat[i % n] - r[i]);
+                   out.series.time.push_back(m.time);
+                   std::vector<double> v(9);
+                   for (int k = 0; k < 9; ++k)
+                     v[static_cast<size_t>(k)] = m.stress(k / 3, k % 3) / out.scale;
+                   out.series.value.push_back(std::move(v));
+                 });
     out.steps = st.substeps;
     out.increments = st.increments;
     out.iterations = st.newton_iterations;
@@ -428,12 +429,12 @@ void adaptive_rows(const std::string& file, const Case& c, Run&& run, const Opti
   auto row = [&](const std::string& setting, const CaseRun& r) {
     const double steps = std::max<double>(1.0, static_cast<double>(r.steps));
     const double newton =
-        static_cast<double>(r.iterations) /
-        (r.solves > 0 ? static_cast<double>(r.solves) : steps);
-    std::cout << "| " << file << " | " << c.name << " | " << setting << " | " << outcome(r)
-              << " | " << r.steps << " | " << r.rejected << " | " << fmt("%.2f", newton) << " | "
-              << (r.failure.empty() && ref.failure.empty() ? sci(max_error_interpolated(r.series, ref.series))
-                                                           : std::string("-"))
+        static_cast<double>(r.iterations) / (r.solves > 0 ? static_cast<double>(r.solves) : steps);
+    std::cout << "| " << file << " | " << c.name << " | " << setting << " | " << outcome(r) << " | "
+              << r.steps << " | " << r.rejected << " | " << fmt("%.2f", newton) << " | "
+              << (r.failure.empty() && ref.failure.empty()
+                      ? sci(max_error_interpolated(r.series, ref.series))
+                      : std::string("-"))
               << " | " << fmt("%.3f", r.wall) << " |\n";
   };
   row("fixed (scene)", fixed);
@@ -456,7 +457,8 @@ void report_adaptive(const fs::path& dir, const Options& o) {
     auto find_and_run = [&](const auto& scene, auto&& run) {
       for (const auto& c : scene.cases)
         if (c.name == pick.case_name) return adaptive_rows(pick.file, c, run, o);
-      std::cout << "| " << pick.file << " | " << pick.case_name << " | - | no such case | | | | | |\n";
+      std::cout << "| " << pick.file << " | " << pick.case_name
+                << " | - | no such case | | | | | |\n";
     };
     if (kind == "contact") {
       find_and_run(io::load_contact_scene(path),
@@ -535,7 +537,8 @@ FeRow contact_fe_row(double alpha) {
   ct::run_history(m, {seg}, ct::IntegratorOptions{}, [&](const ct::ContactState& s, int) {
     steady = s;
     if (s.law.mu > 0.0)
-      lambda_path = std::max(lambda_path, alpha * lw.slip_rate_slope(s.r, s.law.r_s) / (fn * s.law.mu));
+      lambda_path =
+          std::max(lambda_path, alpha * lw.slip_rate_slope(s.r, s.law.r_s) / (fn * s.law.mu));
   });
   const auto ss = lw.steady_state(v);
   const double lambda = alpha * lw.slip_rate_slope(ss.r, 1.0) / (fn * ss.mu);
@@ -571,7 +574,8 @@ FeRow contact_fe_row(double alpha) {
       opt.max_cutbacks = 0;
       double end = 0.0;
       try {
-        ct::run_history(m, {fe}, opt, [&](const ct::ContactState& s, int) { end = s.traction_ratio(); });
+        ct::run_history(m, {fe}, opt,
+                        [&](const ct::ContactState& s, int) { end = s.traction_ratio(); });
       } catch (const ct::StepFailure&) {
         return false;
       }
@@ -685,7 +689,8 @@ int main(int argc, char** argv) {
       std::cout << "\n**Summary**: " << totals.cases << " cases, " << totals.failed << " failed, "
                 << totals.inadmissible << " inadmissible outputs, " << totals.not_converging
                 << " with errors not decreasing under refinement; at most "
-                << fmt("%.2f", totals.max_newton) << " Newton iterations per step (or grain solve), "
+                << fmt("%.2f", totals.max_newton)
+                << " Newton iterations per step (or grain solve), "
                 << fmt("%.3f", totals.max_cutbacks)
                 << " cutbacks per increment; smallest r_hat - r: " << sci(totals.min_gap) << "\n";
     }

@@ -91,15 +91,14 @@ TEST(CvodePeer, AvailabilityMatchesTheBuild) {
 
 namespace {
 
-struct Threads {
+// One OpenMP thread for the implicit reference runs of one or a few grains (a parallel region
+// per step costs more than it gains on a loaded machine; results do not depend on it).
+struct SingleThread {
   int saved = omp_get_max_threads();
-  explicit Threads(int n) { omp_set_num_threads(n); }
-  ~Threads() { omp_set_num_threads(saved); }
-  Threads(const Threads&) = delete;
-  Threads& operator=(const Threads&) = delete;
-};
-struct SingleThread : Threads {
-  SingleThread() : Threads(1) {}
+  SingleThread() { omp_set_num_threads(1); }
+  ~SingleThread() { omp_set_num_threads(saved); }
+  SingleThread(const SingleThread&) = delete;
+  SingleThread& operator=(const SingleThread&) = delete;
 };
 
 void print(const char* what, const cv::CvodeStats& s) {
@@ -471,56 +470,53 @@ TEST(CvodeCrystal, FccSingleCrystalTensionConvergesToTheImplicitReference) {
     previous = e;
   }
   EXPECT_LT(previous, 1e-6);
+  // The same ODE with the Krylov solver and the block preconditioner (slower here: the Newton
+  // safety factor 0.001 makes the inexact linear solves tight): within 100 rtol of the reference.
+  cv::CvodeOptions o;
+  o.rtol = 1e-6;
+  o.linear_solver = cv::LinearSolver::krylov;
+  cv::CvodeStats stats;
+  const double krylov =
+      max_error(crystal_cvode(d, grains, segs, o, 0, 0, &stats).value, ref.path, scale);
+  measured() << "fcc [-123] Krylov rtol 1e-06: max error " << krylov << "\n";
+  print("  ", stats);
+  EXPECT_LT(krylov, 100 * o.rtol);
 }
 
-// A small Taylor polycrystal with a reversal (tension then compression: the (3.12) branch on
-// every system): the Krylov solver with the per-grain block preconditioner and the dense solver
-// integrate the same ODE, so both converge to the implicit reference; the Krylov run does not
-// depend on the thread count (every reduction is serial in grain order).
-TEST(CvodeCrystal, PolycrystalKrylovAndDenseAgreeWithTheImplicitReference) {
+// A two-grain Taylor aggregate with a reversal (tension then compression: the (3.12) branch on
+// every system). Right after the reversal the overstress (~0.03 MPa here) relaxes within
+// ~3e-4 s; the compression increments grow from 3e-4 s (growth 1.1) so that the reference's
+// sub-steps resolve it (with 6e-3 s the implicit runs agree with each other to 5e-6 but both
+// miss the relaxation by 1e-4: measured). The Krylov solver with the per-grain block
+// preconditioner must agree with the implicit reference within its uncertainty (the spread of
+// its two runs). (The dense solver gives the same path to 2e-8, in 33 s instead of 1.6 s.)
+TEST(CvodeCrystal, TwoGrainReversalWithKrylovAgreesWithTheImplicitReference) {
+  const SingleThread one;
   const auto d = fcc_copper(10.0);
   std::vector<cr::Orientation> grains;
   const double deg = std::numbers::pi / 180.0;
-  for (int g = 0; g < 3; ++g)
+  for (int g = 0; g < 2; ++g)
     grains.push_back(cr::Orientation::from_euler(
         Eigen::Vector3d((20.0 + 97.0 * g) * deg, (30.0 + 41.0 * g) * deg, (65.0 * g) * deg)));
-  const std::vector<cr::LoadSegment> segs{uniaxial(1e-3, 5.0, 100), uniaxial(-1e-3, 7.0, 100)};
-  double scale = 0.0;
-  Reference ref;
-  {
-    const SingleThread one;
-    const auto coarse = crystal_implicit(d, grains, segs, 16, 0, 0);
-    const auto fine = crystal_implicit(d, grains, segs, 32, 0, 0);
-    scale = largest(fine);
-    ref = richardson(coarse, fine, scale);
-  }
-  measured() << "3 grains, reversal: implicit 32x vs 16x spread " << ref.spread << "\n";
+  std::vector<cr::LoadSegment> segs{uniaxial(1e-3, 4.0, 80), uniaxial(-1e-3, 6.0, 80)};
+  segs[1].growth = 1.1;
+  const auto coarse = crystal_implicit(d, grains, segs, 16, 0, 0);
+  const auto fine = crystal_implicit(d, grains, segs, 32, 0, 0);
+  const double scale = largest(fine);
+  const Reference ref = richardson(coarse, fine, scale);
+  measured() << "2 grains, reversal: implicit 32x vs 16x spread " << ref.spread << "\n";
   ASSERT_LT(ref.spread, 1e-4);
   cv::CvodeOptions o;
   o.rtol = 1e-8;
-  std::vector<std::vector<double>> krylov_paths;
-  for (int threads : {1, 2}) {
-    const Threads use(threads);
-    o.linear_solver = cv::LinearSolver::krylov;
-    cv::CvodeStats stats;
-    const CrystalPath p = crystal_cvode(d, grains, segs, o, 0, 0, &stats);
-    const double e = max_error(p.value, ref.path, scale);
-    measured() << "3 grains Krylov, " << threads << " thread(s): max difference " << e << "\n";
-    print("  ", stats);
-    EXPECT_LT(e, ref.spread);
-    krylov_paths.push_back(p.value);
-  }
-  const SingleThread one;
-  o.linear_solver = cv::LinearSolver::dense;
+  o.linear_solver = cv::LinearSolver::krylov;
   cv::CvodeStats stats;
-  const CrystalPath dense = crystal_cvode(d, grains, segs, o, 0, 0, &stats);
-  const double e = max_error(dense.value, ref.path, scale);
-  const double between = max_error(dense.value, krylov_paths[0], scale);
-  measured() << "3 grains dense: max difference " << e << "; dense vs Krylov " << between << "\n";
+  const CrystalPath p = crystal_cvode(d, grains, segs, o, 0, 0, &stats);
+  const double e = max_error(p.value, ref.path, scale);
+  measured() << "2 grains Krylov: max difference " << e << ", free stresses "
+             << p.free_stress / scale << "\n";
   print("  ", stats);
   EXPECT_LT(e, ref.spread);
-  EXPECT_LT(between, 100 * o.rtol);             // one ODE, two linear solvers: a tolerance apart
-  EXPECT_EQ(krylov_paths[0], krylov_paths[1]);  // bitwise
+  EXPECT_LT(p.free_stress, 10.0 * o.rtol * scale);
 }
 
 TEST(CvodeCrystal, RejectsTheRateIndependentForm) {

@@ -14,8 +14,8 @@
 // bench/extreme_report.cpp (docs/extreme_cases.md).
 #include <gtest/gtest.h>
 
-#include "grain_recorder.hpp"
 #include <omp.h>
+#include "grain_recorder.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -51,10 +51,9 @@ namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kPi = std::numbers::pi;
-const fs::path kExtremeDir =
-    fs::path(SUBSLIP_SOURCE_DIR) / "inputs" / "extreme";
+const fs::path kExtremeDir = fs::path(SUBSLIP_SOURCE_DIR) / "inputs" / "extreme";
 
-std::ostream &measured() {
+std::ostream& measured() {
   return std::cout << std::setprecision(6) << "[ measured ] ";
 }
 
@@ -65,17 +64,15 @@ struct SingleThread {
   int saved = omp_get_max_threads();
   SingleThread() { omp_set_num_threads(1); }
   ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread &) = delete;
-  SingleThread &operator=(const SingleThread &) = delete;
+  SingleThread(const SingleThread&) = delete;
+  SingleThread& operator=(const SingleThread&) = delete;
 };
 
 std::vector<fs::path> extreme_scenes(std::string_view kind) {
   std::vector<fs::path> out;
-  for (const auto &e : fs::directory_iterator(kExtremeDir)) {
-    if (e.path().extension() != ".yaml")
-      continue;
-    if (io::scene_kind(io::YamlDocument::from_file(e.path()),
-                       {"contact", "crystal"}) == kind)
+  for (const auto& e : fs::directory_iterator(kExtremeDir)) {
+    if (e.path().extension() != ".yaml") continue;
+    if (io::scene_kind(io::YamlDocument::from_file(e.path()), {"contact", "crystal"}) == kind)
       out.push_back(e.path());
   }
   std::sort(out.begin(), out.end());
@@ -83,10 +80,9 @@ std::vector<fs::path> extreme_scenes(std::string_view kind) {
 }
 
 template <class Scene>
-const auto &case_named(const Scene &scene, const std::string &name) {
-  for (const auto &c : scene.cases)
-    if (c.name == name)
-      return c;
+const auto& case_named(const Scene& scene, const std::string& name) {
+  for (const auto& c : scene.cases)
+    if (c.name == name) return c;
   throw std::runtime_error("no case '" + name + "' in " + scene.file);
 }
 
@@ -94,8 +90,9 @@ const auto &case_named(const Scene &scene, const std::string &name) {
 // the same increment boundaries (sum_{m<k} g^((ik+m)/k) is proportional to
 // g^i). Outputs stay at the original increments (output_every = k), so split
 // runs compare output by output.
-template <class Seg> std::vector<Seg> split(std::vector<Seg> segs, int k) {
-  for (Seg &s : segs) {
+template <class Seg>
+std::vector<Seg> split(std::vector<Seg> segs, int k) {
+  for (Seg& s : segs) {
     s.increments *= k;
     s.growth = std::pow(s.growth, 1.0 / k);
     s.output_every = k;
@@ -107,64 +104,51 @@ template <class Seg> std::vector<Seg> split(std::vector<Seg> segs, int k) {
 // ------------------------------------------------------------------------------
 
 struct ContactTrace {
-  std::vector<ct::ContactState>
-      states; // the initial state, then one per output
+  std::vector<ct::ContactState> states;  // the initial state, then one per output
   std::vector<int> segment;
   ct::RunStats stats;
 };
 
-ContactTrace run_contact(const io::ContactCase &c, int k = 1,
-                         double tolerance = 0.0) {
+ContactTrace run_contact(const io::ContactCase& c, int k = 1, double tolerance = 0.0) {
   ct::IntegratorOptions opt = c.integrator;
   opt.tolerance = tolerance;
   ContactTrace t;
-  t.stats = ct::run_history(c.model, split(c.segments, k), opt,
-                            [&](const ct::ContactState &s, int seg) {
-                              t.states.push_back(s);
-                              t.segment.push_back(seg);
-                            });
+  t.stats =
+      ct::run_history(c.model, split(c.segments, k), opt, [&](const ct::ContactState& s, int seg) {
+        t.states.push_back(s);
+        t.segment.push_back(seg);
+      });
   return t;
 }
 
 // Empty when the state is admissible: finite, 0 <= r_s <= r < r_hat, mu > 0,
 // and f_t/f_n = r mu (2.22) to rounding.
-std::string contact_inadmissible(const ct::ContactState &s,
-                                 const law::LawParameters &p) {
+std::string contact_inadmissible(const ct::ContactState& s, const law::LawParameters& p) {
   std::ostringstream why;
-  const bool finite = std::isfinite(s.traction_t.x()) &&
-                      std::isfinite(s.traction_t.y()) &&
+  const bool finite = std::isfinite(s.traction_t.x()) && std::isfinite(s.traction_t.y()) &&
                       std::isfinite(s.traction_n) && std::isfinite(s.law.mu) &&
-                      std::isfinite(s.law.r_s) && std::isfinite(s.r) &&
-                      std::isfinite(s.vp_slip) && std::isfinite(s.vp_rate) &&
-                      std::isfinite(s.time);
-  if (!finite)
-    why << "non-finite ";
-  if (!(s.law.r_s >= 0.0))
-    why << "r_s<0 ";
-  if (!(s.law.r_s <= s.r))
-    why << "r_s>r ";
-  if (p.overstress.form != law::OverstressForm::rate_independent &&
-      !(s.r < p.overstress.r_hat))
+                      std::isfinite(s.law.r_s) && std::isfinite(s.r) && std::isfinite(s.vp_slip) &&
+                      std::isfinite(s.vp_rate) && std::isfinite(s.time);
+  if (!finite) why << "non-finite ";
+  if (!(s.law.r_s >= 0.0)) why << "r_s<0 ";
+  if (!(s.law.r_s <= s.r)) why << "r_s>r ";
+  if (p.overstress.form != law::OverstressForm::rate_independent && !(s.r < p.overstress.r_hat))
     why << "r>=r_hat ";
-  if (!(s.law.mu > 0.0))
-    why << "mu<=0 ";
+  if (!(s.law.mu > 0.0)) why << "mu<=0 ";
   if (finite && s.traction_n > 0.0 &&
-      std::abs(s.traction_ratio() - s.r * s.law.mu) >
-          8 * kEps * s.traction_ratio())
+      std::abs(s.traction_ratio() - s.r * s.law.mu) > 8 * kEps * s.traction_ratio())
     why << "ratio!=r*mu ";
   if (!why.str().empty())
-    why << "(t=" << s.time << " r=" << s.r << " r_s=" << s.law.r_s
-        << " mu=" << s.law.mu << ")";
+    why << "(t=" << s.time << " r=" << s.r << " r_s=" << s.law.r_s << " mu=" << s.law.mu << ")";
   return why.str();
 }
 
 // The resolution of r in an implicit contact increment of sliding du (as
 // derived in test_contact.cpp): the flow residual tolerance plus the slip
 // resolution 1e-14 du turned into traction by alpha, twice.
-double ratio_resolution(const io::ContactCase &c, double du, double mu) {
+double ratio_resolution(const io::ContactCase& c, double du, double mu) {
   return 2.0 * (c.integrator.residual_tolerance +
-                c.model.stiffness.alpha_t * 1e-14 * du /
-                    (c.model.initial_normal_traction * mu));
+                c.model.stiffness.alpha_t * 1e-14 * du / (c.model.initial_normal_traction * mu));
 }
 
 // ---- crystal
@@ -178,11 +162,10 @@ struct CrystalTrace {
   cr::AggregateStats stats;
 };
 
-CrystalTrace run_crystal(const io::CrystalCase &c, int k = 1,
-                         double tolerance = 0.0, std::size_t max_grains = 0) {
+CrystalTrace run_crystal(const io::CrystalCase& c, int k = 1, double tolerance = 0.0,
+                         std::size_t max_grains = 0) {
   auto grains = c.orientations;
-  if (max_grains > 0 && grains.size() > max_grains)
-    grains.resize(max_grains);
+  if (max_grains > 0 && grains.size() > max_grains) grains.resize(max_grains);
   auto agg = cr::build_taylor_aggregate(c.phase, grains);
   cr::AggregateOptions opt = c.options;
   opt.tolerance = tolerance;
@@ -194,12 +177,11 @@ CrystalTrace run_crystal(const io::CrystalCase &c, int k = 1,
 }
 
 // Per slip system, in output order: the law of its group.
-std::vector<law::LawParameters> system_laws(const cr::PhaseDescription &d) {
+std::vector<law::LawParameters> system_laws(const cr::PhaseDescription& d) {
   std::vector<law::LawParameters> out;
-  for (const auto &sys : cr::described_systems(d))
-    out.push_back(d.custom_systems.empty()
-                      ? d.family_settings[static_cast<size_t>(sys.group)].law
-                      : d.custom_settings.law);
+  for (const auto& sys : cr::described_systems(d))
+    out.push_back(d.custom_systems.empty() ? d.family_settings[static_cast<size_t>(sys.group)].law
+                                           : d.custom_settings.law);
   return out;
 }
 
@@ -207,52 +189,45 @@ std::vector<law::LawParameters> system_laws(const cr::PhaseDescription &d) {
 // > 0, 0 <= r_s <= r (exactly: the kernel stores r_s = min(r_s, r) with r from
 // the stored stress, the same arithmetic as the observer's), r < r_hat for the
 // rate-dependent forms.
-std::string crystal_inadmissible(const Snapshot &s,
-                                 const std::vector<law::LawParameters> &laws) {
+std::string crystal_inadmissible(const Snapshot& s, const std::vector<law::LawParameters>& laws) {
   const size_t n = laws.size();
   if (!s.macro.stress.allFinite())
     return "non-finite macro stress at t=" + std::to_string(s.macro.time);
   for (size_t i = 0; i < s.ratio.size(); ++i) {
-    const auto &o = laws[i % n].overstress;
+    const auto& o = laws[i % n].overstress;
     std::ostringstream why;
-    if (!std::isfinite(s.ratio[i]) || !std::isfinite(s.r_s[i]) ||
-        !std::isfinite(s.crss[i]) || !std::isfinite(s.slip[i]) ||
-        !std::isfinite(s.rate[i]))
+    if (!std::isfinite(s.ratio[i]) || !std::isfinite(s.r_s[i]) || !std::isfinite(s.crss[i]) ||
+        !std::isfinite(s.slip[i]) || !std::isfinite(s.rate[i]))
       why << "non-finite ";
     else if (!(s.r_s[i] >= 0.0))
       why << "r_s<0 ";
     else if (!(s.r_s[i] <= s.ratio[i]))
       why << "r_s>r ";
-    else if (o.form != law::OverstressForm::rate_independent &&
-             !(s.ratio[i] < o.r_hat))
+    else if (o.form != law::OverstressForm::rate_independent && !(s.ratio[i] < o.r_hat))
       why << "r>=r_hat ";
     else if (!(s.crss[i] > 0.0))
       why << "crss<=0 ";
     if (!why.str().empty()) {
       why << "(t=" << s.macro.time << " grain " << i / n << " system " << i % n
-          << " r=" << std::setprecision(17) << s.ratio[i] << " r_s=" << s.r_s[i]
-          << ")";
+          << " r=" << std::setprecision(17) << s.ratio[i] << " r_s=" << s.r_s[i] << ")";
       return why.str();
     }
   }
   for (double v : s.stress)
-    if (!std::isfinite(v))
-      return "non-finite grain stress";
+    if (!std::isfinite(v)) return "non-finite grain stress";
   return {};
 }
 
 // The last snapshot of a segment.
-const Snapshot &end_of_segment(const CrystalTrace &t, int segment) {
-  const Snapshot *last = nullptr;
-  for (const auto &s : t.snaps)
-    if (s.macro.segment == segment)
-      last = &s;
-  if (!last)
-    throw std::runtime_error("segment without output");
+const Snapshot& end_of_segment(const CrystalTrace& t, int segment) {
+  const Snapshot* last = nullptr;
+  for (const auto& s : t.snaps)
+    if (s.macro.segment == segment) last = &s;
+  if (!last) throw std::runtime_error("segment without output");
   return *last;
 }
 
-} // namespace
+}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // The shipped files.
@@ -260,29 +235,26 @@ const Snapshot &end_of_segment(const CrystalTrace &t, int segment) {
 
 TEST(ExtremeScenes, EveryFileParsesAndSaysWhatItStresses) {
   std::size_t files = 0;
-  for (const auto &e : fs::directory_iterator(kExtremeDir)) {
-    if (e.path().extension() != ".yaml")
-      continue;
+  for (const auto& e : fs::directory_iterator(kExtremeDir)) {
+    if (e.path().extension() != ".yaml") continue;
     ++files;
     SCOPED_TRACE(e.path().string());
     std::ifstream in(e.path());
     std::string first;
     std::getline(in, first);
     EXPECT_TRUE(first.rfind("# Stiff and extreme cases", 0) == 0) << first;
-    const auto kind = io::scene_kind(io::YamlDocument::from_file(e.path()),
-                                     {"contact", "crystal"});
+    const auto kind = io::scene_kind(io::YamlDocument::from_file(e.path()), {"contact", "crystal"});
     if (kind == "contact") {
       const auto scene = io::load_contact_scene(e.path());
       EXPECT_FALSE(scene.title.empty());
-      EXPECT_GT(scene.cases.size(), 1u); // every file sweeps
+      EXPECT_GT(scene.cases.size(), 1u);  // every file sweeps
     } else {
       const auto scene = io::load_crystal_scene(e.path());
       EXPECT_FALSE(scene.title.empty());
       EXPECT_GT(scene.cases.size(), 1u);
     }
   }
-  EXPECT_EQ(files, extreme_scenes("contact").size() +
-                       extreme_scenes("crystal").size());
+  EXPECT_EQ(files, extreme_scenes("contact").size() + extreme_scenes("crystal").size());
   EXPECT_GE(extreme_scenes("contact").size(), 6u);
   EXPECT_GE(extreme_scenes("crystal").size(), 5u);
 }
@@ -292,23 +264,21 @@ TEST(ExtremeScenes, EveryFileParsesAndSaysWhatItStresses) {
 TEST(ExtremeScenes, EveryContactCaseRunsToTheEndAdmissibly) {
   std::size_t cases = 0;
   long steps = 0, iterations = 0, cutbacks = 0;
-  for (const auto &path : extreme_scenes("contact")) {
+  for (const auto& path : extreme_scenes("contact")) {
     const auto scene = io::load_contact_scene(path);
-    for (const auto &c : scene.cases) {
+    for (const auto& c : scene.cases) {
       SCOPED_TRACE(path.filename().string() + ": " + c.name);
       ++cases;
       ContactTrace t;
       ASSERT_NO_THROW(t = run_contact(c));
       ASSERT_EQ(t.states.size(), io::output_count(c.segments));
-      for (const auto &s : t.states)
-        ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
+      for (const auto& s : t.states) ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
       steps += t.stats.substeps;
       iterations += t.stats.iterations;
       cutbacks += t.stats.cutbacks;
     }
   }
-  measured() << "extreme contact set: " << cases << " cases, " << steps
-             << " steps, "
+  measured() << "extreme contact set: " << cases << " cases, " << steps << " steps, "
              << static_cast<double>(iterations) / static_cast<double>(steps)
              << " Newton iterations per step, " << cutbacks << " cutbacks\n";
   EXPECT_GE(cases, 250u);
@@ -324,7 +294,6 @@ TEST(ExtremeScenes, EveryContactCaseRunsToTheEndAdmissibly) {
 // the mixed control, no NaN or Inf) and fails when one of them starts to pass,
 // so that the list gets shortened.
 const std::set<std::string> kKnownCrystalFailures = {
-    "crystal_cubic_families.yaml: families=[bcc_123_111],tau0=0.7692",
     "crystal_hcp_families.yaml: families=[hcp_pyramidal_ca],tau0=0.163",
     "crystal_parser_edges.yaml: "
     "initial_mu=0.01,eta_v=1.0e6,n=128,r_hat=1.000001,u_tilde=1.0e6",
@@ -348,12 +317,10 @@ const std::set<std::string> kKnownCrystalFailures = {
 // crystal_law_edges.yaml with the neg_log and reciprocal U(r), whose exact r_s
 // update inverts an exponential-integral closed form by Newton in every
 // residual evaluation (both forms are run on the contact side).
-bool heavy_crystal_case(const std::string &file, const std::string &name) {
+bool heavy_crystal_case(const std::string& file, const std::string& name) {
   return (file == "crystal_cubic_families.yaml" &&
-          name ==
-              "families=[bcc_110_111, bcc_112_111, bcc_123_111],tau0=0.7692") ||
-         (file == "crystal_law_edges.yaml" &&
-          name.find("function=cot") == std::string::npos);
+          name == "families=[bcc_110_111, bcc_112_111, bcc_123_111],tau0=0.7692") ||
+         (file == "crystal_law_edges.yaml" && name.find("function=cot") == std::string::npos);
 }
 
 // Every other crystal case of every file, with at most two grains (the
@@ -362,11 +329,10 @@ bool heavy_crystal_case(const std::string &file, const std::string &name) {
 TEST(ExtremeScenes, EveryCrystalCaseRunsToTheEndAdmissibly) {
   const SingleThread one;
   std::size_t cases = 0, failed = 0;
-  for (const auto &path : extreme_scenes("crystal")) {
+  for (const auto& path : extreme_scenes("crystal")) {
     const auto scene = io::load_crystal_scene(path);
-    for (const auto &c : scene.cases) {
-      if (heavy_crystal_case(path.filename().string(), c.name))
-        continue;
+    for (const auto& c : scene.cases) {
+      if (heavy_crystal_case(path.filename().string(), c.name)) continue;
       const std::string key = path.filename().string() + ": " + c.name;
       SCOPED_TRACE(key);
       ++cases;
@@ -375,11 +341,9 @@ TEST(ExtremeScenes, EveryCrystalCaseRunsToTheEndAdmissibly) {
       try {
         const CrystalTrace t = run_crystal(c, 1, 0.0, 2);
         ASSERT_EQ(t.snaps.size(), io::crystal_output_count(c.segments));
-        for (const auto &s : t.snaps)
-          ASSERT_EQ(crystal_inadmissible(s, laws), "");
-        EXPECT_FALSE(known)
-            << "runs to the end now: remove it from kKnownCrystalFailures";
-      } catch (const cr::CrystalStepFailure &e) {
+        for (const auto& s : t.snaps) ASSERT_EQ(crystal_inadmissible(s, laws), "");
+        EXPECT_FALSE(known) << "runs to the end now: remove it from kKnownCrystalFailures";
+      } catch (const cr::CrystalStepFailure& e) {
         ++failed;
         const std::string msg = e.what();
         EXPECT_TRUE(known) << msg;
@@ -392,8 +356,8 @@ TEST(ExtremeScenes, EveryCrystalCaseRunsToTheEndAdmissibly) {
       }
     }
   }
-  measured() << "extreme crystal set (<= 2 grains): " << cases << " cases, "
-             << failed << " known failures\n";
+  measured() << "extreme crystal set (<= 2 grains): " << cases << " cases, " << failed
+             << " known failures\n";
   EXPECT_GE(cases, 150u);
 }
 
@@ -407,28 +371,26 @@ TEST(ExtremeScenes, EveryCrystalCaseRunsToTheEndAdmissibly) {
 // the slide speed, from 1e-4 to 1e6 mm/min, eta_v 10..1e5, r_hat 1.01..6.4
 // (r_hat - r_ss down to ~2e-12), to the resolution of r in the last increment.
 TEST(ExtremeContact, SpeedAndViscositySweepEndsAtTheAnalyticalSteadyState) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_speed_viscosity.yaml");
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_speed_viscosity.yaml");
   ASSERT_EQ(scene.cases.size(), 54u);
   double worst = 0.0;
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
-    const ct::ContactState &end = t.states.back();
+    const ct::ContactState& end = t.states.back();
     const double v = c.segments[0].velocity.norm();
     const auto ss = law::SubloadingFrictionLaw(c.model.law).steady_state(v);
-    const auto dts = cr::increment_lengths(
-        c.segments[0].duration, c.segments[0].increments, c.segments[0].growth);
+    const auto dts = cr::increment_lengths(c.segments[0].duration, c.segments[0].increments,
+                                           c.segments[0].growth);
     const double tol_r = ratio_resolution(c, v * dts.back(), ss.mu);
     EXPECT_EQ(end.law.r_s, 1.0);
     EXPECT_NEAR(end.law.mu, ss.mu, 1e-12 * ss.mu);
     EXPECT_NEAR(end.r, ss.r, tol_r);
     EXPECT_LT(end.r, c.model.law.overstress.r_hat);
-    EXPECT_NEAR(end.vp_rate, v, 1e-9 * v); // all the sliding is viscoplastic
+    EXPECT_NEAR(end.vp_rate, v, 1e-9 * v);  // all the sliding is viscoplastic
     worst = std::max(worst, std::abs(end.r - ss.r) / tol_r);
   }
-  measured() << "speed/viscosity sweep: worst |r - r_ss| / resolution " << worst
-             << "\n";
+  measured() << "speed/viscosity sweep: worst |r - r_ss| / resolution " << worst << "\n";
 }
 
 // 2 m forward and 2 m back at 1e4 and 1e6 mm/min, in one increment, 100 or
@@ -437,36 +399,30 @@ TEST(ExtremeContact, SpeedAndViscositySweepEndsAtTheAnalyticalSteadyState) {
 // (the traction builds up within it), which shifts r by (f_t/(alpha L)) v /
 // phi_r (test_contact.cpp): below 1e-12 here.
 TEST(ExtremeContact, MetreSlidesAtImpactSpeedEndAtTheSteadyState) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_impact_metres.yaml");
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_impact_metres.yaml");
   ASSERT_EQ(scene.cases.size(), 6u);
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
     const law::SubloadingFrictionLaw lw(c.model.law);
     for (int seg : {0, 1}) {
       size_t last = 0;
       for (size_t i = 0; i < t.states.size(); ++i)
-        if (t.segment[i] == seg)
-          last = i;
-      const ct::ContactState &s = t.states[last];
-      const auto &segment = c.segments[static_cast<size_t>(seg)];
+        if (t.segment[i] == seg) last = i;
+      const ct::ContactState& s = t.states[last];
+      const auto& segment = c.segments[static_cast<size_t>(seg)];
       const double v = segment.velocity.norm();
       const auto ss = lw.steady_state(v);
-      const auto dts = cr::increment_lengths(
-          segment.duration, segment.increments, segment.growth);
+      const auto dts = cr::increment_lengths(segment.duration, segment.increments, segment.growth);
       const double length = v * dts.back();
-      const double deficit = s.traction_ratio() *
-                             c.model.initial_normal_traction /
+      const double deficit = s.traction_ratio() * c.model.initial_normal_traction /
                              (c.model.stiffness.alpha_t * length);
       const double shift = deficit * v / lw.slip_rate_slope(ss.r, 1.0);
-      EXPECT_NEAR(s.r, ss.r, ratio_resolution(c, length, ss.mu) + 2.0 * shift)
-          << "segment " << seg;
+      EXPECT_NEAR(s.r, ss.r, ratio_resolution(c, length, ss.mu) + 2.0 * shift) << "segment " << seg;
       EXPECT_NEAR(s.law.mu, ss.mu, 1e-12 * ss.mu) << "segment " << seg;
       // The traction points against the sliding: +x after the first slide, -x
       // after the second.
-      EXPECT_GT(s.traction_t.x() * segment.velocity.x(), 0.0)
-          << "segment " << seg;
+      EXPECT_GT(s.traction_t.x() * segment.velocity.x(), 0.0) << "segment " << seg;
       EXPECT_EQ(s.traction_t.y(), 0.0);
     }
   }
@@ -479,31 +435,27 @@ TEST(ExtremeContact, MetreSlidesAtImpactSpeedEndAtTheSteadyState) {
 // (first ~1e-10 mm) that is the elastic slope to ~1e-6 at the stiffest alpha
 // and n = 1; with n = 128 the bound is looser and the slope still elastic.
 TEST(ExtremeContact, FirstIncrementFollowsTheElasticSlope) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
   int checked = 0;
   double worst = 0.0;
-  for (const auto &c : scene.cases) {
-    if (c.segments[0].increments != 1000)
-      continue;
+  for (const auto& c : scene.cases) {
+    if (c.segments[0].increments != 1000) continue;
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
-    const ct::ContactState &s1 = t.states.at(1);
+    const ct::ContactState& s1 = t.states.at(1);
     const double v = c.segments[0].velocity.norm();
     const double du = s1.slip.norm();
     const double alpha = c.model.stiffness.alpha_t;
     const double deficit = 1.0 - s1.traction_t.norm() / (alpha * du);
-    const double bound =
-        law::SubloadingFrictionLaw(c.model.law).slip_rate(s1.r, 0.0) / v;
+    const double bound = law::SubloadingFrictionLaw(c.model.law).slip_rate(s1.r, 0.0) / v;
     EXPECT_GE(deficit, -4 * kEps);
     EXPECT_LE(deficit, bound + 4 * kEps);
-    EXPECT_LT(deficit, 1e-2); // still elastic to 1 % in the first increment
+    EXPECT_LT(deficit, 1e-2);  // still elastic to 1 % in the first increment
     worst = std::max(worst, deficit);
     ++checked;
   }
   EXPECT_EQ(checked, 32);
-  measured() << "first increment: largest 1 - f_t/(alpha du) = " << worst
-             << "\n";
+  measured() << "first increment: largest 1 - f_t/(alpha du) = " << worst << "\n";
 }
 
 // Holds of 1, 10 and 100 hours, in one increment or 100. During a hold nothing
@@ -514,23 +466,20 @@ TEST(ExtremeContact, FirstIncrementFollowsTheElasticSlope) {
 // mu_s: once stuck, mu - mu_s decays like exp(-xi t/mu_s) (e^-49 after the
 // first 5 % of a 600 min hold).
 TEST(ExtremeContact, HoldsOfHoursRelaxTheRightWay) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
   ASSERT_EQ(scene.cases.size(), 12u);
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
-    const auto &f = c.model.law.friction;
+    const auto& f = c.model.law.friction;
     std::vector<size_t> hold;
     for (size_t i = 0; i < t.states.size(); ++i)
-      if (t.segment[i] == 1)
-        hold.push_back(i);
+      if (t.segment[i] == 1) hold.push_back(i);
     ASSERT_EQ(hold.size(), static_cast<size_t>(c.segments[1].increments));
-    const ct::ContactState &before = t.states[hold.front() - 1];
+    const ct::ContactState& before = t.states[hold.front() - 1];
     for (size_t i : hold) {
       const ct::ContactState &s = t.states[i], &p = t.states[i - 1];
-      EXPECT_LE(s.traction_t.norm(), p.traction_t.norm() * (1.0 + 4 * kEps))
-          << i;
+      EXPECT_LE(s.traction_t.norm(), p.traction_t.norm() * (1.0 + 4 * kEps)) << i;
       EXPECT_GT(s.traction_t.x(), 0.0) << i;
       EXPECT_GE(s.vp_slip, p.vp_slip) << i;
       EXPECT_EQ(s.slip, before.slip) << i;
@@ -538,10 +487,12 @@ TEST(ExtremeContact, HoldsOfHoursRelaxTheRightWay) {
         EXPECT_LE(s.law.mu, p.law.mu) << i;
       }
     }
-    const ct::ContactState &end = t.states[hold.back()];
+    const ct::ContactState& end = t.states[hold.back()];
     EXPECT_LT(end.r - end.law.r_s, before.r - before.law.r_s);
     EXPECT_LT(end.traction_t.norm(), before.traction_t.norm());
-    if (f.xi > 0.0 && c.segments[1].duration >= 600.0) {
+    // (In ONE increment the relaxation slip is spread over the whole hold at a constant rate,
+    // which the exact mu update balances against recovery: mu ends ~1e-9 below mu_s.)
+    if (f.xi > 0.0 && c.segments[1].duration >= 600.0 && c.segments[1].increments > 1) {
       EXPECT_NEAR(end.law.mu, f.mu_s, 1e-12 * f.mu_s);
     }
     // The re-slide after a hold with recovery peaks above the ratio the hold
@@ -549,8 +500,7 @@ TEST(ExtremeContact, HoldsOfHoursRelaxTheRightWay) {
     if (f.xi > 0.0) {
       double repeak = 0.0;
       for (size_t i = 0; i < t.states.size(); ++i)
-        if (t.segment[i] == 2)
-          repeak = std::max(repeak, t.states[i].traction_ratio());
+        if (t.segment[i] == 2) repeak = std::max(repeak, t.states[i].traction_ratio());
       EXPECT_GT(repeak, before.traction_ratio());
     }
   }
@@ -559,26 +509,34 @@ TEST(ExtremeContact, HoldsOfHoursRelaxTheRightWay) {
 // kappa = xi = 0: nothing drives mu, which stays exactly at its initial value
 // mu_s through slides, a hold, a reversal and a turn. mu_s = mu_k: the exact
 // update's drive (kappa s + xi dt)(1 - mu/mu_s) vanishes at mu = mu_s, so mu
-// stays exactly mu_s too. The rate-independent model never passes the
+// stays at mu_s to rounding. The rate-independent model never passes the
 // normal-yield surface: r <= 1 (to the residual tolerance) and r_s <= 1.
 TEST(ExtremeContact, LawEdgesKeepTheirInvariants) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_law_edges.yaml");
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_law_edges.yaml");
   ASSERT_EQ(scene.cases.size(), 72u);
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
-    const auto &f = c.model.law.friction;
-    const bool frozen = (f.kappa == 0.0 && f.xi == 0.0) || f.mu_s == f.mu_k;
-    const bool ri =
-        c.model.law.overstress.form == law::OverstressForm::rate_independent;
-    for (const auto &s : t.states) {
-      if (frozen) {
+    const auto& f = c.model.law.friction;
+    const bool ri = c.model.law.overstress.form == law::OverstressForm::rate_independent;
+    // r = r_s <= 1 to the resolution of r in the longest increment (r - r_s is the residual).
+    double du_max = 0.0;
+    for (const auto& seg : c.segments)
+      du_max = std::max(du_max,
+                        seg.velocity.norm() *
+                            cr::increment_lengths(seg.duration, seg.increments, seg.growth).back());
+    const double r_resolution = ratio_resolution(c, du_max, std::min(f.mu_s, f.mu_k));
+    for (const auto& s : t.states) {
+      if (f.kappa == 0.0 && f.xi == 0.0) {
         ASSERT_EQ(s.law.mu, f.mu_s) << "t=" << s.time;
+      } else if (f.mu_s == f.mu_k) {
+        // The drive vanishes at mu_s up to the rounding of A - B mu_s: a few ulps per step,
+        // which the contracting update does not amplify.
+        ASSERT_NEAR(s.law.mu, f.mu_s, 8 * kEps * f.mu_s * static_cast<double>(t.states.size()))
+            << "t=" << s.time;
       }
       if (ri) {
-        ASSERT_LE(s.r, 1.0 + 2.0 * c.integrator.residual_tolerance)
-            << "t=" << s.time;
+        ASSERT_LE(s.r, 1.0 + r_resolution) << "t=" << s.time;
         ASSERT_LE(s.law.r_s, 1.0);
       }
     }
@@ -589,22 +547,20 @@ TEST(ExtremeContact, LawEdgesKeepTheirInvariants) {
 // whatever the law's parameters (contact_parser_edges.yaml ramps f_n to -1 MPa
 // while sliding, then closes again).
 TEST(ExtremeContact, OpenContactTransmitsNoTraction) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_parser_edges.yaml");
-  for (const auto &c : scene.cases) {
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_parser_edges.yaml");
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const ContactTrace t = run_contact(c);
     int open = 0;
-    for (const auto &s : t.states) {
-      if (s.traction_n > 0.0)
-        continue;
+    for (const auto& s : t.states) {
+      if (s.traction_n > 0.0) continue;
       ++open;
       EXPECT_EQ(s.traction_t.norm(), 0.0);
       EXPECT_EQ(s.r, 0.0);
       EXPECT_EQ(s.law.r_s, 0.0);
     }
     EXPECT_GT(open, 0);
-    EXPECT_GT(t.states.back().traction_n, 0.0); // closed again at the end
+    EXPECT_GT(t.states.back().traction_n, 0.0);  // closed again at the end
     EXPECT_GT(t.states.back().traction_ratio(), 0.0);
   }
 }
@@ -623,48 +579,43 @@ TEST(ExtremeContact, OpenContactTransmitsNoTraction) {
 // tau0)).
 TEST(ExtremeCrystal, SingleSlipShearEndsAtTheAnalyticalSteadyState) {
   const SingleThread one;
-  const auto scene = io::load_crystal_scene(
-      kExtremeDir / "crystal_single_slip_stiffness.yaml");
+  const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_single_slip_stiffness.yaml");
   ASSERT_EQ(scene.cases.size(), 64u);
-  std::set<std::pair<double, double>>
-      done; // (tau0, forward rate): the reverse rate is irrelevant
+  std::set<std::pair<double, double>> done;  // (tau0, forward rate): the reverse rate is irrelevant
   double worst = 0.0;
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     const double tau0 = c.phase.custom_settings.tau0;
     const double rate = c.segments[0].velocity_gradient(0, 1);
-    if (!done.insert({tau0, rate}).second)
-      continue;
+    if (!done.insert({tau0, rate}).second) continue;
     SCOPED_TRACE(c.name);
     auto forward = c;
     forward.segments.resize(1);
     const CrystalTrace t = run_crystal(forward);
-    const Snapshot &end = t.snaps.back();
-    const auto &lw = c.phase.custom_settings.law;
+    const Snapshot& end = t.snaps.back();
+    const auto& lw = c.phase.custom_settings.law;
     const auto ss = law::SubloadingFrictionLaw(lw).steady_state(rate);
-    const double G = c.phase.stiffness(5, 5) / 2.0; // Mandel C_66 = 2 G
-    const double dgamma =
-        rate * forward.segments[0].duration / forward.segments[0].increments;
+    const double G = c.phase.stiffness(5, 5) / 2.0;  // Mandel C_66 = 2 G
+    const double dgamma = rate * forward.segments[0].duration / forward.segments[0].increments;
     const double tol_r = 2e-12 + 12 * kEps * G * dgamma / (ss.mu * tau0);
     EXPECT_EQ(end.r_s[0], 1.0);
     EXPECT_NEAR(end.crss[0] / tau0, ss.mu, 1e-13 * ss.mu);
     EXPECT_NEAR(end.macro.stress(0, 1) / (ss.mu * tau0), ss.r, tol_r);
     EXPECT_NEAR(end.rate[0], rate, 1e-9 * rate);
-    worst = std::max(worst,
-                     std::abs(end.macro.stress(0, 1) / (ss.mu * tau0) - ss.r) /
-                         tol_r);
+    worst = std::max(worst, std::abs(end.macro.stress(0, 1) / (ss.mu * tau0) - ss.r) / tol_r);
   }
   EXPECT_EQ(done.size(), 16u);
-  measured() << "single slip steady state: worst |r - r_ss| / resolution "
-             << worst << "\n";
+  measured() << "single slip steady state: worst |r - r_ss| / resolution " << worst << "\n";
 }
 
 namespace {
 
 // Cubic compliance S = C^-1 (Mandel); under uniaxial stress along a cube axis
 // sigma_33 = (eps_33 - eps_p,33) / S_33.
-double cube_axis_compliance(const cr::Mat6 &c) { return c.inverse()(2, 2); }
+double cube_axis_compliance(const cr::Mat6& c) {
+  return c.inverse()(2, 2);
+}
 
-} // namespace
+}  // namespace
 
 // A copper crystal pulled along [001] with the lateral stresses free: the eight
 // {111}<110> systems with Schmid factor 1/sqrt(6) slip alike, and with no
@@ -686,90 +637,92 @@ double cube_axis_compliance(const cr::Mat6 &c) { return c.inverse()(2, 2); }
 // (L_33 = 0, lateral stresses free) |sigma_33| only relaxes.
 TEST(ExtremeCrystal, FccSchmidSaturationElasticSlopeAndRelaxation) {
   const SingleThread one;
-  const auto scene =
-      io::load_crystal_scene(kExtremeDir / "crystal_fcc_schmid_stiff.yaml");
+  const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_fcc_schmid_stiff.yaml");
   ASSERT_EQ(scene.cases.size(), 18u);
   const auto systems = cr::slip_systems(cr::SlipFamily::fcc_111_110);
   std::vector<cr::Vec6> schmid;
-  for (const auto &sys : systems)
-    schmid.push_back(cr::mandel_from_symmetric(
-        0.5 * (sys.s * sys.m.transpose() + sys.m * sys.s.transpose())));
+  for (const auto& sys : systems)
+    schmid.push_back(
+        cr::mandel_from_symmetric(0.5 * (sys.s * sys.m.transpose() + sys.m * sys.s.transpose())));
   double worst_saturation = 0.0, worst_identity = 0.0;
   int elastic_outputs = 0;
-  for (const auto &c : scene.cases) {
+  for (const auto& c : scene.cases) {
     SCOPED_TRACE(c.name);
     const CrystalTrace t = run_crystal(c);
-    const auto &settings = c.phase.family_settings[0];
+    const auto& settings = c.phase.family_settings[0];
     const law::SubloadingFrictionLaw lw(settings.law);
     const double mu = settings.law.friction.mu_s, tau0 = settings.tau0;
     const double rate = c.segments[0].velocity_gradient(2, 2);
     const double s33 = cube_axis_compliance(c.phase.stiffness);
     const double c_max = c.phase.stiffness.cwiseAbs().maxCoeff();
     // Saturation at the end of the tension.
-    const Snapshot &top = end_of_segment(t, 0);
-    const double predicted = std::sqrt(6.0) * mu * tau0 *
-                             lw.steady_state(std::sqrt(6.0) * rate / 8.0).r;
+    const Snapshot& top = end_of_segment(t, 0);
+    const double predicted =
+        std::sqrt(6.0) * mu * tau0 * lw.steady_state(std::sqrt(6.0) * rate / 8.0).r;
     const double rel = top.macro.stress(2, 2) / predicted - 1.0;
     EXPECT_LT(std::abs(rel), 2e-7);
     worst_saturation = std::max(worst_saturation, std::abs(rel));
+    // The eight slip in the direction of their Schmid factor and share the plastic slip. How
+    // they share it is set by resolved-stress differences within the mixed-control tolerance
+    // (1e-8), strongly amplified near rate independence, so only to 10 %: a system that does
+    // not slip, or slips the wrong way, is an O(1) difference.
+    double mean = 0.0;
+    for (int a = 0; a < 12; ++a)
+      if (std::abs(schmid[static_cast<size_t>(a)](2)) > 0.1)
+        mean += std::abs(top.slip[static_cast<size_t>(a)]) / 8.0;
     for (int a = 0; a < 12; ++a) {
-      if (std::abs(schmid[static_cast<size_t>(a)](2)) < 0.1)
-        continue; // the four with m = 0
-      EXPECT_NEAR(std::abs(top.slip[static_cast<size_t>(a)]),
-                  std::abs(top.slip[0]), 1e-6 * std::abs(top.slip[0]))
-          << "system " << a;
+      const double m = schmid[static_cast<size_t>(a)](2), slip = top.slip[static_cast<size_t>(a)];
+      if (std::abs(m) < 0.1) continue;  // the four with m = 0
+      EXPECT_GT(slip * m, 0.0) << "system " << a;
+      EXPECT_NEAR(std::abs(slip), mean, 0.1 * mean) << "system " << a;
     }
     // The small-strain identity at every output, and the elastic slope before
     // yield.
-    const double n_steps = static_cast<double>(t.stats.substeps);
-    for (const auto &s : t.snaps) {
+    double n_steps = 0.0;
+    for (const auto& seg : c.segments) n_steps += seg.increments;
+    double sigma_max = 0.0, strain_max = 0.0;
+    for (const auto& s : t.snaps) {
       cr::Vec6 plastic = cr::Vec6::Zero();
       for (int a = 0; a < 12; ++a)
-        plastic +=
-            s.slip[static_cast<size_t>(a)] * schmid[static_cast<size_t>(a)];
-      const cr::Vec6 elastic =
-          cr::mandel_from_symmetric(s.macro.strain) - plastic;
+        plastic += s.slip[static_cast<size_t>(a)] * schmid[static_cast<size_t>(a)];
+      const cr::Vec6 elastic = cr::mandel_from_symmetric(s.macro.strain) - plastic;
       const cr::Vec6 sigma = cr::mandel_from_symmetric(s.macro.stress);
-      const double tol = 64 * n_steps * kEps * c_max *
-                         (std::abs(s.macro.strain(2, 2)) + 1e-300);
-      const double err =
-          (sigma - c.phase.stiffness * elastic).cwiseAbs().maxCoeff();
+      // Accumulated rounding of the stress, strain and slip sums: a few eps per step of the
+      // largest stress and of C times the largest strain or plastic strain seen so far.
+      sigma_max = std::max(sigma_max, s.macro.stress.cwiseAbs().maxCoeff());
+      strain_max = std::max(
+          {strain_max, s.macro.strain.cwiseAbs().maxCoeff(), plastic.cwiseAbs().maxCoeff()});
+      const double tol = 64 * n_steps * kEps * (sigma_max + c_max * strain_max + 1e-300);
+      const double err = (sigma - c.phase.stiffness * elastic).cwiseAbs().maxCoeff();
       EXPECT_LE(err, tol) << "t=" << s.macro.time;
       worst_identity = std::max(worst_identity, err / tol);
-      if (s.macro.segment != 0 || s.macro.time == 0.0)
-        continue;
+      if (s.macro.segment != 0 || s.macro.time == 0.0) continue;
       double r_max = 0.0, bound = 0.0;
       for (int a = 0; a < 12; ++a) {
         const double r = s.ratio[static_cast<size_t>(a)];
         r_max = std::max(r_max, r);
-        bound += std::abs(schmid[static_cast<size_t>(a)](2)) *
-                 lw.subloading_slip_integral(r);
+        bound += std::abs(schmid[static_cast<size_t>(a)](2)) * lw.subloading_slip_integral(r);
       }
-      if (r_max > 0.5)
-        continue;
+      if (r_max > 0.5) continue;
       ++elastic_outputs;
       const double eps33 = s.macro.strain(2, 2);
-      EXPECT_LE(std::abs(s.macro.stress(2, 2) * s33 - eps33),
-                bound + 1e-8 * eps33)
+      EXPECT_LE(std::abs(s.macro.stress(2, 2) * s33 - eps33), bound + 1e-8 * eps33)
           << "t=" << s.macro.time;
     }
     // Relaxation during the hold.
-    const Snapshot *previous = &end_of_segment(t, 1);
+    const Snapshot* previous = &end_of_segment(t, 1);
     const double sign = previous->macro.stress(2, 2) > 0.0 ? 1.0 : -1.0;
-    for (const auto &s : t.snaps) {
-      if (s.macro.segment != 2)
-        continue;
+    for (const auto& s : t.snaps) {
+      if (s.macro.segment != 2) continue;
       const double scale = std::abs(previous->macro.stress(2, 2));
-      EXPECT_LE(sign * s.macro.stress(2, 2), scale * (1.0 + 1e-7))
-          << "t=" << s.macro.time;
+      EXPECT_LE(sign * s.macro.stress(2, 2), scale * (1.0 + 1e-7)) << "t=" << s.macro.time;
       EXPECT_GT(sign * s.macro.stress(2, 2), 0.0) << "t=" << s.macro.time;
       previous = &s;
     }
   }
   EXPECT_GT(elastic_outputs, 100);
-  measured() << "Cu [001]: worst |sigma_sat / predicted - 1| "
-             << worst_saturation << ", worst identity error / bound "
-             << worst_identity << ", " << elastic_outputs
+  measured() << "Cu [001]: worst |sigma_sat / predicted - 1| " << worst_saturation
+             << ", worst identity error / bound " << worst_identity << ", " << elastic_outputs
              << " pre-yield outputs checked\n";
 }
 
@@ -784,16 +737,15 @@ namespace {
 // residual, ratio units), idle ones have r <= r_s (3.12); returns the largest
 // violation.
 template <int N>
-double flow_rule_violation(const cr::Phase<N> &ph, const cr::GrainState<N> &s0,
-                           const cr::GrainState<N> &s1, double dt) {
+double flow_rule_violation(const cr::Phase<N>& ph, const cr::GrainState<N>& s0,
+                           const cr::GrainState<N>& s1, double dt) {
   const auto r = cr::loading_ratio(ph, s1);
   double worst = 0.0;
   for (int a = 0; a < ph.slip_count; ++a) {
     const double slip = std::abs(s1.slip(a) - s0.slip(a));
-    const auto &lw = ph.laws[static_cast<size_t>(a)];
-    const double g = slip > 0.0
-                         ? lw.flow_residual(r(a), s1.r_s(a), slip, dt).value
-                         : std::max(0.0, r(a) - s1.r_s(a));
+    const auto& lw = ph.laws[static_cast<size_t>(a)];
+    const double g = slip > 0.0 ? lw.flow_residual(r(a), s1.r_s(a), slip, dt).value
+                                : std::max(0.0, r(a) - s1.r_s(a));
     worst = std::max(worst, std::abs(g));
   }
   return worst;
@@ -807,7 +759,7 @@ law::LawParameters hardening_law(law::OverstressForm form) {
   return p;
 }
 
-} // namespace
+}  // namespace
 
 // Regression. An FCC grain of crystal_cubic_families.yaml (G/tau0 = 1e5) in
 // mixed-control tension, dumped at the step the grain Newton could not finish
@@ -821,42 +773,36 @@ law::LawParameters hardening_law(law::OverstressForm form) {
 TEST(ExtremeKernel, StiffFccGrainConvergesWithASystemHeldAtZero) {
   cr::Phase<12> ph;
   std::vector<cr::Vec3> s, m;
-  for (const auto &sys : cr::slip_systems(cr::SlipFamily::fcc_111_110)) {
+  for (const auto& sys : cr::slip_systems(cr::SlipFamily::fcc_111_110)) {
     s.push_back(sys.s);
     m.push_back(sys.m);
   }
   ph.kinematics = cr::Kinematics::finite_rotation;
   ph.tau0 = cr::SlipTypes<12>::VecN::Constant(0.7692);
-  ph.laws.assign(12, law::SubloadingFrictionLaw(
-                         hardening_law(law::OverstressForm::exponential)));
+  ph.laws.assign(12, law::SubloadingFrictionLaw(hardening_law(law::OverstressForm::exponential)));
   ph.assemble(s, m, cr::isotropic_from_E_nu(200000.0, 0.3));
   cr::Mat3 L = cr::Mat3::Zero(), g;
-  L(0, 0) = -0.00065650810867669783, L(1, 1) = -0.0003434502213443662,
-       L(2, 2) = 0.001;
-  g << -0.28617562747823172, -0.81728280673195608, 0.50015230086222406,
-      0.83514341746472631, -0.46864145306754357, -0.28794211350908672,
-      0.46972223973618582, 0.33529688678405267, 0.81666211814320422;
+  L(0, 0) = -0.00065650810867669783, L(1, 1) = -0.0003434502213443662, L(2, 2) = 0.001;
+  g << -0.28617562747823172, -0.81728280673195608, 0.50015230086222406, 0.83514341746472631,
+      -0.46864145306754357, -0.28794211350908672, 0.46972223973618582, 0.33529688678405267,
+      0.81666211814320422;
   cr::GrainState<12> s0;
   s0.reset(12, g, cr::SlipTypes<12>::VecN::Ones(12));
-  s0.stress << 0.65548502111457196, 0.63423218047617524, 1.2146320642172697,
-      -1.1290344223390605, 1.8154815550824139, -0.24331597389109305;
-  s0.mu << 1.000051489618907, 1.1185781976423645, 1.0898236764117557,
-      1.024043950123805, 1.0994856707836882, 1.0022770163868069,
-      1.0021105231592078, 1.0122635659984254, 1.0334205593541745,
-      1.0017131805505246, 1.0018148887360727, 1.0072360254832176;
-  s0.r_s << 0.035637878815791307, 0.99799467652175544, 0.9916240656626284,
-      0.79273648651095119, 0.99480646832017428, 0.28133787375353103,
-      0.26833208543917003, 0.62154523189541355, 0.86902276800343803,
-      0.24591746987681781, 0.21787370836771161, 0.4612701333704462;
-  s0.rate << 2.2385667790778021e-08, 0.0010318835458273407,
-      -0.00075511879619210979, -0.00012728262591496725, -0.00089477587558769328,
-      0, 0, -9.1346132307198471e-05, 0.0002126660023186189, 0, 0, 0;
-  const double dt = 10.0 / 1048576.0; // the increment of 10 s after 20 halvings
+  s0.stress << 0.65548502111457196, 0.63423218047617524, 1.2146320642172697, -1.1290344223390605,
+      1.8154815550824139, -0.24331597389109305;
+  s0.mu << 1.000051489618907, 1.1185781976423645, 1.0898236764117557, 1.024043950123805,
+      1.0994856707836882, 1.0022770163868069, 1.0021105231592078, 1.0122635659984254,
+      1.0334205593541745, 1.0017131805505246, 1.0018148887360727, 1.0072360254832176;
+  s0.r_s << 0.035637878815791307, 0.99799467652175544, 0.9916240656626284, 0.79273648651095119,
+      0.99480646832017428, 0.28133787375353103, 0.26833208543917003, 0.62154523189541355,
+      0.86902276800343803, 0.24591746987681781, 0.21787370836771161, 0.4612701333704462;
+  s0.rate << 2.2385667790778021e-08, 0.0010318835458273407, -0.00075511879619210979,
+      -0.00012728262591496725, -0.00089477587558769328, 0, 0, -9.1346132307198471e-05,
+      0.0002126660023186189, 0, 0, 0;
+  const double dt = 10.0 / 1048576.0;  // the increment of 10 s after 20 halvings
   cr::GrainState<12> s1 = s0;
-  const auto rep = cr::implicit_grain_step(ph, s0, L, dt,
-                                           cr::GrainStepOptions{}, s1, nullptr);
-  ASSERT_TRUE(rep.ok) << rep.why << " (system " << rep.system << ", "
-                      << rep.iterations << ")";
+  const auto rep = cr::implicit_grain_step(ph, s0, L, dt, cr::GrainStepOptions{}, s1, nullptr);
+  ASSERT_TRUE(rep.ok) << rep.why << " (system " << rep.system << ", " << rep.iterations << ")";
   // Converged: every flow rule to 1e-11 (the tolerance 1e-12 plus the rounding
   // of r at stresses ~1 MPa and slips ~1e-8).
   EXPECT_LT(flow_rule_violation(ph, s0, s1, dt), 1e-11);
@@ -873,23 +819,19 @@ TEST(ExtremeKernel, PowerFormSystemStartsFromZeroSlip) {
   cr::Phase<1> ph;
   ph.kinematics = cr::Kinematics::small_strain;
   ph.tau0 = cr::SlipTypes<1>::VecN::Constant(10.0);
-  ph.laws.assign(
-      1, law::SubloadingFrictionLaw(hardening_law(law::OverstressForm::power)));
-  ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()},
-              cr::isotropic_from_G_nu(1e4, 0.3));
+  ph.laws.assign(1, law::SubloadingFrictionLaw(hardening_law(law::OverstressForm::power)));
+  ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()}, cr::isotropic_from_G_nu(1e4, 0.3));
   for (double r_s : {1e-8, 0.3, 0.9}) {
     SCOPED_TRACE("r_s = " + std::to_string(r_s));
     cr::GrainState<1> s0;
     s0.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
     s0.r_s(0) = r_s;
-    s0.stress(5) = std::sqrt(2.0) * 10.0 *
-                   (r_s + 0.2); // Mandel sqrt2 sigma_12: r = r_s + 0.2
+    s0.stress(5) = std::sqrt(2.0) * 10.0 * (r_s + 0.2);  // Mandel sqrt2 sigma_12: r = r_s + 0.2
     cr::Mat3 L = cr::Mat3::Zero();
     L(0, 1) = 1e-3;
     const double dt = 1e-3;
     cr::GrainState<1> s1 = s0;
-    const auto rep = cr::implicit_grain_step(
-        ph, s0, L, dt, cr::GrainStepOptions{}, s1, nullptr);
+    const auto rep = cr::implicit_grain_step(ph, s0, L, dt, cr::GrainStepOptions{}, s1, nullptr);
     ASSERT_TRUE(rep.ok) << rep.why << " after " << rep.iterations;
     EXPECT_GT(std::abs(s1.slip(0)), 0.0);
     EXPECT_LT(flow_rule_violation(ph, s0, s1, dt), 1e-11);
@@ -915,27 +857,24 @@ namespace {
 
 // Whether 400 forward Euler steps of dt from `steady` (perturbed by 1e-6) damp
 // the perturbation.
-bool contact_fe_stable(const law::SubloadingFrictionLaw &lw,
-                       const ct::ContactStiffness &c,
-                       const ct::ContactState &steady, double v, double dt) {
+bool contact_fe_stable(const law::SubloadingFrictionLaw& lw, const ct::ContactStiffness& c,
+                       const ct::ContactState& steady, double v, double dt) {
   ct::ContactState s = steady;
   s.traction_t *= 1.0 + 1e-6;
   s.r *= 1.0 + 1e-6;
   const double d0 = std::abs(s.r - steady.r);
   for (int i = 0; i < 400; ++i) {
-    const auto a = ct::forward_euler_step(lw, c, s, ct::Vec2(v * dt, 0.0),
-                                          s.traction_n, dt);
-    if (!a.ok)
-      return false;
+    const auto a = ct::forward_euler_step(lw, c, s, ct::Vec2(v * dt, 0.0), s.traction_n, dt);
+    if (!a.ok) return false;
     s = a.state;
   }
   return std::abs(s.r - steady.r) < d0;
 }
 
-} // namespace
+}  // namespace
 
 TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
-  law::LawParameters p; // the paper's section 5 fit
+  law::LawParameters p;  // the paper's section 5 fit
   p.friction = {0.097, 0.085, 0.2, 0.009};
   p.subloading = {law::SubloadingFunction::cot, 80.0};
   p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
@@ -950,7 +889,7 @@ TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
     c.model.initial_normal_traction = fn;
     ct::Segment seg;
     seg.velocity = ct::Vec2(v, 0.0);
-    seg.duration = 30.0; // 30 mm: mu and r_s at their attractors
+    seg.duration = 30.0;  // 30 mm: mu and r_s at their attractors
     seg.normal_traction = fn;
     seg.increments = 3000;
     seg.growth = 1.004;
@@ -962,28 +901,23 @@ TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
     // The closed form at steady sliding, exponential form: phi_r = n/(eta_v
     // (r_hat - r)) + n v + v/(r_hat - r) (differentiate (e^{n x} - 1)/(eta_v
     // (r_hat - r)) and use phi = v).
-    const auto &o = p.overstress;
+    const auto& o = p.overstress;
     const double gap = o.r_hat - ss.r;
-    EXPECT_NEAR(lambda,
-                alpha * (o.n / (o.eta_v * gap) + o.n * v + v / gap) /
-                    (fn * ss.mu),
+    EXPECT_NEAR(lambda, alpha * (o.n / (o.eta_v * gap) + o.n * v + v / gap) / (fn * ss.mu),
                 1e-10 * lambda);
     const double dt_crit = 2.0 / lambda;
-    EXPECT_TRUE(
-        contact_fe_stable(lw, c.model.stiffness, steady, v, 0.9 * dt_crit));
-    EXPECT_FALSE(
-        contact_fe_stable(lw, c.model.stiffness, steady, v, 1.1 * dt_crit));
+    EXPECT_TRUE(contact_fe_stable(lw, c.model.stiffness, steady, v, 0.9 * dt_crit));
+    EXPECT_FALSE(contact_fe_stable(lw, c.model.stiffness, steady, v, 1.1 * dt_crit));
     measured() << "forward Euler, contact alpha=" << alpha
-               << " MPa/mm: dt_crit = 2/lambda = " << dt_crit << " min (slip "
-               << v * dt_crit << " mm)\n";
+               << " MPa/mm: dt_crit = 2/lambda = " << dt_crit << " min (slip " << v * dt_crit
+               << " mm)\n";
   }
 }
 
 TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
   const double tau0 = 1.0, rate = 1.0;
   law::LawParameters p;
-  p.friction = {1.0, 2.0, 0.0,
-                0.0}; // no hardening: the implicit run reaches the steady state
+  p.friction = {1.0, 2.0, 0.0, 0.0};  // no hardening: the implicit run reaches the steady state
   p.subloading = {law::SubloadingFunction::cot, 200.0};
   p.overstress = {law::OverstressForm::exponential, 1e-3, 16.0, 1.6};
   const law::SubloadingFrictionLaw lw(p);
@@ -998,29 +932,26 @@ TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
     cr::Mat3 L = cr::Mat3::Zero();
     L(0, 1) = rate;
     cr::GrainState<1> steady;
-    steady.reset(1, cr::Mat3::Identity(),
-                 cr::SlipTypes<1>::VecN::Constant(1.0));
-    for (int i = 0; i < 1000; ++i) { // slip 1 in steps of 1e-3: r_s = 1
+    steady.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
+    for (int i = 0; i < 1000; ++i) {  // slip 1 in steps of 1e-3: r_s = 1
       cr::GrainState<1> next = steady;
-      ASSERT_TRUE(
-          cr::implicit_grain_step(ph, steady, L, 1e-3, {}, next, nullptr).ok);
+      ASSERT_TRUE(cr::implicit_grain_step(ph, steady, L, 1e-3, {}, next, nullptr).ok);
       steady = next;
     }
-    const auto ss = lw.steady_state(rate);
+    // Nothing drives mu (kappa = xi = 0): it stays at mu_s, and law::steady_state's mu is 0/0.
+    ASSERT_EQ(steady.mu(0), p.friction.mu_s);
     const double r = cr::loading_ratio(ph, steady)(0);
-    ASSERT_NEAR(r, ss.r, 1e-9);
-    const double lambda =
-        ph.interaction(0, 0) * lw.slip_rate_slope(ss.r, 1.0) / (ss.mu * tau0);
+    ASSERT_NEAR(r, lw.steady_state(rate).r, 1e-9);
+    const double lambda = ph.interaction(0, 0) * lw.slip_rate_slope(r, 1.0) / (steady.mu(0) * tau0);
     EXPECT_NEAR(ph.interaction(0, 0), g_over_tau0 * tau0,
-                1e-9 * g_over_tau0); // A = G
+                1e-9 * g_over_tau0);  // A = G
     auto stable = [&](double dt) {
       cr::GrainState<1> x = steady;
       x.stress *= 1.0 + 1e-6;
       const double d0 = std::abs(cr::loading_ratio(ph, x)(0) - r);
       for (int i = 0; i < 400; ++i) {
         cr::GrainState<1> next = x;
-        if (!cr::explicit_grain_step(ph, x, L, dt, next, nullptr).ok)
-          return false;
+        if (!cr::explicit_grain_step(ph, x, L, dt, next, nullptr).ok) return false;
         x = next;
       }
       return std::abs(cr::loading_ratio(ph, x)(0) - r) < d0;
@@ -1028,8 +959,8 @@ TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
     EXPECT_TRUE(stable(0.9 * 2.0 / lambda));
     EXPECT_FALSE(stable(1.1 * 2.0 / lambda));
     measured() << "forward Euler, single slip G/tau0=" << g_over_tau0
-               << ": dt_crit = 2/lambda = " << 2.0 / lambda
-               << " s (strain step " << rate * 2.0 / lambda << ")\n";
+               << ": dt_crit = 2/lambda = " << 2.0 / lambda << " s (strain step "
+               << rate * 2.0 / lambda << ")\n";
   }
 }
 
@@ -1045,34 +976,49 @@ TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
 // with the slip at the underflow limit (the exact slip is not representable,
 // and zero is the closest double).
 TEST(ExtremeContact, PowerFormN128SatisfiesTheFlowRuleInEveryIncrement) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
-  for (const char *name : {"form=power,alpha_t=1.0e7,n=128,increments=1000",
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
+  for (const char* name : {"form=power,alpha_t=1.0e7,n=128,increments=1000",
                            "form=power,alpha_t=1.0e8,n=128,increments=1000"}) {
     SCOPED_TRACE(name);
-    const auto &c = case_named(scene, name);
+    const auto& c = case_named(scene, name);
     const law::SubloadingFrictionLaw lw(c.model.law);
     for (int k : {1, 32}) {
       const ContactTrace t = run_contact(c, k);
-      auto fine = c.segments; // one output per increment of the split run
+      auto fine = c.segments;  // one output per increment of the split run
       fine[0].increments *= k;
       fine[0].growth = std::pow(fine[0].growth, 1.0 / k);
       ContactTrace all;
-      ct::run_history(c.model, fine, c.integrator,
-                      [&](const ct::ContactState &s, int seg) {
-                        all.states.push_back(s);
-                        all.segment.push_back(seg);
-                      });
+      ct::run_history(c.model, fine, c.integrator, [&](const ct::ContactState& s, int seg) {
+        all.states.push_back(s);
+        all.segment.push_back(seg);
+      });
       for (size_t i = 1; i < all.states.size(); ++i) {
         const auto &s0 = all.states[i - 1], &s1 = all.states[i];
         const double ds = s1.vp_slip - s0.vp_slip, dt = s1.time - s0.time;
-        const double g = lw.flow_residual(s1.r, s1.law.r_s, ds, dt).value;
+        const auto fr = lw.flow_residual(s1.r, s1.law.r_s, ds, dt);
+        const double g = fr.value;
+        // The solver iterates in z = ds^(1/n): z is resolved to 4 eps, ds to 4 n eps, r to
+        // alpha 4 n eps ds / (f_n mu), and G to dG/dr times that; the bracket-collapse exit leaves
+        // a few times more (8x).
+        const double resolution =
+            8.0 * (c.integrator.residual_tolerance + fr.d_r * c.model.stiffness.alpha_t * 4.0 *
+                                                         lw.slip_exponent() * kEps * ds /
+                                                         (s1.traction_n * s1.law.mu));
+        // G > 0 is a step that stopped short of the root (the bug: +0.5); the bracketed
+        // solver only does that within its tolerance or resolution. G < 0 is the bracket end on the
+        // far side of a root that double precision cannot place (near r_hat, or a slip below
+        // 1e-300).
         const bool underflow = ds < 1e-300 && g < 0.0;
-        ASSERT_TRUE(std::abs(g) <= 1e-9 || underflow)
-            << "split " << k << ", increment " << i << ": G = " << g
-            << ", slip " << ds << ", r = " << s1.r;
+        ASSERT_LE(g, resolution) << "split " << k << ", increment " << i << ", slip " << ds
+                                 << ", r = " << s1.r;
+        ASSERT_TRUE(-g <= 2.0 * resolution || underflow)
+            << "split " << k << ", increment " << i << ": G = " << g << " (resolution "
+            << resolution << ", dG/dr " << fr.d_r << "), slip " << ds << ", r = " << s1.r;
       }
-      EXPECT_LT(t.states.back().r, 1.7); // it slides: r near r_ss, not at r_hat
+      // It slides: the viscoplastic rate carries the imposed speed (the bug left it at 1e-308,
+      // elastic). (Its steady r is within an ulp of r_hat: 0.8^128 = 950 (1.8 - r) gives
+      // r_hat - r ~ 4e-16.)
+      EXPECT_GT(t.states.back().vp_rate, 0.5 * c.segments[0].velocity.norm());
     }
   }
 }
@@ -1086,33 +1032,28 @@ TEST(ExtremeContact, PowerFormN128SatisfiesTheFlowRuleInEveryIncrement) {
 
 namespace {
 
-double observed_order(double e1, double e4) { return std::log2(e1 / e4) / 2.0; }
+double observed_order(double e1, double e4) {
+  return std::log2(e1 / e4) / 2.0;
+}
 
-double contact_error(const ContactTrace &t, const ContactTrace &ref,
-                     double scale) {
+double contact_error(const ContactTrace& t, const ContactTrace& ref, double scale) {
   EXPECT_EQ(t.states.size(), ref.states.size());
   double worst = 0.0;
   for (size_t i = 0; i < std::min(t.states.size(), ref.states.size()); ++i)
-    worst = std::max(
-        worst,
-        (t.states[i].traction_t - ref.states[i].traction_t).norm() / scale);
+    worst = std::max(worst, (t.states[i].traction_t - ref.states[i].traction_t).norm() / scale);
   return worst;
 }
 
-double crystal_error(const CrystalTrace &t, const CrystalTrace &ref,
-                     double scale) {
+double crystal_error(const CrystalTrace& t, const CrystalTrace& ref, double scale) {
   EXPECT_EQ(t.snaps.size(), ref.snaps.size());
   double worst = 0.0;
   for (size_t i = 0; i < std::min(t.snaps.size(), ref.snaps.size()); ++i)
-    worst =
-        std::max(worst, (t.snaps[i].macro.stress - ref.snaps[i].macro.stress)
-                                .cwiseAbs()
-                                .maxCoeff() /
-                            scale);
+    worst = std::max(
+        worst, (t.snaps[i].macro.stress - ref.snaps[i].macro.stress).cwiseAbs().maxCoeff() / scale);
   return worst;
 }
 
-} // namespace
+}  // namespace
 
 // Every 1000-increment case of the stiffness/exponent file (alpha 1e5..1e8
 // MPa/mm, n 1..128, exponential and power), a 100-hour hold, and 2 m at 1e6
@@ -1121,17 +1062,15 @@ TEST(ExtremeConvergence, ContactErrorsFallAtFirstOrderUnderStepRefinement) {
   std::vector<std::pair<std::string, std::string>> picks = {
       {"contact_hold_hours.yaml", "duration=6000,increments=1,xi=0"},
       {"contact_impact_metres.yaml", "speed=1.0e6,increments=10000"}};
-  const auto stiff =
-      io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
-  for (const auto &c : stiff.cases)
+  const auto stiff = io::load_contact_scene(kExtremeDir / "contact_stiffness_exponent.yaml");
+  for (const auto& c : stiff.cases)
     if (c.segments[0].increments == 1000)
       picks.push_back({"contact_stiffness_exponent.yaml", c.name});
-  for (const auto &[file, name] : picks) {
+  for (const auto& [file, name] : picks) {
     SCOPED_TRACE(file + ": " + name);
     const auto scene = io::load_contact_scene(kExtremeDir / file);
-    const auto &c = case_named(scene, name);
-    const double scale =
-        c.model.initial_normal_traction * c.model.law.friction.mu_s;
+    const auto& c = case_named(scene, name);
+    const double scale = c.model.initial_normal_traction * c.model.law.friction.mu_s;
     const ContactTrace ref = run_contact(c, 32);
     const double e1 = contact_error(run_contact(c, 1), ref, scale);
     const double e2 = contact_error(run_contact(c, 2), ref, scale);
@@ -1151,18 +1090,16 @@ TEST(ExtremeConvergence, ContactErrorsFallAtFirstOrderUnderStepRefinement) {
 // ExtremeFindings below.)
 TEST(ExtremeConvergence, CrystalErrorsFallAtFirstOrderUnderStepRefinement) {
   const SingleThread one;
-  const std::pair<const char *, const char *> picks[] = {
+  const std::pair<const char*, const char*> picks[] = {
       {"crystal_single_slip_stiffness.yaml",
        "tau0=1000,loading[0].L[0][1]=1.0e-2,loading[1].L[0][1]=-1.0e4"},
-      {"crystal_fcc_schmid_stiff.yaml",
-       "tau0=7.54,L[2][2]=1.0e4,increments=1000"}};
-  for (const auto &[file, name] : picks) {
+      {"crystal_fcc_schmid_stiff.yaml", "tau0=7.54,L[2][2]=1.0e4,increments=1000"}};
+  for (const auto& [file, name] : picks) {
     SCOPED_TRACE(std::string(file) + ": " + name);
     const auto scene = io::load_crystal_scene(kExtremeDir / file);
-    const auto &c = case_named(scene, name);
-    const auto &settings = c.phase.custom_systems.empty()
-                               ? c.phase.family_settings[0]
-                               : c.phase.custom_settings;
+    const auto& c = case_named(scene, name);
+    const auto& settings =
+        c.phase.custom_systems.empty() ? c.phase.family_settings[0] : c.phase.custom_settings;
     const double scale = settings.law.friction.mu_s * settings.tau0;
     const CrystalTrace ref = run_crystal(c, 32);
     const double e1 = crystal_error(run_crystal(c, 1), ref, scale);
@@ -1186,31 +1123,28 @@ namespace {
 // interpolated linearly in time (it resolves fast transients, e.g. the
 // relaxation at a hold onset, that a fixed reference step jumps over: the
 // reference is right at its nodes, not in between).
-double adaptive_error(const ContactTrace &run, const ContactTrace &ref,
-                      double scale) {
+double adaptive_error(const ContactTrace& run, const ContactTrace& ref, double scale) {
   double worst = 0.0;
-  for (const auto &r : ref.states) {
-    const auto hi = std::lower_bound(
-        run.states.begin(), run.states.end(), r.time,
-        [](const ct::ContactState &s, double t) { return s.time < t; });
-    const size_t k = std::clamp<size_t>(
-        static_cast<size_t>(hi - run.states.begin()), 1, run.states.size() - 1);
+  for (const auto& r : ref.states) {
+    const auto hi =
+        std::lower_bound(run.states.begin(), run.states.end(), r.time,
+                         [](const ct::ContactState& s, double t) { return s.time < t; });
+    const size_t k =
+        std::clamp<size_t>(static_cast<size_t>(hi - run.states.begin()), 1, run.states.size() - 1);
     const auto &a = run.states[k - 1], &b = run.states[k];
     const double w =
-        b.time > a.time
-            ? std::clamp((r.time - a.time) / (b.time - a.time), 0.0, 1.0)
-            : 1.0;
+        b.time > a.time ? std::clamp((r.time - a.time) / (b.time - a.time), 0.0, 1.0) : 1.0;
     const ct::Vec2 f = (1.0 - w) * a.traction_t + w * b.traction_t;
     worst = std::max(worst, (f - r.traction_t).norm() / scale);
   }
   return worst;
 }
 
-long steps_in_segment(const ContactTrace &t, int segment) {
+long steps_in_segment(const ContactTrace& t, int segment) {
   return std::count(t.segment.begin(), t.segment.end(), segment);
 }
 
-} // namespace
+}  // namespace
 
 // A 100-hour hold given as ONE increment and 2 m at 1e6 mm/min given as ONE
 // increment each way: with a tolerance of 1e-3 the hold takes under 100 steps
@@ -1220,49 +1154,40 @@ long steps_in_segment(const ContactTrace &t, int segment) {
 TEST(ExtremeAdaptive, HoldsOfHoursAndMetreSlidesAtImpactTakeFewSteps) {
   const double tol = 1e-3;
   {
-    const auto scene =
-        io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
-    const auto &c = case_named(scene, "duration=6000,increments=1,xi=0.009");
+    const auto scene = io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
+    const auto& c = case_named(scene, "duration=6000,increments=1,xi=0.009");
     const ContactTrace t = run_contact(c, 1, tol);
-    for (const auto &s : t.states)
-      ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
+    for (const auto& s : t.states) ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
     const long hold = steps_in_segment(t, 1);
     EXPECT_LE(hold, 100);
     // The fine reference: the same history in the 100 graded hold increments,
     // split into 16.
-    const ContactTrace ref = run_contact(
-        case_named(scene, "duration=6000,increments=100,xi=0.009"), 16);
-    const double scale =
-        c.model.initial_normal_traction * c.model.law.friction.mu_s;
+    const ContactTrace ref =
+        run_contact(case_named(scene, "duration=6000,increments=100,xi=0.009"), 16);
+    const double scale = c.model.initial_normal_traction * c.model.law.friction.mu_s;
     const double err = adaptive_error(t, ref, scale);
     EXPECT_LT(err, 10 * tol);
     EXPECT_NEAR(t.states.back().law.mu, ref.states.back().law.mu, 1e-9);
-    measured() << "adaptive, 100 h hold: " << hold << " steps in the hold, "
-               << t.stats.substeps << " in all, " << t.stats.rejected
-               << " rejected; max error " << err << "\n";
+    measured() << "adaptive, 100 h hold: " << hold << " steps in the hold, " << t.stats.substeps
+               << " in all, " << t.stats.rejected << " rejected; max error " << err << "\n";
   }
   {
-    const auto scene =
-        io::load_contact_scene(kExtremeDir / "contact_impact_metres.yaml");
-    const auto &c = case_named(scene, "speed=1.0e6,increments=1");
+    const auto scene = io::load_contact_scene(kExtremeDir / "contact_impact_metres.yaml");
+    const auto& c = case_named(scene, "speed=1.0e6,increments=1");
     const ContactTrace t = run_contact(c, 1, tol);
-    for (const auto &s : t.states)
-      ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
+    for (const auto& s : t.states) ASSERT_EQ(contact_inadmissible(s, c.model.law), "");
     const auto ss = law::SubloadingFrictionLaw(c.model.law).steady_state(1e6);
     for (int seg : {0, 1}) {
       EXPECT_LE(steps_in_segment(t, seg), 200) << "segment " << seg;
       size_t last = 0;
       for (size_t i = 0; i < t.states.size(); ++i)
-        if (t.segment[i] == seg)
-          last = i;
+        if (t.segment[i] == seg) last = i;
       // The last steps are long (tens of mm): the ratio resolution of a 100 mm
       // increment.
-      EXPECT_NEAR(t.states[last].r, ss.r, ratio_resolution(c, 100.0, ss.mu))
-          << "segment " << seg;
+      EXPECT_NEAR(t.states[last].r, ss.r, ratio_resolution(c, 100.0, ss.mu)) << "segment " << seg;
     }
-    measured() << "adaptive, 2 m at 1e6 mm/min each way: "
-               << steps_in_segment(t, 0) << " + " << steps_in_segment(t, 1)
-               << " steps, " << t.stats.rejected << " rejected\n";
+    measured() << "adaptive, 2 m at 1e6 mm/min each way: " << steps_in_segment(t, 0) << " + "
+               << steps_in_segment(t, 1) << " steps, " << t.stats.rejected << " rejected\n";
   }
 }
 
@@ -1271,14 +1196,12 @@ TEST(ExtremeAdaptive, HoldsOfHoursAndMetreSlidesAtImpactTakeFewSteps) {
 // near r_hat at impact): the flow contracts perturbations, so local errors do
 // not accumulate.
 TEST(ExtremeAdaptive, ErrorFallsAsTheToleranceTightens) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_speed_viscosity.yaml");
-  for (const char *name : {"speed=1.0e6,eta_v=1.0e5,r_hat=1.01",
-                           "speed=1.0e-4,eta_v=10,r_hat=1.8"}) {
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_speed_viscosity.yaml");
+  for (const char* name :
+       {"speed=1.0e6,eta_v=1.0e5,r_hat=1.01", "speed=1.0e-4,eta_v=10,r_hat=1.8"}) {
     SCOPED_TRACE(name);
-    const auto &c = case_named(scene, name);
-    const double scale =
-        c.model.initial_normal_traction * c.model.law.friction.mu_s;
+    const auto& c = case_named(scene, name);
+    const double scale = c.model.initial_normal_traction * c.model.law.friction.mu_s;
     const ContactTrace ref = run_contact(c, 16);
     double previous = std::numeric_limits<double>::infinity();
     for (double tol : {1e-2, 1e-3, 1e-4, 1e-5}) {
@@ -1287,8 +1210,8 @@ TEST(ExtremeAdaptive, ErrorFallsAsTheToleranceTightens) {
       EXPECT_LT(err, previous) << "tol " << tol;
       EXPECT_LT(err, tol) << "tol " << tol;
       previous = err;
-      measured() << name << " tol " << tol << ": " << t.stats.substeps
-                 << " steps, error " << err << "\n";
+      measured() << name << " tol " << tol << ": " << t.stats.substeps << " steps, error " << err
+                 << "\n";
     }
   }
 }
@@ -1308,16 +1231,13 @@ TEST(ExtremeAdaptive, ErrorFallsAsTheToleranceTightens) {
 // change) does not see it either: both ends of the crossing step are elastic.
 // Proposed fix: take r_s0' = min(r_s0, min over the elastic predictor path of
 // |f|/(f_n mu)) = min(r_s0, dist(0, [f_0, f_trial])/(f_n mu)).
-TEST(ExtremeFindings,
-     DISABLED_ReversalWithinOneIncrementResetsTheSubloadingRatio) {
-  const auto scene =
-      io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
+TEST(ExtremeFindings, DISABLED_ReversalWithinOneIncrementResetsTheSubloadingRatio) {
+  const auto scene = io::load_contact_scene(kExtremeDir / "contact_hold_hours.yaml");
   io::ContactCase c = case_named(scene, "duration=60,increments=1,xi=0");
-  c.segments.resize(1); // 1 mm at 1 mm/min: r_s = 1, f_t ~ 0.66 MPa
+  c.segments.resize(1);  // 1 mm at 1 mm/min: r_s = 1, f_t ~ 0.66 MPa
   ct::Segment back = c.segments[0];
   back.velocity = -back.velocity;
-  back.duration =
-      1e-6; // 1e-6 mm back: the trial passes zero and ends at -0.34 MPa
+  back.duration = 1e-6;  // 1e-6 mm back: the trial passes zero and ends at -0.34 MPa
   back.growth = 1.0;
   auto coarse = c, fine = c;
   back.increments = 1;
@@ -1326,7 +1246,7 @@ TEST(ExtremeFindings,
   fine.segments.push_back(back);
   const double rs_coarse = run_contact(coarse).states.back().law.r_s;
   const double rs_fine = run_contact(fine).states.back().law.r_s;
-  measured() << "r_s after the reversal: one increment " << rs_coarse
-             << ", 1000 increments " << rs_fine << "\n";
+  measured() << "r_s after the reversal: one increment " << rs_coarse << ", 1000 increments "
+             << rs_fine << "\n";
   EXPECT_NEAR(rs_coarse, rs_fine, 0.05);
 }

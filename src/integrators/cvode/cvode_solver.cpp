@@ -92,12 +92,16 @@ Solver::Solver(int size, RhsFunction rhs, void* user, const CvodeOptions& option
   check(CVodeSetMaxNonlinIters(mem_, options.max_nonlinear_iterations), "MaxNonlinIters");
   check(CVodeSetMaxConvFails(mem_, options.max_convergence_failures), "MaxConvFails");
   check(CVodeSetMaxErrTestFails(mem_, options.max_error_test_failures), "MaxErrTestFails");
-  check(CVodeSetNonlinConvCoef(mem_, options.nonlinear_convergence_coefficient),
-        "CVodeSetNonlinConvCoef");
+  const double convergence_coefficient = options.nonlinear_convergence_coefficient > 0.0
+                                             ? options.nonlinear_convergence_coefficient
+                                         : krylov ? 0.01
+                                                  : 0.001;
+  check(CVodeSetNonlinConvCoef(mem_, convergence_coefficient), "CVodeSetNonlinConvCoef");
   if (options.initial_step > 0.0) check(CVodeSetInitStep(mem_, options.initial_step), "InitStep");
   if (krylov) {
     const bool preconditioned = preconditioner.solve != nullptr;
-    linear_ = SUNLinSol_SPGMR(y_, preconditioned ? SUN_PREC_LEFT : SUN_PREC_NONE, 0, ctx_);
+    linear_ = SUNLinSol_SPGMR(y_, preconditioned ? SUN_PREC_LEFT : SUN_PREC_NONE,
+                              options.krylov_dimension, ctx_);
     check(CVodeSetLinearSolver(mem_, linear_, nullptr), "CVodeSetLinearSolver");
     if (preconditioned)
       check(CVodeSetPreconditioner(mem_, &Solver::setup_callback, &Solver::solve_callback),
