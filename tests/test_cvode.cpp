@@ -34,7 +34,8 @@ namespace law = subslip::law;
 
 namespace {
 
-std::ostream& measured() {
+// (Used only by the tests that need CVODE.)
+[[maybe_unused]] std::ostream& measured() {
   return std::cout << std::setprecision(4) << "[ measured ] ";
 }
 

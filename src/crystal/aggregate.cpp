@@ -249,18 +249,18 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     start_segment(fc, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
-    double dt = resume != nullptr
-                    ? resume->position.next_step
-                    : increment_lengths(seg.duration, seg.increments, seg.growth).front();
-    double t = resume != nullptr ? resume->position.segment_time : 0.0;
-    long accepted = resume != nullptr ? resume->position.increment : 0;
-    if (resume != nullptr && t >= seg.duration) return;  // the checkpoint ended the segment
-    int refusals = 0;
+    if (resume != nullptr && resume->position.segment_time >= seg.duration) return;
+    integrators::AdaptiveSegment clock =
+        resume != nullptr
+            ? integrators::AdaptiveSegment(seg.duration, resume->position.next_step, opt.tolerance,
+                                           resume->position.segment_time,
+                                           resume->position.increment)
+            : integrators::AdaptiveSegment(
+                  seg.duration, increment_lengths(seg.duration, seg.increments, seg.growth).front(),
+                  opt.tolerance);
     for (;;) {
-      const double remaining = seg.duration - t;
-      const bool last = dt >= remaining;
-      const double h = last ? remaining : dt;
-      const double progress = last ? 1.0 : std::min(1.0, (t + h) / seg.duration);
+      const double h = clock.step();
+      const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
       const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
       Eigen::VectorXd u_try = u;
       std::string why;
@@ -269,28 +269,23 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       if (!solved || !(error.value <= opt.tolerance)) {
         solved ? ++stats_.rejected : ++stats_.cutbacks;
         if (solved) why = describe_error(error);
-        if (++refusals > integrators::kMaxRefusedAttempts || t + 0.5 * h == t) {
+        if (!clock.refuse(!solved, error.value)) {
           std::ostringstream msg;
-          msg << "crystal step failed at time " << macro_.time << " after " << refusals
+          msg << "crystal step failed at time " << macro_.time << " after " << clock.refusals()
               << " refused attempts (dt = " << h << "): " << why;
           throw CrystalStepFailure(msg.str());
         }
-        dt = solved ? h * integrators::step_factor(error.value, opt.tolerance,
-                                                   integrators::kAfterRejected)
-                    : 0.5 * h;
         continue;
       }
-      refusals = 0;
+      const bool last = clock.last();
       u = u_try;
       commit(seg, fc, u, h);
-      t = last ? seg.duration : t + h;
-      ++accepted;
+      clock.accept(error.value);
       ++stats_.increments;
       ++stats_.substeps;
       macro_.segment = index;
-      dt = h * integrators::step_factor(error.value, opt.tolerance, integrators::kAfterAccepted);
-      if (last || accepted % seg.output_every == 0) observe(macro_, *this);
-      end_increment(index, accepted, t, dt, control);
+      if (last || clock.accepted() % seg.output_every == 0) observe(macro_, *this);
+      end_increment(index, clock.accepted(), clock.time(), clock.planned_step(), control);
       if (last) return;
     }
   }

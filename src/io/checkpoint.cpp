@@ -23,7 +23,8 @@ std::vector<std::string> value_names() {
   };
   for (const char* m : {"L", "F", "strain", "stress", "segment_start_stress"}) matrix(m);
   for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_" + std::to_string(k));
-  names.push_back("last_output_time");
+  // (emplace_back: GCC 12's -Warray-bounds misreads push_back of this literal at -O2.)
+  names.emplace_back("last_output_time");
   for (const char* m :
        {"last_output_L", "last_output_F", "last_output_strain", "last_output_stress"})
     matrix(m);

@@ -48,6 +48,8 @@ class AdaptiveSegment {
   // Time into the segment at the end of the step tried now.
   double end_time() const { return last() ? duration_ : t_ + dt_; }
   double time() const { return t_; }
+  // The step planned after the last accepted one (what a checkpoint records to resume with).
+  double planned_step() const { return dt_; }
   long accepted() const { return accepted_; }
   int refusals() const { return refusals_; }
 
