@@ -136,18 +136,24 @@ void print_contact_table(const io::ContactScene& scene,
       "steady state at the last sliding speed)\n");
 }
 
+// The counters of the run summary that every case has, whatever its driver.
+template <class CaseResult>
+void add_case_counters(cli::RunTotals& t, const CaseResult& r) {
+  const auto& st = r.summary.stats;
+  ++t.cases;
+  t.failed += r.failure.empty() ? 0 : 1;
+  t.increments += st.increments;
+  t.cutbacks += st.cutbacks;
+  t.rejected += st.rejected;
+  t.compute_seconds += st.wall_seconds;
+}
+
 cli::RunTotals contact_totals(const std::vector<io::ContactCaseResult>& results) {
   cli::RunTotals t;
   for (const auto& r : results) {
-    const auto& st = r.summary.stats;
-    ++t.cases;
-    t.failed += r.failure.empty() ? 0 : 1;
-    t.increments += st.increments;
-    t.solves += st.increments;
-    t.newton_iterations += st.iterations;
-    t.cutbacks += st.cutbacks;
-    t.rejected += st.rejected;
-    t.compute_seconds += st.wall_seconds;
+    add_case_counters(t, r);
+    t.solves += r.summary.stats.increments;
+    t.newton_iterations += r.summary.stats.iterations;
   }
   return t;
 }
@@ -238,16 +244,10 @@ void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
 cli::RunTotals crystal_totals(const std::vector<io::CrystalCaseResult>& results) {
   cli::RunTotals t;
   for (const auto& r : results) {
-    const auto& st = r.summary.stats;
-    ++t.cases;
-    t.failed += r.failure.empty() ? 0 : 1;
-    t.increments += st.increments;
-    t.grain_steps += st.grain_steps;
-    t.solves += st.grain_solves;
-    t.newton_iterations += st.newton_iterations;
-    t.cutbacks += st.cutbacks;
-    t.rejected += st.rejected;
-    t.compute_seconds += st.wall_seconds;
+    add_case_counters(t, r);
+    t.grain_steps += r.summary.stats.grain_steps;
+    t.solves += r.summary.stats.grain_solves;
+    t.newton_iterations += r.summary.stats.newton_iterations;
   }
   return t;
 }

@@ -1,5 +1,6 @@
 #include "subslip/crystal/aggregate.hpp"
 
+#include "subslip/crystal/free_components.hpp"
 #include "subslip/integrators/step_control.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -28,29 +29,6 @@ namespace {
 
 constexpr double kSqrt2 = std::numbers::sqrt2;
 constexpr int kMandelIndex[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
-
-// One free (stress-controlled) component of the velocity gradient.
-struct FreeComponent {
-  int i, j;
-  bool symmetric_pair;  // both L_ij and L_ji free: the unknown is D_ij, no spin
-};
-
-std::vector<FreeComponent> free_components(const Mask3& free) {
-  std::vector<FreeComponent> out;
-  for (int i = 0; i < 3; ++i) {
-    if (free(i, i)) out.push_back({i, i, false});
-    for (int j = i + 1; j < 3; ++j) {
-      if (free(i, j) && free(j, i)) {
-        out.push_back({i, j, true});
-      } else if (free(i, j)) {
-        out.push_back({i, j, false});
-      } else if (free(j, i)) {
-        out.push_back({j, i, false});
-      }
-    }
-  }
-  return out;
-}
 
 // L with the free components set to u.
 Mat3 assemble_velocity_gradient(const Mat3& prescribed, const std::vector<FreeComponent>& fc,

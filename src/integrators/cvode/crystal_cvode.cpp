@@ -22,11 +22,14 @@
 
 #include "cvode_solver.hpp"
 #include "subslip/crystal/elasticity.hpp"
+#include "subslip/crystal/free_components.hpp"
 
 namespace subslip::cvode {
 
 namespace {
 
+using crystal::free_components;
+using crystal::FreeComponent;
 using crystal::Mat3;
 using crystal::Vec3;
 using crystal::Vec6;
@@ -38,36 +41,6 @@ constexpr int kMaxFree = 9;
 constexpr long kParallelGrains = 64;
 using FreeMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFree, kMaxFree>;
 using FreeVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxFree, 1>;
-
-// One stress-controlled component of L, as in the Taylor aggregate's mixed control: a pair of
-// free off-diagonal components is one unknown D_ij (no spin).
-struct FreeComponent {
-  int i, j;
-  bool symmetric_pair;
-  Mat3 direction() const {
-    Mat3 e = Mat3::Zero();
-    e(i, j) = 1.0;
-    if (symmetric_pair) e(j, i) = 1.0;
-    return e;
-  }
-};
-
-std::vector<FreeComponent> free_components(const crystal::Mask3& free) {
-  std::vector<FreeComponent> out;
-  for (int i = 0; i < 3; ++i) {
-    if (free(i, i)) out.push_back({i, i, false});
-    for (int j = i + 1; j < 3; ++j) {
-      if (free(i, j) && free(j, i)) {
-        out.push_back({i, j, true});
-      } else if (free(i, j)) {
-        out.push_back({i, j, false});
-      } else if (free(j, i)) {
-        out.push_back({j, i, false});
-      }
-    }
-  }
-  return out;
-}
 
 Mat3 cross_matrix(const Vec3& w) {
   Mat3 k;
