@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # The two commands of README.md. Each installs what it needs (Debian packages), builds, and then
-#   ./build.sh run  [SCENE.yaml]  runs a scene (default: inputs/default.yaml, the main job) into
-#                                 results/<scene>.h5 and prints its summary;
-#   ./build.sh test [--quick]     runs every test: the GoogleTest suite (ctest) of the Release
-#                                 build, the suite again built with AddressSanitizer + UBSan
-#                                 (build-asan/), and each fuzz target for FUZZ_SECONDS (default
-#                                 30) on its seed corpus (build-fuzz/, clang + libFuzzer).
-#                                 --quick: the Release suite only. CI runs the full command.
+#   ./build.sh run  [SCENE.yaml]  builds the Release program (build/) and runs a scene (default:
+#                                 inputs/default.yaml, the main job) into results/<scene>.h5;
+#   ./build.sh test [--quick]     builds the GoogleTest suite with AddressSanitizer + UBSan
+#                                 (build-asan/, optimised: -O2 -g) and runs it (ctest), then runs
+#                                 each fuzz target for FUZZ_SECONDS (default 30) on its seed
+#                                 corpus (build-fuzz/, clang + libFuzzer). CI runs this command.
+#                                 --quick: the suite of the Release build (build/) only.
+# (The suite is built once per command: building it twice, Release and sanitized, would take CI
+# past its 30 minutes on 2 cores.)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -32,8 +34,11 @@ fi
 # The CVODE peer of the accuracy study (libsundials-dev pulls in PETSc and MPI, ~1.4 GB) stays
 # out of these builds and CI; SUBSLIP_WITH_CVODE=AUTO ./build.sh ... uses it when installed.
 cvode="-DSUBSLIP_WITH_CVODE=${SUBSLIP_WITH_CVODE:-OFF}"
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$cvode" > /dev/null
-cmake --build build -j"$(nproc)"
+
+release_build() {
+  cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$cvode" > /dev/null
+  cmake --build build -j"$(nproc)"
+}
 
 # Prints how long a stage took (CI must stay under 30 minutes on 2 cores).
 stage_done() {
@@ -83,16 +88,19 @@ fuzz_tests() {
 
 case "${1:-}" in
   run)
+    release_build
     scene="${2:-inputs/default.yaml}"
     out="results/$(basename "${scene%.*}").h5"
     # --force: this command is documented to refresh results/<scene>.h5 each time it is run.
     build/src/subslip run "$scene" -o "$out" --force
     ;;
   test)
-    start=$SECONDS
-    ctest --test-dir build --output-on-failure -j"$(nproc)"
-    stage_done "Release tests" "$start"
-    if [ "${2:-}" != --quick ]; then
+    if [ "${2:-}" = --quick ]; then
+      start=$SECONDS
+      release_build
+      ctest --test-dir build --output-on-failure -j"$(nproc)"
+      stage_done "Release build and tests" "$start"
+    else
       sanitizer_tests
       fuzz_tests
     fi

@@ -68,6 +68,31 @@ Vec2 sliding_velocity(const ContactState& s, double speed) {
   return ft > 0.0 ? Vec2(s.traction_t * (speed / ft)) : Vec2::Zero();
 }
 
+// The lowest loading ratio r = |f_t|/(f_n mu) on the straight traction path of a step, from
+// (f0, fn0) at its start to (f1, fn1) at its end; mu_at(l) is mu at the path parameter l. Where
+// r < r_s on that path no viscoplastic sliding occurs and (3.12) makes r_s follow r down, so a
+// step whose path passes near zero traction (a reversal) must start r_s from this minimum,
+// not from r_s0. |f|^2/fn^2 = (a + 2bl + cl^2)/(p + ql)^2 has one stationary point, where
+// (cp - bq) l = qa - bp, a minimum when cp - bq > 0; otherwise the minimum is at an end,
+// which the callers already cover (r_s0 <= r0, and r_s <= r at the end). mu only scales the
+// ratio and changes little over a step, so it is evaluated at that point.
+struct PathMinimum {
+  double ratio = std::numeric_limits<double>::infinity();
+  double at = 0.0;  // path parameter in [0, 1]
+};
+template <class MuAt>
+PathMinimum lowest_ratio_on_path(const Vec2& f0, double fn0, const Vec2& f1, double fn1,
+                                 MuAt&& mu_at) {
+  if (!(fn0 > 0.0) || !(fn1 > 0.0)) return {};
+  const Vec2 df = f1 - f0;
+  const double a = f0.squaredNorm(), b = f0.dot(df), c = df.squaredNorm();
+  const double p = fn0, q = fn1 - fn0;
+  const double den = c * p - b * q;
+  if (!(den > 0.0)) return {};
+  const double l = std::clamp((q * a - b * p) / den, 0.0, 1.0);
+  return {(f0 + l * df).norm() / ((p + l * q) * mu_at(l)), l};
+}
+
 }  // namespace
 
 std::vector<double> increment_lengths(const Segment& seg) {
@@ -90,8 +115,20 @@ double normal_traction_at(const Segment& seg, const ContactStiffness& c, double 
   return fn_start + (seg.normal_traction - fn_start) * (t / seg.duration);
 }
 
+// The rate at which a perturbation of the tangential traction relaxes while sliding:
+// lambda = alpha_t phi_r / (f_n mu), phi_r the slope of the slip rate in r. Forward Euler
+// multiplies such a perturbation by 1 - lambda dt per step, so it is stable for dt <= 2/lambda;
+// beyond that the traction oscillates with a growing amplitude for many steps before it leaves
+// the admissible set, so such steps are refused (and cut back) rather than taken.
+double traction_relaxation_rate(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                                const ContactState& s0) {
+  if (!(s0.traction_n > 0.0)) return 0.0;  // open: no traction to relax
+  return c.alpha_t * law.slip_rate_slope(s0.r, s0.law.r_s) / (s0.traction_n * s0.law.mu);
+}
+
 StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                               const ContactState& s0, const Vec2& du_t, double fn1, double dt) {
+                               const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                               integrators::ExplicitStability stability) {
   ContactState s = kinematic_update(s0, du_t, fn1, dt);
   if (fn1 <= 0.0) return open_contact(law, s, dt);
   const auto& fp = law.parameters().friction;
@@ -111,6 +148,14 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
     ds = (fn0 > 0.0 && numerator > 0.0 && std::isfinite(denominator)) ? numerator / denominator * dt
                                                                       : 0.0;
   } else {
+    if (const double lambda = traction_relaxation_rate(law, c, s0);
+        stability == integrators::ExplicitStability::refuse_unstable_steps &&
+        !(dt * lambda <= 2.0)) {
+      std::ostringstream why;
+      why << "forward Euler step above its stability limit 2/lambda = " << 2.0 / lambda
+          << " (lambda = alpha_t phi_r / (f_n mu) = " << lambda << ")";
+      return {s0, 0, false, why.str()};
+    }
     ds = dt * law.slip_rate(s0.r, s0.law.r_s);
   }
 
@@ -124,9 +169,20 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
     s.law.r_s = s0.law.r_s > 0.0 ? s0.law.r_s + law.subloading_rate(s0.law.r_s) * ds
                                  : law.subloading_ratio_after(0.0, ds).value;
   }
-  // (3.12): r_s follows r down whenever no viscoplastic sliding would occur.
+  // (3.12): r_s follows r down whenever no viscoplastic sliding would occur, also inside the
+  // step: a reversal that takes the traction through zero leaves r_s = 0 (the next step's
+  // slip regrows it). The rate-independent form keeps r_s = r (the slip is set by consistency).
   s.law.r_s = std::min(s.law.r_s, s.r);
-  if (law.is_rate_independent() && ds <= 0.0) s.law.r_s = s.r;
+  if (law.is_rate_independent()) {
+    if (ds <= 0.0) s.law.r_s = s.r;
+  } else {
+    const double mu0 = s0.law.mu, mu1 = s.law.mu;
+    s.law.r_s = std::min(
+        s.law.r_s,
+        lowest_ratio_on_path(s0.traction_t, s0.traction_n, s.traction_t, fn1, [&](double l) {
+          return mu0 + l * (mu1 - mu0);
+        }).ratio);
+  }
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / dt;
   StepAttempt out{s, 0, true, {}};
@@ -144,20 +200,30 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   const double ft_trial = trial.norm();
   const auto mu_elastic = law.friction_coefficient_after(s0.law.mu, 0.0, dt);
   const double r_trial = ft_trial / (fn1 * mu_elastic.value);
+  // The subloading ratio the step starts from: (3.12) along the elastic predictor, where no
+  // sliding occurs while r < r_s. A reversal takes the traction through zero and r_s with it;
+  // the slip of the step then regrows r_s from there (3.11), and it can only occur after that
+  // point: the flow rule's rate is the slip over the time left (backward Euler on that part).
+  const PathMinimum lowest = lowest_ratio_on_path(
+      s0.traction_t, s0.traction_n, trial, fn1,
+      [&](double l) { return law.friction_coefficient_after(s0.law.mu, 0.0, l * dt).value; });
+  const bool dips = lowest.ratio < s0.law.r_s;
+  const double rs_start = dips ? lowest.ratio : s0.law.r_s;
+  const double slip_time = dips && lowest.at < 1.0 ? (1.0 - lowest.at) * dt : dt;
 
-  if (r_trial <= s0.law.r_s || ft_trial == 0.0) {
+  if (r_trial <= rs_start || ft_trial == 0.0) {
     // No viscoplastic sliding: the subloading ratio follows r (3.12).
     s.traction_t = trial;
     s.law.mu = mu_elastic.value;
     s.r = r_trial;
-    s.law.r_s = std::min(s0.law.r_s, r_trial);
+    s.law.r_s = std::min(rs_start, r_trial);
     s.vp_rate = 0.0;
     return {s, 0, true, {}};
   }
 
   // Radial return: f_t = t (ft_trial - alpha_t ds) keeps the trial direction (2.39), so the
   // step reduces to one equation G(ds) = 0 in the slip increment ds, decreasing on
-  // [0, ft_trial/alpha_t] from G(0) = r_trial - r_s0 > 0 to G(max) < 0.
+  // [0, ft_trial/alpha_t] from G(0) = r_trial - rs_start > 0 to G(max) < 0.
   auto ratio_at = [&](double ds, double& dr_dds, law::ValueAndSlope& mu) {
     mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
     const double ft = ft_trial - c.alpha_t * ds;
@@ -173,19 +239,19 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
     double dr;
     law::ValueAndSlope mu;
     const double r = ratio_at(ds, dr, mu);
-    const auto rs = law.subloading_ratio_after(s0.law.r_s, ds);
-    const auto g = law.flow_residual(r, rs.value, ds, dt);
+    const auto rs = law.subloading_ratio_after(rs_start, ds);
+    const auto g = law.flow_residual(r, rs.value, ds, slip_time);
     if (!g.admissible) return std::pair{g.value, 0.0};
     const double dds_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
     return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dds_dz};
   };
   const double ds_max = ft_trial / c.alpha_t;
   // Start from the previous viscoplastic rate (over a smooth history it is close to the
-  // answer); failing that, from the slip that would bring r back to r_s0 (the rate-independent
-  // answer, which lies on the far side of the root).
-  double guess = s0.vp_rate * dt;
+  // answer); failing that, from the slip that would bring r back to rs_start (the
+  // rate-independent answer, which lies on the far side of the root).
+  double guess = s0.vp_rate * slip_time;
   if (!(guess > 0.0 && guess < ds_max)) {
-    guess = (ft_trial - s0.law.r_s * fn1 * mu_elastic.value) / c.alpha_t;
+    guess = (ft_trial - rs_start * fn1 * mu_elastic.value) / c.alpha_t;
   }
   const auto root =
       safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p), std::pow(guess, 1.0 / p),
@@ -198,9 +264,9 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   s.r = ratio_at(ds, dr, mu);
   s.law.mu = mu.value;
   s.traction_t = trial * ((ft_trial - c.alpha_t * ds) / ft_trial);
-  s.law.r_s = std::min(law.subloading_ratio_after(s0.law.r_s, ds).value, s.r);
+  s.law.r_s = std::min(law.subloading_ratio_after(rs_start, ds).value, s.r);
   s.vp_slip = s0.vp_slip + ds;
-  s.vp_rate = ds / dt;
+  s.vp_rate = ds / slip_time;  // the end rate of the flow rule
   StepAttempt out{s, root.iterations, true, {}};
   out.why = inadmissible_reason(law, s);
   out.ok = out.why.empty();

@@ -559,9 +559,28 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   return rep;
 }
 
+// The first slip system for which a forward Euler step of dt is above its stability limit, or
+// -1. A system relaxes a perturbation of its resolved shear stress at the rate
+// lambda_a = A_aa phi_r / (mu_a f_n,a) (the contact's alpha_t phi_r / (f_n mu) with alpha_t ->
+// A_aa), and forward Euler is stable only for dt lambda_a <= 2; beyond it the stress oscillates
+// with a growing amplitude long before it leaves the admissible set. (Coupled systems can make
+// a grain's fastest mode faster still; such steps are caught when they leave the admissible set.)
+template <int N>
+int unstable_system(const Phase<N>& ph, const GrainState<N>& s0, const SlipRates<N>& slip,
+                    double dt) {
+  for (int a = 0; a < ph.slip_count; ++a) {
+    if (!(slip.fn(a) > 0.0)) continue;
+    const double slope = ph.laws[static_cast<size_t>(a)].slip_rate_slope(slip.r(a), s0.r_s(a));
+    const double lambda = ph.interaction(a, a) * slope / (s0.mu(a) * slip.fn(a));
+    if (!(dt * lambda <= 2.0)) return a;
+  }
+  return -1;
+}
+
 template <int N>
 GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
-                                    double dt, GrainState<N>& s1, Tangent* tangent) {
+                                    double dt, GrainState<N>& s1, Tangent* tangent,
+                                    integrators::ExplicitStability stability) {
   using VecN = typename SlipTypes<N>::VecN;
   const int n = ph.slip_count;
   GrainStepReport rep;
@@ -576,6 +595,14 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   SlipRates<N> slip;
   GrainRates<N> rates;
   slip_rates(ph, s0, slip);
+  if (const int a = stability == integrators::ExplicitStability::refuse_unstable_steps
+                        ? unstable_system(ph, s0, slip, dt)
+                        : -1;
+      a >= 0) {
+    rep.why = "forward Euler step above the stability limit 2/lambda of a slip system";
+    rep.system = a;
+    return rep;
+  }
   grain_rates(ph, s0, slip, L, rates);
   const VecN dgamma = slip.rate * dt;
   s1.stress = s0.stress + ph.stiffness * (rates.strain_rate * dt) - ph.c_schmid * dgamma;
@@ -597,6 +624,9 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                       : law.subloading_ratio_after(0.0, magnitude(a)).value;
     }
     r1(a) = std::abs(tau1(a)) / (s1.mu(a) * fn1(a));
+    // (3.12) along the step's straight stress path: a shear that changes sign passes through
+    // r = 0 and takes r_s with it (the next step's slip regrows it).
+    if (tau1(a) * slip.tau(a) < 0.0) rs1 = 0.0;
     s1.r_s(a) = std::min(rs1, r1(a));
   }
   s1.slip = s0.slip + dgamma;
@@ -611,17 +641,18 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   return rep;
 }
 
-#define SUBSLIP_INSTANTIATE_KERNEL(N)                                                             \
-  template struct Phase<N>;                                                                       \
-  template struct GrainState<N>;                                                                  \
-  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,          \
-                                                  const Mat3&, double, const GrainStepOptions&,   \
-                                                  GrainState<N>&, Tangent*);                      \
-  template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,          \
-                                                  const Mat3&, double, GrainState<N>&, Tangent*); \
-  template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);            \
-  template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);              \
-  template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,        \
+#define SUBSLIP_INSTANTIATE_KERNEL(N)                                                            \
+  template struct Phase<N>;                                                                      \
+  template struct GrainState<N>;                                                                 \
+  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,         \
+                                                  const Mat3&, double, const GrainStepOptions&,  \
+                                                  GrainState<N>&, Tangent*);                     \
+  template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,         \
+                                                  const Mat3&, double, GrainState<N>&, Tangent*, \
+                                                  integrators::ExplicitStability);               \
+  template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);           \
+  template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);             \
+  template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,       \
                                const Mat3&, GrainRates<N>&);
 
 SUBSLIP_INSTANTIATE_KERNEL(1)

@@ -265,6 +265,9 @@ RunResult ContactProblem::run(const Setting& setting, Report report,
       case Integrator::implicit: {
         opt.method = setting.integrator == Integrator::implicit ? contact::Method::implicit
                                                                 : contact::Method::forward_euler;
+        // A forward Euler point is forward Euler at that step: a step above its stability limit
+        // fails the point instead of being cut back to the limit (which any setting would reach).
+        if (opt.method == contact::Method::forward_euler) opt.max_cutbacks = 0;
         const auto segments =
             refine(segments_, setting.value, setting.uniform, report == Report::every_step);
         out.counters = counters_of(contact::run_history(model_, segments, opt, record));
@@ -355,6 +358,8 @@ RunResult CrystalProblem::run(const Setting& setting, Report report,
         opt.method = setting.integrator == Integrator::implicit
                          ? crystal::CrystalMethod::implicit
                          : crystal::CrystalMethod::forward_euler;
+        // As for contact: forward Euler at that step, not cut back to its stability limit.
+        if (opt.method == crystal::CrystalMethod::forward_euler) opt.max_cutbacks = 0;
         const auto segments =
             refine(segments_, setting.value, setting.uniform, report == Report::every_step);
         auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);

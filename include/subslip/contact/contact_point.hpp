@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "subslip/integrators/step_control.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 namespace subslip::contact {
@@ -87,9 +88,13 @@ struct StepAttempt {
 };
 
 // One forward-Euler update (paper section 2f, method 2) over dt with tangential sliding du_t
-// and end-of-step normal traction fn1. Not cut back.
+// and end-of-step normal traction fn1. Not cut back. Refused (ok = false) when dt exceeds the
+// stability limit 2/lambda of the sliding traction (lambda = alpha_t phi_r / (f_n mu)), which
+// the history driver then cuts back: forward Euler never runs unstable.
 StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                               const ContactState& s0, const Vec2& du_t, double fn1, double dt);
+                               const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                               integrators::ExplicitStability stability =
+                                   integrators::ExplicitStability::refuse_unstable_steps);
 
 // One implicit update: exact mu and r_s updates, radial return of the tangential traction, and
 // the flow rule solved as a bracketed scalar equation in the viscoplastic slip increment.

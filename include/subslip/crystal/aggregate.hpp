@@ -44,7 +44,8 @@ struct AggregateOptions {
   int max_cutbacks = 20;  // halvings of one increment
   // Mixed control: |sigma_free - target| relative to the stress scale. The accepted error is a
   // strain error the next increment starts from, so a run drifts by up to increments x this
-  // (relative): 1e-10 keeps a 1e5-increment run within 1e-5.
+  // (relative): 1e-10 keeps a 1e5-increment run within 1e-5. A tolerance finer than the state
+  // resolves (round-off, or the grains' Newton tolerance) is met as well as it can be.
   double stress_tolerance = 1e-10;
   int max_mixed_iterations = 25;
   // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated per

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "subslip/crystal/elasticity.hpp"
+#include "subslip/integrators/step_control.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 namespace subslip::crystal {
@@ -117,10 +118,14 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                     Tangent* tangent);
 
-// One forward-Euler step (paper section 2f, method 2, applied per slip system).
+// One forward-Euler step (paper section 2f, method 2, applied per slip system). Refused (not ok,
+// naming the system) when dt is above a slip system's stability limit 2/lambda, lambda =
+// A_aa phi_r / (mu f_n), unless `stability` is unchecked.
 template <int N>
 GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
-                                    double dt, GrainState<N>& s1, Tangent* tangent);
+                                    double dt, GrainState<N>& s1, Tangent* tangent,
+                                    integrators::ExplicitStability stability =
+                                        integrators::ExplicitStability::refuse_unstable_steps);
 
 // The rates of one grain: the physics that forward Euler steps and the CVODE peer integrates.
 // Split in two because the slip rates depend on the state alone while everything else is affine

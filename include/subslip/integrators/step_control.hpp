@@ -27,6 +27,11 @@ inline double step_factor(double error, double tolerance, StepFactorLimits limit
   return std::clamp(0.9 * std::sqrt(tolerance / error), limits.smallest, limits.largest);
 }
 
+// Whether a forward Euler step checks its stability limit (dt lambda <= 2) and is refused
+// beyond it (the default: the drivers then cut it back), or is taken unchecked (for measuring
+// where forward Euler goes unstable).
+enum class ExplicitStability { refuse_unstable_steps, unchecked };
+
 // Consecutive refused attempts (rejected or failed) of one step before a driver gives up.
 inline constexpr int kMaxRefusedAttempts = 200;
 
