@@ -328,8 +328,7 @@ TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
     previous_error = error;
   }
   measured() << "crystal reference: " << fine.stats.increments << " fixed steps, "
-             << fine.stats.cutbacks << " cutbacks, Richardson correction / tau0 " << spread
-             << "\n";
+             << fine.stats.cutbacks << " cutbacks, Richardson correction / tau0 " << spread << "\n";
   // The reference is an order of magnitude closer to the exact answer than the tightest
   // adaptive run, so the errors above are the adaptive runs' own.
   EXPECT_LT(spread, previous_error / 10.0);

@@ -512,13 +512,13 @@ TEST(ContactBounds, AdmissibleAcrossParameterSpaceRateIndependent) {
   EXPECT_TRUE(failures.empty()) << summary(failures);
 }
 
-// Regression (was a bug: the root was out of reach in ds). Power overstress form (3.10) with the paper's n = 16,
-// alpha = 1e6 MPa/mm, a fresh contact (mu = 0.097, r = r_s = 0, f_n = 5.56) and a first increment
-// du = 1e-10 mm in dt = 1e-10 min: the elastic trial ratio is r_trial = alpha du/(f_n mu)
-// = 1.85e-4, and the flow residual G(ds) = r - r_s - (eta_v (r_hat - r) ds/dt)^{1/n} has its root
-// at ds ~ dt r_trial^n/(eta_v r_hat) ~ 1e-73 mm, i.e. ~2^210 below the bracket [0, f_t/alpha].
-// Newton steps leave the bracket (G ~ -ds^{1/n} is concave), so the safeguarded Newton bisects
-// and stops at its 200-iteration cap: implicit_step returns ok = false ("flow rule did not
+// Regression (was a bug: the root was out of reach in ds). Power overstress form (3.10) with the
+// paper's n = 16, alpha = 1e6 MPa/mm, a fresh contact (mu = 0.097, r = r_s = 0, f_n = 5.56) and a
+// first increment du = 1e-10 mm in dt = 1e-10 min: the elastic trial ratio is r_trial = alpha
+// du/(f_n mu) = 1.85e-4, and the flow residual G(ds) = r - r_s - (eta_v (r_hat - r) ds/dt)^{1/n}
+// has its root at ds ~ dt r_trial^n/(eta_v r_hat) ~ 1e-73 mm, i.e. ~2^210 below the bracket [0,
+// f_t/alpha]. Newton steps leave the bracket (G ~ -ds^{1/n} is concave), so the safeguarded Newton
+// bisects and stops at its 200-iteration cap: implicit_step returns ok = false ("flow rule did not
 // converge"). Halving the increment only makes r_trial smaller, so advance() throws StepFailure
 // after 40 cut-backs. Expected: ok, with the (essentially elastic) answer r = r_trial.
 TEST(ContactBounds, PowerFormImplicitStepWithSmallTrialRatio) {

@@ -18,10 +18,10 @@ using namespace subslip::crystal;
 namespace {
 
 const std::map<SlipFamily, int> kExpectedCounts{
-    {SlipFamily::fcc_111_110, 12},       {SlipFamily::bcc_110_111, 12},
-    {SlipFamily::bcc_112_111, 12},       {SlipFamily::bcc_123_111, 24},
-    {SlipFamily::hcp_basal_a, 3},        {SlipFamily::hcp_prismatic_a, 3},
-    {SlipFamily::hcp_pyramidal_a, 6},    {SlipFamily::hcp_pyramidal2_ca, 6},
+    {SlipFamily::fcc_111_110, 12},      {SlipFamily::bcc_110_111, 12},
+    {SlipFamily::bcc_112_111, 12},      {SlipFamily::bcc_123_111, 24},
+    {SlipFamily::hcp_basal_a, 3},       {SlipFamily::hcp_prismatic_a, 3},
+    {SlipFamily::hcp_pyramidal_a, 6},   {SlipFamily::hcp_pyramidal2_ca, 6},
     {SlipFamily::hcp_pyramidal_ca, 12},
 };
 

@@ -30,8 +30,8 @@ PhaseDescription bench_phase(const std::string& lattice) {
     d.families = {SlipFamily::bcc_110_111, SlipFamily::bcc_112_111, SlipFamily::bcc_123_111};
     d.stiffness = cubic_stiffness(231400, 134700, 116400);
   } else if (lattice == "hcp") {
-    d.families = {SlipFamily::hcp_basal_a, SlipFamily::hcp_prismatic_a,
-                  SlipFamily::hcp_pyramidal_a, SlipFamily::hcp_pyramidal_ca};
+    d.families = {SlipFamily::hcp_basal_a, SlipFamily::hcp_prismatic_a, SlipFamily::hcp_pyramidal_a,
+                  SlipFamily::hcp_pyramidal_ca};
     d.c_over_a = 1.587;
     d.stiffness = hexagonal_stiffness(162400, 92000, 69000, 180700, 46700);
   } else {
@@ -60,7 +60,8 @@ void add_bench_command(CLI::App& app, BenchArgs& a) {
   cmd->add_option("--grains", a.grains, "random grains per aggregate")->check(CLI::PositiveNumber);
   cmd->add_option("--steps", a.steps, "increments of 1e-4 strain")->check(CLI::PositiveNumber);
   cmd->add_option("--threads", a.threads, "thread counts to run")->check(CLI::PositiveNumber);
-  cmd->add_option("--lattice", a.lattices, "fcc, bcc48, hcp")->check(CLI::IsMember({"fcc", "bcc48", "hcp"}));
+  cmd->add_option("--lattice", a.lattices, "fcc, bcc48, hcp")
+      ->check(CLI::IsMember({"fcc", "bcc48", "hcp"}));
 }
 
 int run_bench(const BenchArgs& a) {

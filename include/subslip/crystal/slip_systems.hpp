@@ -26,7 +26,8 @@
 //   hcp_prismatic_a   {10-10}<11-20>       3
 //   hcp_pyramidal_a   {10-11}<11-20>       6
 //   hcp_pyramidal2_ca {11-22}<11-23>       6   second-order pyramidal <c+a>
-//   hcp_pyramidal_ca  {10-11}<11-23>      12   first-order pyramidal <c+a> (the usual "pyramidal <c+a>")
+//   hcp_pyramidal_ca  {10-11}<11-23>      12   first-order pyramidal <c+a> (the usual "pyramidal
+//   <c+a>")
 // (Each {11-22} plane contains a single <11-23> direction, so the second-order family has 6
 // systems; the 12-system <c+a> family of DAMASK is the first-order one.)
 #pragma once
