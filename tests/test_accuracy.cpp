@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
@@ -139,13 +140,7 @@ CrystalProblem soft_crystal(int increments = 40) {
   return CrystalProblem(soft_fcc(), {g}, {tension(increments)}, cr::AggregateOptions{}, {0, 0});
 }
 
-struct SingleThread {
-  int saved = omp_get_max_threads();
-  SingleThread() { omp_set_num_threads(1); }
-  ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread&) = delete;
-  SingleThread& operator=(const SingleThread&) = delete;
-};
+using subslip::testing::SingleThread;
 
 }  // namespace
 

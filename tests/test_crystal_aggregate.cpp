@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "single_thread.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
@@ -84,16 +85,7 @@ double max_abs(const Mat3& m) {
   return m.cwiseAbs().maxCoeff();
 }
 
-// Single-grain aggregates run with one OpenMP thread: a one-grain parallel loop gains nothing,
-// and on an oversubscribed machine each step's parallel region costs ~0.1 ms. Results do not
-// depend on the thread count (CrystalThreads checks it bitwise).
-struct SingleThread {
-  int saved = omp_get_max_threads();
-  SingleThread() { omp_set_num_threads(1); }
-  ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread&) = delete;
-  SingleThread& operator=(const SingleThread&) = delete;
-};
+using subslip::testing::SingleThread;
 
 }  // namespace
 

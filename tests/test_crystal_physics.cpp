@@ -25,6 +25,7 @@
 #include <numbers>
 #include <vector>
 
+#include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/crystal_kernel.hpp"
@@ -48,17 +49,7 @@ std::ostream& measured() {
   return std::cout << std::setprecision(6) << "[ measured ] ";
 }
 
-// Single-grain aggregates run with one OpenMP thread: a one-grain parallel loop gains nothing,
-// and on an oversubscribed machine the per-step parallel region costs ~0.1 ms (measured: 6 s
-// instead of 0.07 s for the 60000 forward Euler steps below). Results do not depend on the
-// thread count (CrystalThreads checks it bitwise).
-struct SingleThread {
-  int saved = omp_get_max_threads();
-  SingleThread() { omp_set_num_threads(1); }
-  ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread&) = delete;
-  SingleThread& operator=(const SingleThread&) = delete;
-};
+using subslip::testing::SingleThread;
 
 // Copper, cubic constants in MPa (Voigt convention, as tabulated).
 constexpr double kC11 = 168400.0, kC12 = 121400.0, kC44 = 75400.0;

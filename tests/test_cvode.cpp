@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/elasticity.hpp"
@@ -92,15 +93,7 @@ TEST(CvodePeer, AvailabilityMatchesTheBuild) {
 
 namespace {
 
-// One OpenMP thread for the implicit reference runs of one or a few grains (a parallel region
-// per step costs more than it gains on a loaded machine; results do not depend on it).
-struct SingleThread {
-  int saved = omp_get_max_threads();
-  SingleThread() { omp_set_num_threads(1); }
-  ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread&) = delete;
-  SingleThread& operator=(const SingleThread&) = delete;
-};
+using subslip::testing::SingleThread;
 
 void print(const char* what, const cv::CvodeStats& s) {
   measured() << what << ": steps " << s.steps << ", rhs " << s.rhs_evaluations << ", Jacobians "

@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/crystal_kernel.hpp"
@@ -57,16 +58,7 @@ std::ostream& measured() {
   return std::cout << std::setprecision(6) << "[ measured ] ";
 }
 
-// One OpenMP thread: the aggregates here have one to eight grains, for which a
-// parallel region per step costs more than it gains (results do not depend on
-// the thread count).
-struct SingleThread {
-  int saved = omp_get_max_threads();
-  SingleThread() { omp_set_num_threads(1); }
-  ~SingleThread() { omp_set_num_threads(saved); }
-  SingleThread(const SingleThread&) = delete;
-  SingleThread& operator=(const SingleThread&) = delete;
-};
+using subslip::testing::SingleThread;
 
 std::vector<fs::path> extreme_scenes(std::string_view kind) {
   std::vector<fs::path> out;
