@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "copper_phase.hpp"
 #include "grain_recorder.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
@@ -237,15 +238,7 @@ TEST(AdaptiveContact, DryFrictionReversalRunsToTheCoulombLimit) {
 namespace {
 
 crystal::PhaseDescription fcc_copper() {
-  law::LawParameters p;
-  p.friction = {1.0, 1.5, 2.0, 0.0};
-  p.subloading = {law::SubloadingFunction::cot, 300.0};
-  p.overstress = {law::OverstressForm::exponential, 0.05, 16.0, 1.8};
-  crystal::PhaseDescription d;
-  d.families = {crystal::SlipFamily::fcc_111_110};
-  d.family_settings = {{p, 20.0, 0.0}};
-  d.stiffness = crystal::cubic_stiffness(168400.0, 121400.0, 75400.0);
-  return d;
+  return subslip::testing::copper_phase(20.0);
 }
 
 // Uniaxial stress along x at `rate` for `duration`: L_11 prescribed, the rest free at zero

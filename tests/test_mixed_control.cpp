@@ -18,7 +18,9 @@
 #include <iostream>
 #include <vector>
 
+#include "copper_phase.hpp"
 #include "grain_recorder.hpp"
+#include "single_thread.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
@@ -38,15 +40,7 @@ std::ostream& measured() {
 constexpr double kTau0 = 0.754;
 
 crystal::PhaseDescription stiff_fcc() {
-  law::LawParameters p;
-  p.friction = {1.0, 1.5, 2.0, 0.0};
-  p.subloading = {law::SubloadingFunction::cot, 300.0};
-  p.overstress = {law::OverstressForm::exponential, 0.05, 16.0, 1.8};
-  crystal::PhaseDescription d;
-  d.families = {crystal::SlipFamily::fcc_111_110};
-  d.family_settings = {{p, kTau0, 0.0}};
-  d.stiffness = crystal::cubic_stiffness(168400.0, 121400.0, 75400.0);
-  return d;
+  return subslip::testing::copper_phase(kTau0);
 }
 
 // Uniaxial stress along z at `rate` (L_33 prescribed, every other component free at zero
@@ -77,8 +71,7 @@ struct MixedRun {
 };
 
 MixedRun run(const std::vector<crystal::LoadSegment>& segs, const crystal::AggregateOptions& opt) {
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
+  const subslip::testing::SingleThread one;
   auto agg = crystal::build_taylor_aggregate(
       stiff_fcc(),
       {crystal::single_crystal_orientation(crystal::Vec3(-1, 2, 3), crystal::Vec3(3, 0, 1)),
@@ -87,7 +80,6 @@ MixedRun run(const std::vector<crystal::LoadSegment>& segs, const crystal::Aggre
   MixedRun out;
   out.stats = agg->run(segs, opt, rec.observer());
   out.snaps = std::move(rec.snaps);
-  omp_set_num_threads(saved);
   return out;
 }
 
