@@ -538,10 +538,10 @@ FeRow contact_fe_row(double alpha) {
     steady = s;
     if (s.law.mu > 0.0)
       lambda_path =
-          std::max(lambda_path, alpha * lw.slip_rate_slope(s.r, s.law.r_s) / (fn * s.law.mu));
+          std::max(lambda_path, lw.traction_relaxation_rate(alpha, s.r, s.law.r_s, s.law.mu, fn));
   });
   const auto ss = lw.steady_state(v);
-  const double lambda = alpha * lw.slip_rate_slope(ss.r, 1.0) / (fn * ss.mu);
+  const double lambda = lw.traction_relaxation_rate(alpha, ss.r, 1.0, ss.mu, fn);
   auto stable = [&](double dt) {
     ct::ContactState s = steady;
     s.traction_t *= 1.0 + 1e-6;
@@ -614,7 +614,7 @@ FeRow crystal_fe_row(double g_over_tau0) {
   }
   const double r = cr::loading_ratio(ph, s)(0);
   const double a = ph.interaction(0, 0);
-  const double lambda = a * lw.slip_rate_slope(r, s.r_s(0)) / (s.mu(0) * tau0);
+  const double lambda = lw.traction_relaxation_rate(a, r, s.r_s(0), s.mu(0), tau0);
   auto stable = [&](double dt) {
     cr::GrainState<1> x = s;
     x.stress *= 1.0 + 1e-6;

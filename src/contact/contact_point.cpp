@@ -115,15 +115,13 @@ double normal_traction_at(const Segment& seg, const ContactStiffness& c, double 
   return fn_start + (seg.normal_traction - fn_start) * (t / seg.duration);
 }
 
-// The rate at which a perturbation of the tangential traction relaxes while sliding:
-// lambda = alpha_t phi_r / (f_n mu), phi_r the slope of the slip rate in r. Forward Euler
-// multiplies such a perturbation by 1 - lambda dt per step, so it is stable for dt <= 2/lambda;
-// beyond that the traction oscillates with a growing amplitude for many steps before it leaves
-// the admissible set, so such steps are refused (and cut back) rather than taken.
+// lambda of the contact at the start of a step (the law's traction_relaxation_rate with alpha_t).
+// Beyond dt = 2/lambda the traction oscillates with a growing amplitude for many steps before it
+// leaves the admissible set, so forward Euler refuses such steps (they are cut back).
 double traction_relaxation_rate(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
                                 const ContactState& s0) {
   if (!(s0.traction_n > 0.0)) return 0.0;  // open: no traction to relax
-  return c.alpha_t * law.slip_rate_slope(s0.r, s0.law.r_s) / (s0.traction_n * s0.law.mu);
+  return law.traction_relaxation_rate(c.alpha_t, s0.r, s0.law.r_s, s0.law.mu, s0.traction_n);
 }
 
 StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,

@@ -570,8 +570,8 @@ int unstable_system(const Phase<N>& ph, const GrainState<N>& s0, const SlipRates
                     double dt) {
   for (int a = 0; a < ph.slip_count; ++a) {
     if (!(slip.fn(a) > 0.0)) continue;
-    const double slope = ph.laws[static_cast<size_t>(a)].slip_rate_slope(slip.r(a), s0.r_s(a));
-    const double lambda = ph.interaction(a, a) * slope / (s0.mu(a) * slip.fn(a));
+    const double lambda = ph.laws[static_cast<size_t>(a)].traction_relaxation_rate(
+        ph.interaction(a, a), slip.r(a), s0.r_s(a), s0.mu(a), slip.fn(a));
     if (!(dt * lambda <= 2.0)) return a;
   }
   return -1;

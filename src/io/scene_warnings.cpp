@@ -223,7 +223,7 @@ double forward_euler_step_limit(const law::LawParameters& p, double v, double st
   const law::SubloadingFrictionLaw law(p);
   if (law.is_rate_independent() || !(v > 0.0)) return std::numeric_limits<double>::infinity();
   const auto ss = law.steady_state(v);
-  const double lambda = stiffness / (normal_traction * ss.mu) * law.slip_rate_slope(ss.r, 1.0);
+  const double lambda = law.traction_relaxation_rate(stiffness, ss.r, 1.0, ss.mu, normal_traction);
   return lambda > 0.0 ? 2.0 / lambda : std::numeric_limits<double>::infinity();
 }
 

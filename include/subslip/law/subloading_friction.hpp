@@ -105,6 +105,14 @@ class SubloadingFrictionLaw {
   double slip_rate(double r, double r_s) const;
   // d phi / d r at (r, r_s), for explicit stability estimates.
   double slip_rate_slope(double r, double r_s) const;
+  // The rate at which a perturbation of the traction relaxes while sliding under an elastic
+  // stiffness k (contact: alpha_t; slip system: A_aa = P_a : C : P_a) at friction coefficient mu
+  // and normal traction f_n (slip system: tau0): lambda = k phi_r / (mu f_n). Forward Euler
+  // multiplies the perturbation by 1 - lambda dt per step: stable for dt <= 2/lambda.
+  double traction_relaxation_rate(double stiffness, double r, double r_s, double mu,
+                                  double normal_traction) const {
+    return stiffness * slip_rate_slope(r, r_s) / (mu * normal_traction);
+  }
 
   // Exact integral of dr_s = U(r_s) ds from r_s0 over a slip ds >= 0 (2.28 for cot; the other
   // two forms are integrated exactly too, by inverting their closed-form integrals). The slope is
