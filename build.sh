@@ -35,9 +35,10 @@ fi
 # out of these builds and CI; SUBSLIP_WITH_CVODE=AUTO ./build.sh ... uses it when installed.
 cvode="-DSUBSLIP_WITH_CVODE=${SUBSLIP_WITH_CVODE:-OFF}"
 
+# The Release build of the given targets (all when none are given).
 release_build() {
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$cvode" > /dev/null
-  cmake --build build -j"$(nproc)"
+  cmake --build build -j"$(nproc)" ${1:+--target "$@"}
 }
 
 # Prints how long a stage took (CI must stay under 30 minutes on 2 cores).
@@ -90,7 +91,7 @@ fuzz_tests() {
 
 case "${1:-}" in
   run)
-    release_build
+    release_build subslip  # the program only: a run needs neither the tests nor the benchmarks
     scene="${2:-inputs/default.yaml}"
     out="results/$(basename "${scene%.*}").h5"
     # --force: this command is documented to refresh results/<scene>.h5 each time it is run.
