@@ -68,20 +68,64 @@ inline int run_subslip(const fs::path& dir, const std::vector<std::string>& args
   return code;
 }
 
-// Starts the command and SIGKILLs it after `delay` seconds (unless it ended before); the exit
-// code (137 when killed).
-inline int run_and_kill(const fs::path& dir, const std::vector<std::string>& args,
-                        const fs::path& log, double delay) {
-  const pid_t pid = spawn_subslip(dir, args, log);
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
-  while (std::chrono::steady_clock::now() < until) {
+// Polls (every millisecond) until the child ends or `done()` says stop; the child's exit code
+// when it ended, else -1.
+template <class Done>
+int poll_child(pid_t pid, Done&& done) {
+  while (!done()) {
     int status = 0;
-    const pid_t done = ::waitpid(pid, &status, WNOHANG);
-    if (done == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    if (::waitpid(pid, &status, WNOHANG) == pid)
+      return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
+  return -1;
+}
+
+// How long a run took, and when its result file appeared (the command line renames the file
+// into place once its layout is complete: from then on a kill leaves a file to restart from).
+struct RunTiming {
+  double total = 0.0;
+  double until_file = 0.0;
+};
+
+// Runs to the end; the exit code. `t`: the wall time and when `appears` came into existence.
+inline int run_subslip_timed(const fs::path& dir, const std::vector<std::string>& args,
+                             const fs::path& log, const fs::path& appears, RunTiming& t) {
+  const auto start = std::chrono::steady_clock::now();
+  auto since_start = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  const pid_t pid = spawn_subslip(dir, args, log);
+  int code = poll_child(pid, [&] { return fs::exists(appears); });
+  t.until_file = since_start();
+  if (code < 0) code = wait_child(pid);
+  t.total = since_start();
+  return code;
+}
+
+// SIGKILLs the child `delay` seconds from now unless it ends before; its exit code (137 when
+// killed).
+inline int kill_after(pid_t pid, double delay) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
+  const int code = poll_child(pid, [&] { return std::chrono::steady_clock::now() >= until; });
+  if (code >= 0) return code;
   ::kill(pid, SIGKILL);
   return wait_child(pid);
+}
+
+// Starts the command and SIGKILLs it after `delay` seconds (unless it ended before).
+inline int run_and_kill(const fs::path& dir, const std::vector<std::string>& args,
+                        const fs::path& log, double delay) {
+  return kill_after(spawn_subslip(dir, args, log), delay);
+}
+
+// Starts the command and SIGKILLs it `delay` seconds after `appears` exists (unless it ended
+// before).
+inline int run_and_kill_after_file(const fs::path& dir, const std::vector<std::string>& args,
+                                   const fs::path& log, const fs::path& appears, double delay) {
+  const pid_t pid = spawn_subslip(dir, args, log);
+  const int code = poll_child(pid, [&] { return fs::exists(appears); });
+  return code >= 0 ? code : kill_after(pid, delay);
 }
 
 inline std::string read_text(const fs::path& p) {

@@ -14,6 +14,8 @@
 #include "child_process.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
+#include "subslip/io/crystal_output.hpp"
+#include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -92,7 +94,8 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   const h5::File file = h5::File::open_read(dir / "out.h5");
   const h5::Group root = file.root();
   EXPECT_EQ(root.attribute_string("format"), "subslip");
-  EXPECT_EQ(root.attribute_int("format_version"), 1);
+  EXPECT_EQ(root.attribute_int("format_version"), h5::kFormatVersion);
+  EXPECT_EQ(root.attribute_int("layout_complete"), 1);
   EXPECT_EQ(root.attribute_string("program_version"), SUBSLIP_VERSION);
   EXPECT_EQ(root.attribute_string("scene_kind"), "contact");
   EXPECT_EQ(root.attribute_string("scene_file"), "h5_test.yaml");
@@ -175,7 +178,7 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   EXPECT_GE(g.attribute_int("substeps"), 310);
   EXPECT_TRUE(g.has_attribute("cutbacks"));
   EXPECT_TRUE(g.has_attribute("wall_seconds"));
-  EXPECT_FALSE(g.has_attribute("failed"));
+  EXPECT_EQ(h5::failure_message(g), "");  // reserved, empty: the case did not fail
   fs::remove_all(dir);
 }
 
@@ -240,9 +243,10 @@ TEST(H5Writer, SeriesAppendInBlocksAndReadBack) {
     EXPECT_EQ(one.capacity(), 128u);  // the reservation doubled
     const auto ints_so_far = ints.dataset().read_ints();
     EXPECT_EQ(ints_so_far.back(), h5::kInt32Fill);  // not committed yet, or beyond the rows
-    one.finish();                                   // trims the extent to the rows
+    one.finish();  // commits; the reservation stays (a trim would change metadata mid-run)
     two.finish();
     ints.finish();
+    EXPECT_EQ(one.dataset().shape().front(), 128u);
     EXPECT_THROW(one.append_int(1), h5::Error);
     const double wrong[2] = {1, 2};
     EXPECT_THROW(two.append(wrong), h5::Error);
@@ -257,13 +261,17 @@ TEST(H5Writer, SeriesAppendInBlocksAndReadBack) {
   const auto one = root.open_dataset("one").read_doubles();
   const auto two = root.open_dataset("two").read_doubles();
   const auto ints = root.open_dataset("ints").read_ints();
-  ASSERT_EQ(one.size(), 100u);
-  ASSERT_EQ(two.size(), 300u);
-  ASSERT_EQ(ints.size(), 100u);
+  ASSERT_EQ(one.size(), 128u);
+  ASSERT_EQ(two.size(), 3 * 128u);
+  ASSERT_EQ(ints.size(), 128u);
   for (int i = 0; i < 100; ++i) {
     EXPECT_EQ(one[i], 0.5 * i);
     EXPECT_EQ(two[3 * i + 2], 3.0 * i);
     EXPECT_EQ(ints[i], -i);
+  }
+  for (int i = 100; i < 128; ++i) {  // reserved rows beyond the written ones
+    EXPECT_TRUE(std::isnan(one[i]));
+    EXPECT_EQ(ints[i], h5::kInt32Fill);
   }
   EXPECT_EQ(root.open_dataset("two").chunk_shape(), (std::vector<std::size_t>{64, 3}));
   EXPECT_EQ(root.open_dataset("one").attribute_string("unit"), "s");
@@ -465,5 +473,69 @@ TEST(H5Output, RunKilledAtARandomMomentKeepsEveryCountedRow) {
   }
   EXPECT_GT(files, 0u);  // the test saw at least one killed file
   EXPECT_GT(valid, 0u);  // with rows in it
+  fs::remove_all(dir);
+}
+
+// The attribute names of the root and of every case group, in creation order: an attribute
+// deleted and created again moves to the end.
+std::vector<std::vector<std::string>> attribute_orders(const h5::File& file) {
+  std::vector<std::vector<std::string>> out{file.root().attribute_names()};
+  const h5::Group cases = file.root().open_group("cases");
+  for (const auto& name : cases.members()) out.push_back(cases.open_group(name).attribute_names());
+  return out;
+}
+
+// The crash-safety design (h5_writer.hpp): once the layout is written, a run writes values
+// only, in place. So the file does not grow after the layout (no object, attribute, heap or
+// chunk space is allocated), and no attribute is replaced, through streaming, checkpoints,
+// summaries and a failed case.
+TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
+  const fs::path dir = scratch_dir();
+  std::uintmax_t at_layout = 0;
+  std::vector<std::vector<std::string>> orders;
+  {
+    const fs::path path = dir / "crystal.h5";
+    h5::File file = h5::File::create(path, false);
+    CrystalRunOptions options;
+    options.on_header_written = [&] {
+      at_layout = fs::file_size(path);
+      orders = attribute_orders(file);
+    };
+    const auto results = run_crystal_scene(
+        parse_crystal_scene(YamlDocument::from_string(kCrystalKillScene, "kill.yaml")), file,
+        options);
+    ASSERT_EQ(results.size(), 2u);
+    EXPECT_EQ(attribute_orders(file), orders);
+    file.close();
+    EXPECT_GT(at_layout, 0u);
+    EXPECT_EQ(fs::file_size(path), at_layout);
+    EXPECT_TRUE(h5::File::open_read(path).root().has("checkpoint"));
+  }
+  {
+    // The slide in one step: the implicit case completes, forward Euler fails.
+    const fs::path path = dir / "contact.h5";
+    std::string text = kScene;
+    text.replace(text.find("increments: 300"), 15, "increments: 1");
+    text +=
+        "integrator: {method: implicit, max_cutbacks: 0}\n"
+        "sweep:\n  \"integrator.method\": [implicit, forward_euler]\n";
+    h5::File file = h5::File::create(path, false);
+    ContactRunOptions options;
+    options.threads = 1;
+    options.on_header_written = [&] {
+      at_layout = fs::file_size(path);
+      orders = attribute_orders(file);
+    };
+    const auto results = run_contact_scene(scene_of(text), file, options);
+    ASSERT_EQ(results.size(), 2u);
+    EXPECT_TRUE(results[0].failure.empty()) << results[0].failure;
+    EXPECT_FALSE(results[1].failure.empty());
+    EXPECT_EQ(attribute_orders(file), orders);
+    file.close();
+    EXPECT_EQ(fs::file_size(path), at_layout);
+    const h5::File read = h5::File::open_read(path);
+    const h5::Group failed = read.root().open_group("cases").open_group(results[1].name);
+    EXPECT_NE(h5::failure_message(failed), "");
+  }
   fs::remove_all(dir);
 }

@@ -248,28 +248,39 @@ void expect_numbered(const StoredCheckpoint& s, std::size_t grains, int per_grai
 TEST(Checkpoint, StoreKeepsTheLatestCompleteSlot) {
   const fs::path dir = scratch_dir();
   h5::File file = h5::File::create(dir / "c.h5", false);
-  const h5::Group g = file.root().create_group("case");
-  CheckpointStore store(g);
-  EXPECT_FALSE(store.latest());
+  const std::size_t capacity = 5 * 63 + 17;  // larger than the checkpoints: the rest is unused
+  CheckpointStore::create(file.root(), capacity);
+  CheckpointStore store(file.root());
+  EXPECT_FALSE(store.latest(0));
   crystal::MacroState last;
   for (long k = 1; k <= 3; ++k) {
     last.time = static_cast<double>(k) - 0.5;
-    store.write(file, numbered_checkpoint(k, 5, 63), static_cast<std::size_t>(10 * k), last);
-    const auto latest = store.latest();
+    store.write(0, numbered_checkpoint(k, 5, 63), static_cast<std::size_t>(10 * k), last);
+    const auto latest = store.latest(0);
     ASSERT_TRUE(latest);
     EXPECT_EQ(latest->sequence, k);
     expect_numbered(*latest, 5, 63);
+    EXPECT_FALSE(store.latest(1));  // another case's checkpoint is not this case's
   }
   // Slots alternate: 1 and 3 in a, 2 in b. A slot torn by a kill (sequence -1, data half
   // written) is ignored: the other one is the latest.
-  const h5::Group a = g.open_group("checkpoint").open_group("a");
+  const h5::Group a = file.root().open_group("checkpoint").open_group("a");
   const long long torn[1] = {-1};
   a.open_dataset("sequence").write(torn);
-  a.open_dataset("grains").write(std::vector<double>(5 * 63, 123.0));
-  const auto latest = store.latest();
+  a.open_dataset("grains").write(std::vector<double>(capacity, 123.0));
+  const auto latest = store.latest(0);
   ASSERT_TRUE(latest);
   EXPECT_EQ(latest->sequence, 2);
   expect_numbered(*latest, 5, 63);
+  // The next case (fewer grains, other slip count) writes over the older slot and reads back
+  // its own shape; a store opened afresh (a restart) continues the numbering.
+  last.time = 3.5;
+  CheckpointStore(file.root()).write(1, numbered_checkpoint(4, 3, 19), 40, last);
+  const auto next = CheckpointStore(file.root()).latest(1);
+  ASSERT_TRUE(next);
+  EXPECT_EQ(next->sequence, 3);
+  expect_numbered(*next, 3, 19);
+  EXPECT_FALSE(store.latest(0));
   fs::remove_all(dir);
 }
 
@@ -290,14 +301,14 @@ TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
     if (child == 0) {
       h5::File file = h5::File::create(path, false);
       h5::write_result_header(file, {"crystal", "k.yaml", "scene: crystal\n", "kill", {}});
-      const h5::Group g = file.root().create_group("case");
+      CheckpointStore::create(file.root(), grains * per_grain);
       file.flush();
-      CheckpointStore store(g);
+      CheckpointStore store(file.root());
       crystal::MacroState last;
       for (long k = 1;; ++k) {
         last.time = static_cast<double>(k) - 0.5;
-        store.write(file, numbered_checkpoint(k, grains, per_grain),
-                    static_cast<std::size_t>(10 * k), last);
+        store.write(0, numbered_checkpoint(k, grains, per_grain), static_cast<std::size_t>(10 * k),
+                    last);
       }
     }
     std::uniform_real_distribution<double> when(0.05, 0.4);
@@ -306,8 +317,7 @@ TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
     int status = 0;
     ASSERT_EQ(::waitpid(child, &status, 0), child);
     const h5::File file = h5::File::open_read(path);
-    const h5::Group g = file.root().open_group("case");
-    const auto latest = CheckpointStore(g).latest();
+    const auto latest = CheckpointStore(file.root()).latest(0);
     if (!latest) continue;  // killed before the first checkpoint was complete
     ++checked;
     expect_numbered(*latest, grains, per_grain);
@@ -323,6 +333,12 @@ namespace {
 
 std::string log_of(const fs::path& dir) {
   return read_text(dir / "run.log");
+}
+
+// A kill can land after the run marked its file completed (while it closes and prints its
+// summary): then there is nothing to restart.
+bool killed_unfinished(int code, const fs::path& file) {
+  return code != 0 && h5::File::open_read(file).root().attribute_int("completed") == 0;
 }
 
 int restart(const fs::path& dir, const std::string& file, std::vector<std::string> more = {}) {
@@ -341,24 +357,27 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
       << crystal_scene(16, 60,
                        "output:\n  grains: [stress, orientation, slip, r_s]\n"
                        "  checkpoint_every: 4\nsweep:\n  \"phase.tau0\": [10, 12]\n");
-  double seconds = 0.0;
-  ASSERT_EQ(
-      run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"}, dir / "run.log", &seconds), 0)
+  subslip::testing::RunTiming ref;
+  ASSERT_EQ(subslip::testing::run_subslip_timed(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"},
+                                                dir / "run.log", dir / "ref.h5", ref),
+            0)
       << log_of(dir);
   const unsigned seed = subslip::testing::kill_seed();
   SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> when(0.2 * seconds, 0.7 * seconds);
-  const int first = subslip::testing::run_and_kill(dir, {"run", "scene.yaml", "-o", "out.h5", "-q"},
-                                                   dir / "run.log", when(rng));
+  // Kills after the file is in place (its layout complete): before, there is nothing to
+  // restart (H5Output.RunKilledAtARandomMomentKeepsEveryCountedRow covers those moments).
+  const double computing = ref.total - ref.until_file;
+  std::uniform_real_distribution<double> when(0.1 * computing, 0.8 * computing);
+  const int first = subslip::testing::run_and_kill_after_file(
+      dir, {"run", "scene.yaml", "-o", "out.h5", "-q"}, dir / "run.log", dir / "out.h5", when(rng));
   ASSERT_TRUE(first == 128 + SIGKILL || first == 0) << log_of(dir);
-  if (first != 0) {
-    ASSERT_TRUE(fs::exists(dir / "out.h5"));
+  if (killed_unfinished(first, dir / "out.h5")) {
     // Kill the restarted run too (early in it), then let a second restart finish.
     const int second = subslip::testing::run_and_kill(dir, {"run", "--restart", "out.h5", "-q"},
                                                       dir / "run.log", 0.3 * when(rng));
     ASSERT_TRUE(second == 128 + SIGKILL || second == 0) << log_of(dir);
-    if (second != 0) {
+    if (killed_unfinished(second, dir / "out.h5")) {
       ASSERT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
     }
   }
@@ -367,7 +386,8 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
   const h5::CaseProgress progress = h5::CaseProgress::open(out.root());
   for (std::size_t k = 0; k < progress.size(); ++k)
     EXPECT_EQ(progress.state(k), h5::CaseState::completed);
-  // Finished cases keep no checkpoint.
+  // One checkpoint store for the run, not one per case.
+  EXPECT_TRUE(out.root().has("checkpoint"));
   EXPECT_FALSE(out.root().open_group("cases").open_group("tau0=10").has("checkpoint"));
   subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
   fs::remove_all(dir);
@@ -391,20 +411,22 @@ sweep:
   "loading[0].slide.speed": [1, 2, 5, 10, 20, 50, 100, 200]
   "law.overstress.n": [8, 16, 32]
 )";
-  double seconds = 0.0;
-  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q", "-j", "1"},
-                        dir / "run.log", &seconds),
+  subslip::testing::RunTiming ref;
+  ASSERT_EQ(subslip::testing::run_subslip_timed(
+                dir, {"run", "scene.yaml", "-o", "ref.h5", "-q", "-j", "1"}, dir / "run.log",
+                dir / "ref.h5", ref),
             0)
       << log_of(dir);
   const unsigned seed = subslip::testing::kill_seed();
   SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> when(0.3 * seconds, 0.7 * seconds);
-  const int first = subslip::testing::run_and_kill(
-      dir, {"run", "scene.yaml", "-o", "out.h5", "-q", "-j", "1"}, dir / "run.log", when(rng));
+  const double computing = ref.total - ref.until_file;
+  std::uniform_real_distribution<double> when(0.2 * computing, 0.8 * computing);
+  const int first = subslip::testing::run_and_kill_after_file(
+      dir, {"run", "scene.yaml", "-o", "out.h5", "-q", "-j", "1"}, dir / "run.log", dir / "out.h5",
+      when(rng));
   ASSERT_TRUE(first == 128 + SIGKILL || first == 0) << log_of(dir);
-  if (first != 0) {
-    ASSERT_TRUE(fs::exists(dir / "out.h5"));
+  if (killed_unfinished(first, dir / "out.h5")) {
     ASSERT_EQ(restart(dir, "out.h5", {"-j", "2"}), 0) << log_of(dir);
   }
   EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);

@@ -124,7 +124,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     c.stats = stats_;
     c.stats.wall_seconds = wall_seconds();
     const int n = phase_.slip_count;
-    c.values_per_grain = 15 + 4 * n;
+    c.values_per_grain = checkpoint_values_per_grain(n);
     c.grains.resize(committed_.size() * static_cast<size_t>(c.values_per_grain));
     double* out = c.grains.data();
     for (const auto& g : committed_) {
@@ -139,7 +139,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   void restore(const AggregateCheckpoint& c) override {
     const int n = phase_.slip_count;
-    if (c.values_per_grain != 15 + 4 * n ||
+    if (c.values_per_grain != checkpoint_values_per_grain(n) ||
         c.grains.size() != committed_.size() * static_cast<size_t>(c.values_per_grain)) {
       throw std::invalid_argument("checkpoint of a different aggregate (grains or slip systems)");
     }

@@ -1,5 +1,6 @@
 #include "subslip/io/checkpoint.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -31,11 +32,23 @@ std::vector<std::string> value_names() {
   return names;
 }
 
-const std::vector<std::string> kCounterNames = {
-    "segment",     "increment",           "macro_segment",     "free_count",
-    "rows",        "last_output_segment", "increments",        "substeps",
-    "grain_steps", "grain_solves",        "newton_iterations", "cutbacks",
-    "rejected",    "mixed_iterations"};
+const std::vector<std::string> kCounterNames = {"segment",
+                                                "increment",
+                                                "macro_segment",
+                                                "free_count",
+                                                "rows",
+                                                "last_output_segment",
+                                                "increments",
+                                                "substeps",
+                                                "grain_steps",
+                                                "grain_solves",
+                                                "newton_iterations",
+                                                "cutbacks",
+                                                "rejected",
+                                                "mixed_iterations",
+                                                "case",
+                                                "grain_count",
+                                                "values_per_grain"};
 
 void put(std::vector<double>& v, const Mat3& m) {
   for (int i = 0; i < 3; ++i)
@@ -68,9 +81,10 @@ std::vector<double> pack_values(const crystal::AggregateCheckpoint& c,
   return v;
 }
 
-std::vector<long long> pack_counters(const crystal::AggregateCheckpoint& c, std::size_t rows,
-                                     const crystal::MacroState& last) {
+std::vector<long long> pack_counters(std::size_t case_index, const crystal::AggregateCheckpoint& c,
+                                     std::size_t rows, const crystal::MacroState& last) {
   const auto& s = c.stats;
+  const auto per_grain = static_cast<std::size_t>(std::max(c.values_per_grain, 1));
   return {c.position.segment,
           c.position.increment,
           c.macro.segment,
@@ -84,7 +98,10 @@ std::vector<long long> pack_counters(const crystal::AggregateCheckpoint& c, std:
           s.newton_iterations,
           s.cutbacks,
           s.rejected,
-          s.mixed_iterations};
+          s.mixed_iterations,
+          static_cast<long long>(case_index),
+          static_cast<long long>(c.grains.size() / per_grain),
+          c.values_per_grain};
 }
 
 StoredCheckpoint unpack(const std::vector<double>& values, const std::vector<long long>& n,
@@ -142,18 +159,21 @@ void write_sequence(const h5::Group& slot, long long value) {
 
 }  // namespace
 
-void CheckpointStore::create_slots(h5::File& file, std::size_t grains, int values_per_grain) {
-  const h5::Group g = case_.create_group("checkpoint");
+void CheckpointStore::create(const h5::Group& parent, std::size_t capacity) {
+  const h5::Group g = parent.create_group("checkpoint");
   g.set_attribute("description",
-                  "two slots written alternately; the one with the larger sequence >= 1 is the "
-                  "latest complete checkpoint (-1: being written)");
+                  "the running crystal case's state, two slots written alternately; the one "
+                  "with the larger sequence >= 1 is the latest complete checkpoint (-1: being "
+                  "written)");
+  g.set_attribute("capacity", static_cast<long long>(capacity));
   const auto names = value_names();
   for (const char* name : kSlots) {
     const h5::Group slot = g.create_group(name);
-    const std::size_t grain_shape[2] = {grains, static_cast<std::size_t>(values_per_grain)};
+    const std::size_t grain_shape[1] = {std::max<std::size_t>(capacity, 1)};
     slot.create_fixed("grains", grain_shape, h5::Type::float64,
-                      "per grain: stress (lattice frame, Mandel) 6, orientation g (row-major) 9, "
-                      "then mu, r_s, slip, slip rate (N each)");
+                      "per grain (grain_count x values_per_grain, row-major): stress (lattice "
+                      "frame, Mandel) 6, orientation g (row-major) 9, then mu, r_s, slip, slip "
+                      "rate (N each); the rest unused");
     const std::size_t value_shape[1] = {names.size()};
     slot.create_fixed("values", value_shape, h5::Type::float64, "macro state, see names")
         .set_attribute("names", names);
@@ -163,55 +183,60 @@ void CheckpointStore::create_slots(h5::File& file, std::size_t grains, int value
     slot.create_fixed("sequence", {}, h5::Type::int64, "checkpoint number; -1 while written");
     write_sequence(slot, -1);
   }
-  file.flush();  // the slots exist before anything is counted on them
 }
 
-void CheckpointStore::write(h5::File& file, const crystal::AggregateCheckpoint& state,
+CheckpointStore::CheckpointStore(const h5::Group& parent)
+    : store_(parent.open_group("checkpoint")) {}
+
+void CheckpointStore::write(std::size_t case_index, const crystal::AggregateCheckpoint& state,
                             std::size_t rows, const crystal::MacroState& last_output) {
-  if (!case_.has("checkpoint")) {
-    create_slots(file, state.grains.size() / static_cast<std::size_t>(state.values_per_grain),
-                 state.values_per_grain);
-  } else if (sequence_ == 0) {
+  if (!continued_) {
     // A restart: continue the numbering, and write over the older slot.
-    if (auto l = latest()) {
-      sequence_ = l->sequence;
-      const h5::Group a = case_.open_group("checkpoint").open_group(kSlots[0]);
-      next_slot_ = read_sequence(a) == sequence_ ? 1 : 0;
+    continued_ = true;
+    for (int k = 0; k < 2; ++k) {
+      const long long s = read_sequence(store_.open_group(kSlots[k]));
+      if (s > sequence_) {
+        sequence_ = s;
+        next_slot_ = 1 - k;
+      }
     }
   }
-  const h5::Group slot = case_.open_group("checkpoint").open_group(kSlots[next_slot_]);
+  const h5::Group slot = store_.open_group(kSlots[next_slot_]);
   write_sequence(slot, -1);  // from here until the end the slot is not a checkpoint
-  slot.open_dataset("grains").write(state.grains);
+  slot.open_dataset("grains").write_prefix(state.grains);
   slot.open_dataset("values").write(pack_values(state, last_output));
-  slot.open_dataset("counters").write(pack_counters(state, rows, last_output));
+  slot.open_dataset("counters").write(pack_counters(case_index, state, rows, last_output));
   write_sequence(slot, ++sequence_);
   next_slot_ = 1 - next_slot_;
 }
 
-std::optional<StoredCheckpoint> CheckpointStore::latest() const {
-  if (!case_.has("checkpoint")) return std::nullopt;
-  const h5::Group g = case_.open_group("checkpoint");
+std::optional<StoredCheckpoint> CheckpointStore::latest(std::size_t case_index) const {
   int best = -1;
   long long best_sequence = 0;
   for (int k = 0; k < 2; ++k) {
-    if (!g.has(kSlots[k])) continue;
-    const long long s = read_sequence(g.open_group(kSlots[k]));
+    const long long s = read_sequence(store_.open_group(kSlots[k]));
     if (s > best_sequence) {
       best = k;
       best_sequence = s;
     }
   }
   if (best < 0) return std::nullopt;
-  const h5::Group slot = g.open_group(kSlots[best]);
-  const h5::Dataset grains = slot.open_dataset("grains");
-  const auto shape = grains.shape();
+  const h5::Group slot = store_.open_group(kSlots[best]);
   const auto values = slot.open_dataset("values").read_doubles();
   const auto counters = slot.open_dataset("counters").read_ints();
-  if (shape.size() != 2 || values.size() != value_names().size() ||
-      counters.size() != kCounterNames.size()) {
+  if (values.size() != value_names().size() || counters.size() != kCounterNames.size()) {
     throw h5::Error("HDF5: checkpoint slot '" + std::string(kSlots[best]) + "' has another layout");
   }
-  return unpack(values, counters, grains.read_doubles(), static_cast<int>(shape[1]), best_sequence);
+  const std::size_t last = kCounterNames.size() - 1;  // case, grain_count, values_per_grain
+  if (counters[last - 2] != static_cast<long long>(case_index)) return std::nullopt;
+  const auto grain_values =
+      static_cast<std::size_t>(counters[last - 1]) * static_cast<std::size_t>(counters[last]);
+  std::vector<double> grains = slot.open_dataset("grains").read_doubles();
+  if (grains.size() < grain_values)
+    throw h5::Error("HDF5: checkpoint slot '" + std::string(kSlots[best]) + "' is too small");
+  grains.resize(grain_values);
+  return unpack(values, counters, std::move(grains), static_cast<int>(counters[last]),
+                best_sequence);
 }
 
 }  // namespace subslip::io

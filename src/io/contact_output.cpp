@@ -135,9 +135,9 @@ ContactCaseResult close_case(RunContext& run, std::size_t index, ContactCaseWrit
   if (failure.empty()) {
     writer.finish(result.summary);
   } else {
-    writer.mark_failed(failure);
+    writer.mark_failed(result.summary, failure);
   }
-  run.file.flush();  // the attributes and extents first: the state says they are complete
+  run.file.flush();  // the summary attributes first: the state says they are complete
   run.progress.set_state(index, failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
   return result;
 }
@@ -146,7 +146,6 @@ ContactCaseResult close_case(RunContext& run, std::size_t index, ContactCaseWrit
 ContactCaseResult stream_case(RunContext& run, std::size_t index) {
   const ContactCase& c = run.scene.cases[index];
   ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress);
-  run.file.flush();
   run.progress.set_state(index, h5::CaseState::running);
   h5::WritePacer pacer(run.options.flush_interval, run.options.write_cost_ratio);
   contact::RunStats stats;
@@ -184,11 +183,9 @@ Recording record_case(const ContactCase& c) {
 ContactCaseResult write_recorded(RunContext& run, std::size_t index, const Recording& rec) {
   if (rec.error) std::rethrow_exception(rec.error);
   const ContactCase& c = run.scene.cases[index];
-  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress,
-                           rec.rows.size());
-  for (const auto& row : rec.rows) writer.append(row.state, row.segment);
-  run.file.flush();
+  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress);
   run.progress.set_state(index, h5::CaseState::running);
+  for (const auto& row : rec.rows) writer.append(row.state, row.segment);
   return close_case(run, index, writer, rec.stats, rec.failure);
 }
 
@@ -257,8 +254,8 @@ ContactCaseResult stored_result(const h5::Group& cases, const ContactCase& c) {
   r.summary.stats.cutbacks = count("cutbacks");
   r.summary.stats.rejected = count("rejected_steps");
   r.summary.stats.wall_seconds = number("wall_seconds");
-  if (g.has_attribute("failed"))
-    r.failure = "case '" + c.name + "': " + g.attribute_string("failed");
+  const std::string why = h5::failure_message(g);
+  if (!why.empty()) r.failure = "case '" + c.name + "': " + why;
   return r;
 }
 
@@ -302,32 +299,72 @@ double steady_ratio_analytical(const ContactCase& c) {
 
 namespace {
 
-// A case left behind by a killed run is replaced as a whole (contact cases take milliseconds).
-h5::Group fresh_case_group(const h5::Group& cases, const std::string& name) {
-  if (cases.has(name)) cases.remove(name);
-  return cases.create_group(name);
+// The summary attributes. `with_units`: also their ".unit" siblings (the layout, which writes
+// placeholders); the end of the case rewrites the numbers only, in place.
+void write_summary(const h5::Group& g, const ContactSummary& summary, const Units& units,
+                   bool with_units) {
+  const std::string one(kDimensionless);
+  const std::pair<const char*, std::string> numbers[] = {
+      {"peak_ratio", one},  {"slip_at_peak", units.length},   {"bottom_ratio", one},
+      {"final_ratio", one}, {"steady_ratio_analytical", one}, {"steady_speed", units.velocity()},
+      {"wall_seconds", "s"}};
+  const double values[] = {summary.peak_ratio,
+                           summary.slip_at_peak,
+                           summary.bottom_ratio,
+                           summary.final_ratio,
+                           summary.steady_ratio_analytical,
+                           summary.steady_speed,
+                           summary.stats.wall_seconds};
+  for (std::size_t k = 0; k < std::size(values); ++k) {
+    g.set_attribute(numbers[k].first, values[k]);
+    if (with_units) g.set_attribute(std::string(numbers[k].first) + ".unit", numbers[k].second);
+  }
+  g.set_attribute("increments", summary.stats.increments);
+  g.set_attribute("substeps", summary.stats.substeps);
+  g.set_attribute("newton_iterations", summary.stats.iterations);
+  g.set_attribute("cutbacks", summary.stats.cutbacks);
+  g.set_attribute("rejected_steps", summary.stats.rejected);
+}
+
+// What a case's summary attributes hold until it ends.
+ContactSummary placeholder_summary() {
+  ContactSummary s;
+  s.peak_ratio = s.slip_at_peak = s.bottom_ratio = s.final_ratio = ContactSummary::kNone;
+  s.steady_ratio_analytical = s.steady_speed = ContactSummary::kNone;
+  s.stats.wall_seconds = ContactSummary::kNone;
+  return s;
 }
 
 }  // namespace
 
-ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index,
-                                     const Units& units, h5::CaseProgress& progress,
-                                     std::size_t rows)
-    : group_(fresh_case_group(cases, c.name)),
-      units_(units),
-      progress_(progress),
-      index_(static_cast<std::size_t>(index)) {
-  progress_.set_rows(index_, 0);
-  group_.set_attribute("name", c.name);
-  group_.set_attribute("index", index);
-  write_overrides(group_, c);
-  write_parameters(group_, c, units);
+void ContactCaseWriter::lay_out(const h5::Group& cases, const ContactCase& c, int index,
+                                const Units& units) {
+  const h5::Group group = cases.create_group(c.name);
+  group.set_attribute("name", c.name);
+  group.set_attribute("index", index);
+  write_overrides(group, c);
+  write_parameters(group, c, units);
+  write_summary(group, placeholder_summary(), units, true);
+  group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
   const std::size_t chunk_rows = chunk_rows_for(c);
   for (ContactField f : c.fields) {
     const FieldSpec spec = field_spec(f, units);
-    series_[static_cast<std::size_t>(f)].emplace(group_.create_series(
-        {std::string(to_string(f)), spec.columns, spec.type, spec.unit, spec.description,
-         chunk_rows, kBlockRows, rows > 0 ? rows : output_count(c.segments)}));
+    group.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
+                         spec.description, chunk_rows, kBlockRows, output_count(c.segments)});
+  }
+}
+
+ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index,
+                                     const Units& units, h5::CaseProgress& progress)
+    : group_(cases.open_group(c.name)),
+      units_(units),
+      progress_(progress),
+      index_(static_cast<std::size_t>(index)) {
+  progress_.set_rows(index_, 0);  // rows left by a killed run are overwritten from row 0
+  for (ContactField f : c.fields) {
+    const FieldSpec spec = field_spec(f, units);
+    series_[static_cast<std::size_t>(f)].emplace(
+        group_.open_series(to_string(f), spec.type, 0, kBlockRows));
   }
 }
 
@@ -397,24 +434,12 @@ void ContactCaseWriter::close_series() {
 
 void ContactCaseWriter::finish(const ContactSummary& summary) {
   close_series();
-  const std::string_view one = kDimensionless;
-  set_with_unit(group_, "peak_ratio", summary.peak_ratio, one);
-  set_with_unit(group_, "slip_at_peak", summary.slip_at_peak, units_.length);
-  set_with_unit(group_, "bottom_ratio", summary.bottom_ratio, one);
-  set_with_unit(group_, "final_ratio", summary.final_ratio, one);
-  set_with_unit(group_, "steady_ratio_analytical", summary.steady_ratio_analytical, one);
-  set_with_unit(group_, "steady_speed", summary.steady_speed, units_.velocity());
-  group_.set_attribute("increments", summary.stats.increments);
-  group_.set_attribute("substeps", summary.stats.substeps);
-  group_.set_attribute("newton_iterations", summary.stats.iterations);
-  group_.set_attribute("cutbacks", summary.stats.cutbacks);
-  group_.set_attribute("rejected_steps", summary.stats.rejected);
-  group_.set_attribute("wall_seconds", summary.stats.wall_seconds);
+  write_summary(group_, summary, units_, false);
 }
 
-void ContactCaseWriter::mark_failed(const std::string& why) {
-  close_series();
-  group_.set_attribute("failed", why);
+void ContactCaseWriter::mark_failed(const ContactSummary& summary, const std::string& why) {
+  finish(summary);
+  group_.write_reserved_string("failed", why);
 }
 
 // ---------------------------------------------------------------- the run
@@ -439,15 +464,18 @@ std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::
       }
     }
   } else {
+    // The whole layout before any computation (h5_writer.hpp, crash safety).
     h5::write_result_header(
         file, {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
     h5::Group cases = root.create_group("cases");
     std::vector<std::string> names;
     for (const auto& c : scene.cases) names.push_back(c.name);
     cases.set_attribute("names", names);
-    run.emplace(RunContext{scene, file, std::move(cases),
-                           h5::CaseProgress::create(root, names.size()), options});
-    file.flush();
+    for (std::size_t k = 0; k < scene.cases.size(); ++k)
+      ContactCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
+    h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+    h5::mark_layout_complete(file);
+    run.emplace(RunContext{scene, file, std::move(cases), std::move(progress), options});
     if (options.on_header_written) options.on_header_written();
     for (std::size_t k = 0; k < scene.cases.size(); ++k) todo.push_back(k);
   }

@@ -354,22 +354,107 @@ double von_mises_strain(const Eigen::Matrix3d& strain) {
 
 // ---------------------------------------------------------------- CrystalCaseWriter
 
-CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
-                                     const Units& units, h5::CaseProgress& progress)
-    : group_(cases.create_group(c.name)),
-      units_(units),
-      progress_(progress),
-      index_(static_cast<std::size_t>(index)) {
-  progress_.set_rows(index_, 0);
-  group_.set_attribute("name", c.name);
-  group_.set_attribute("index", index);
-  write_overrides(group_, c);
-  write_phase_parameters(group_, c, units);
-  write_law_parameters(group_, c, units);
-  write_run_parameters(group_, c);
-  group_.set_attribute("orientations_digest", orientations_digest(c));
-  create_macro(c);
-  if (!c.output.grains.empty()) create_grains(c);
+namespace {
+
+void lay_out_macro(const h5::Group& group, const CrystalCase& c, const Units& units) {
+  const h5::Group macro = group.create_group("macro");
+  const std::size_t rows = crystal_output_count(c.segments);
+  const std::size_t chunk_rows = std::clamp<std::size_t>(rows, 16, 4096);
+  for (MacroField f : c.output.macro) {
+    const FieldSpec spec = macro_spec(f, units);
+    const h5::Series series =
+        macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
+                             spec.description, chunk_rows, kMacroBlockRows, rows});
+    if (!spec.components.empty()) series.dataset().set_attribute("layout", spec.components);
+  }
+}
+
+void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& units) {
+  const h5::Group grains = group.create_group("grains");
+  const auto systems = crystal::described_systems(c.phase);
+  write_grain_statics(grains, c, systems);
+  const std::size_t n_grains = c.orientations.size();
+  const std::size_t rows = crystal_output_count(c.segments);
+  for (GrainField f : c.output.grains) {
+    const FieldSpec spec = grain_spec(f, units, systems.size());
+    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    const h5::SeriesSpec s{std::string(to_string(f)),
+                           0,
+                           spec.type,
+                           spec.unit,
+                           spec.description,
+                           rows_within(kGrainChunkBytes, row_bytes, rows),
+                           rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
+                           rows,
+                           {n_grains, spec.width}};
+    grains.create_series(s).dataset().set_attribute("components", spec.components);
+  }
+}
+
+// The summary attributes. `with_units`: also their ".unit" siblings (the layout, which writes
+// placeholders); the end of the case rewrites the numbers only, in place.
+void write_summary(const h5::Group& g, const CrystalSummary& summary, const Units& units,
+                   bool with_units) {
+  const auto& st = summary.stats;
+  g.set_attribute("increments", st.increments);
+  g.set_attribute("substeps", st.substeps);
+  g.set_attribute("grain_steps", st.grain_steps);
+  g.set_attribute("grain_solves", st.grain_solves);
+  g.set_attribute("newton_iterations", st.newton_iterations);
+  g.set_attribute("cutbacks", st.cutbacks);
+  g.set_attribute("rejected_steps", st.rejected);
+  g.set_attribute("mixed_iterations", st.mixed_iterations);
+  const std::string one(kDimensionless);
+  const std::pair<const char*, std::string> numbers[] = {{"wall_seconds", "s"},
+                                                         {"grain_steps_per_second", "1/s"},
+                                                         {"final_time", units.time},
+                                                         {"final_von_mises_stress", units.stress},
+                                                         {"final_von_mises_strain", one}};
+  const double values[] = {st.wall_seconds, summary.grain_steps_per_second,
+                           summary.final_state.time, summary.final_von_mises_stress,
+                           summary.final_von_mises_strain};
+  for (std::size_t k = 0; k < std::size(values); ++k) {
+    g.set_attribute(numbers[k].first, values[k]);
+    if (with_units) g.set_attribute(std::string(numbers[k].first) + ".unit", numbers[k].second);
+  }
+  g.set_attribute("final_stress", row_major(summary.final_state.stress));
+  g.set_attribute("final_strain", row_major(summary.final_state.strain));
+  if (with_units) {
+    g.set_attribute("final_stress.unit", units.stress);
+    g.set_attribute("final_strain.unit", one);
+  }
+}
+
+// What a case's summary attributes hold until it ends.
+CrystalSummary placeholder_summary() {
+  const double nan = std::nan("");
+  CrystalSummary s;
+  s.final_state.time = nan;
+  s.final_state.stress = Mat3::Constant(nan);
+  s.final_state.strain = Mat3::Constant(nan);
+  s.final_von_mises_stress = nan;
+  s.final_von_mises_strain = nan;
+  s.grain_steps_per_second = nan;
+  s.stats.wall_seconds = nan;
+  return s;
+}
+
+}  // namespace
+
+void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, int index,
+                                const Units& units) {
+  const h5::Group group = cases.create_group(c.name);
+  group.set_attribute("name", c.name);
+  group.set_attribute("index", index);
+  write_overrides(group, c);
+  write_phase_parameters(group, c, units);
+  write_law_parameters(group, c, units);
+  write_run_parameters(group, c);
+  group.set_attribute("orientations_digest", orientations_digest(c));
+  write_summary(group, placeholder_summary(), units, true);
+  group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
+  lay_out_macro(group, c, units);
+  if (!c.output.grains.empty()) lay_out_grains(group, c, units);
 }
 
 CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
@@ -397,54 +482,12 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   const h5::Group grains = group_.open_group("grains");
   const std::size_t n_grains = c.orientations.size();
   const std::size_t slip_count = crystal::described_systems(c.phase).size();
-  std::size_t widest = 9;
+  std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
     const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
     grains_[static_cast<std::size_t>(f)].emplace(grains.open_series(
         to_string(f), spec.type, rows, rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
-    grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
-    widest = std::max(widest, spec.width);
-  }
-  matrices_.resize(n_grains * 9);
-  row_.resize(n_grains * widest);
-}
-
-void CrystalCaseWriter::create_macro(const CrystalCase& c) {
-  const h5::Group macro = group_.create_group("macro");
-  const std::size_t rows = crystal_output_count(c.segments);
-  const std::size_t chunk_rows = std::clamp<std::size_t>(rows, 16, 4096);
-  for (MacroField f : c.output.macro) {
-    const FieldSpec spec = macro_spec(f, units_);
-    auto& series = macro_[static_cast<std::size_t>(f)];
-    series.emplace(macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
-                                        spec.description, chunk_rows, kMacroBlockRows, rows}));
-    if (!spec.components.empty()) series->dataset().set_attribute("layout", spec.components);
-  }
-}
-
-void CrystalCaseWriter::create_grains(const CrystalCase& c) {
-  const h5::Group grains = group_.create_group("grains");
-  const auto systems = crystal::described_systems(c.phase);
-  write_grain_statics(grains, c, systems);
-  const std::size_t n_grains = c.orientations.size();
-  const std::size_t rows = crystal_output_count(c.segments);
-  std::size_t widest = 9;  // the orientation matrices are read before conversion
-  for (GrainField f : c.output.grains) {
-    const FieldSpec spec = grain_spec(f, units_, systems.size());
-    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
-    h5::SeriesSpec s{std::string(to_string(f)),
-                     0,
-                     spec.type,
-                     spec.unit,
-                     spec.description,
-                     rows_within(kGrainChunkBytes, row_bytes, rows),
-                     rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
-                     rows,
-                     {n_grains, spec.width}};
-    auto& series = grains_[static_cast<std::size_t>(f)];
-    series.emplace(grains.create_series(s));
-    series->dataset().set_attribute("components", spec.components);
     grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
     widest = std::max(widest, spec.width);
   }
@@ -514,28 +557,12 @@ void CrystalCaseWriter::close_series() {
 
 void CrystalCaseWriter::finish(const CrystalSummary& summary) {
   close_series();
-  const std::string_view one = kDimensionless;
-  const auto& st = summary.stats;
-  group_.set_attribute("increments", st.increments);
-  group_.set_attribute("substeps", st.substeps);
-  group_.set_attribute("grain_steps", st.grain_steps);
-  group_.set_attribute("grain_solves", st.grain_solves);
-  group_.set_attribute("newton_iterations", st.newton_iterations);
-  group_.set_attribute("cutbacks", st.cutbacks);
-  group_.set_attribute("rejected_steps", st.rejected);
-  group_.set_attribute("mixed_iterations", st.mixed_iterations);
-  set_with_unit(group_, "wall_seconds", st.wall_seconds, "s");
-  set_with_unit(group_, "grain_steps_per_second", summary.grain_steps_per_second, "1/s");
-  set_with_unit(group_, "final_time", summary.final_state.time, units_.time);
-  set_with_unit(group_, "final_stress", row_major(summary.final_state.stress), units_.stress);
-  set_with_unit(group_, "final_strain", row_major(summary.final_state.strain), one);
-  set_with_unit(group_, "final_von_mises_stress", summary.final_von_mises_stress, units_.stress);
-  set_with_unit(group_, "final_von_mises_strain", summary.final_von_mises_strain, one);
+  write_summary(group_, summary, units_, false);
 }
 
-void CrystalCaseWriter::mark_failed(const std::string& why) {
-  close_series();
-  group_.set_attribute("failed", why);
+void CrystalCaseWriter::mark_failed(const CrystalSummary& summary, const std::string& why) {
+  finish(summary);
+  group_.write_reserved_string("failed", why);
 }
 
 // ---------------------------------------------------------------- the run
@@ -591,8 +618,8 @@ CrystalCaseResult stored_result(const h5::Group& cases, const CrystalCase& c) {
     last.strain = matrix_attribute(g, "final_strain");
   }
   r.summary = summarise(c, last, st);
-  if (g.has_attribute("failed"))
-    r.failure = "case '" + c.name + "': " + g.attribute_string("failed");
+  const std::string why = h5::failure_message(g);
+  if (!why.empty()) r.failure = "case '" + c.name + "': " + why;
   return r;
 }
 
@@ -604,20 +631,10 @@ struct RunContext {
   const CrystalRunOptions& options;
 };
 
-// The writer of case `index`: a new group, or (a restart) the group of the interrupted run,
-// continued from `resume_rows` valid rows.
-std::optional<CrystalCaseWriter> open_writer(RunContext& run, std::size_t index,
-                                             std::optional<std::size_t> resume_rows) {
-  const CrystalCase& c = run.scene.cases[index];
-  std::optional<CrystalCaseWriter> writer;
-  const int i = static_cast<int>(index);
-  if (resume_rows) {
-    writer.emplace(run.cases, c, i, run.scene.units, run.progress, *resume_rows);
-  } else {
-    if (run.cases.has(c.name)) run.cases.remove(c.name);  // created, but never marked running
-    writer.emplace(run.cases, c, i, run.scene.units, run.progress);
-  }
-  run.file.flush();
+// The writer of case `index`, continued after `resume_rows` valid rows (0: from the start).
+CrystalCaseWriter open_writer(RunContext& run, std::size_t index, std::size_t resume_rows) {
+  CrystalCaseWriter writer(run.cases, run.scene.cases[index], static_cast<int>(index),
+                           run.scene.units, run.progress, resume_rows);
   run.progress.set_state(index, h5::CaseState::running);
   return writer;
 }
@@ -655,16 +672,15 @@ double loading_time(const CrystalCase& c) {
 // from its latest checkpoint (or from the start when it has none).
 CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
   const CrystalCase& c = run.scene.cases[index];
-  std::optional<StoredCheckpoint> resume;
-  if (resuming) {
-    const h5::Group group = run.cases.open_group(c.name);
-    resume = CheckpointStore(group).latest();
-  }
-  std::optional<CrystalCaseWriter> writer = open_writer(
-      run, index, resuming ? std::optional<std::size_t>(resume ? resume->rows : 0) : std::nullopt);
-  if (resume) writer->set_last_state(resume->last_output);
-  CheckpointStore checkpoints(writer->group());
   const CheckpointPolicy policy = checkpoint_policy(c, run.options.checkpoint_every);
+  std::optional<CheckpointStore> checkpoints;
+  // (A restart asking for checkpoints the first run had none of runs without: no store.)
+  const h5::Group root = run.file.root();
+  if (policy.enabled() && root.has("checkpoint")) checkpoints.emplace(root);
+  std::optional<StoredCheckpoint> resume;
+  if (resuming && checkpoints) resume = checkpoints->latest(index);
+  CrystalCaseWriter writer = open_writer(run, index, resume ? resume->rows : 0);
+  if (resume) writer.set_last_state(resume->last_output);
   CheckpointClock clock(policy);
   const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
   const double duration = loading_time(c);
@@ -676,33 +692,62 @@ CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
   if (resume) control.resume = &resume->state;
   control.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState& m) {
     if (on_progress) on_progress(index, m.time / duration, false);
-    if (!policy.enabled() || !clock.due()) return;
-    pacer.commit([&] { writer->commit(); });  // the rows a checkpoint counts come first
-    checkpoints.write(run.file, aggregate->checkpoint(), writer->rows(), writer->last_state());
+    if (!checkpoints || !clock.due()) return;
+    pacer.commit([&] { writer.commit(); });  // the rows a checkpoint counts come first
+    checkpoints->write(index, aggregate->checkpoint(), writer.rows(), writer.last_state());
   };
   try {
     const auto stats = aggregate->run(
         c.segments, c.options,
         [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
-          writer->append(m, g);
+          writer.append(m, g);
           if (run.options.on_state) run.options.on_state(index, m, g);
-          if (pacer.due()) pacer.commit([&] { writer->commit(); });
+          if (pacer.due()) pacer.commit([&] { writer.commit(); });
         },
         control);
-    result.summary = summarise(c, writer->last_state(), stats);
-    writer->finish(result.summary);
+    result.summary = summarise(c, writer.last_state(), stats);
+    writer.finish(result.summary);
   } catch (const crystal::CrystalStepFailure& e) {
     result.failure = "case '" + c.name + "': " + e.what();
-    result.summary = summarise(c, writer->last_state(), {});
-    writer->mark_failed(e.what());
+    result.summary = summarise(c, writer.last_state(), {});
+    writer.mark_failed(result.summary, e.what());
   }
-  // A finished case needs no checkpoint (its space is not reclaimed, but the next case's
-  // checkpoint may reuse it: the unlink is flushed first).
-  if (writer->group().has("checkpoint")) writer->group().remove("checkpoint");
-  run.file.flush();  // attributes and extents first: the state says they are complete
+  run.file.flush();  // the summary attributes first: the state says they are complete
   run.progress.set_state(index,
                          result.failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
   return result;
+}
+
+// The largest checkpoint of the scene's cases that write checkpoints (grain values); 0: none.
+std::size_t checkpoint_capacity(const CrystalScene& scene, std::optional<long> command_line) {
+  std::size_t most = 0;
+  for (const auto& c : scene.cases) {
+    if (!checkpoint_policy(c, command_line).enabled()) continue;
+    const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
+    most = std::max(most,
+                    c.orientations.size() *
+                        static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count)));
+  }
+  return most;
+}
+
+// Everything the run will write into, before it computes anything (h5_writer.hpp, crash
+// safety): the header, every case group, /progress and the checkpoint store.
+RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOptions& options) {
+  const h5::Group root = file.root();
+  h5::write_result_header(
+      file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
+  h5::Group cases = root.create_group("cases");
+  std::vector<std::string> names;
+  for (const auto& c : scene.cases) names.push_back(c.name);
+  cases.set_attribute("names", names);
+  for (std::size_t k = 0; k < scene.cases.size(); ++k)
+    CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
+  h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+  const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
+  if (capacity > 0) CheckpointStore::create(root, capacity);
+  h5::mark_layout_complete(file);
+  return RunContext{scene, file, std::move(cases), std::move(progress), options};
 }
 
 }  // namespace
@@ -728,15 +773,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::
     run.emplace(
         RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
   } else {
-    h5::write_result_header(
-        file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
-    h5::Group cases = root.create_group("cases");
-    std::vector<std::string> names;
-    for (const auto& c : scene.cases) names.push_back(c.name);
-    cases.set_attribute("names", names);
-    run.emplace(RunContext{scene, file, std::move(cases),
-                           h5::CaseProgress::create(root, names.size()), options});
-    file.flush();
+    run.emplace(lay_out(scene, file, options));
     if (options.on_header_written) options.on_header_written();
   }
   std::vector<CrystalCaseResult> results;

@@ -86,14 +86,52 @@ void track_creation_order(hid_t plist) {
   check(H5Pset_attr_creation_order(plist, flags), "set attribute creation order");
 }
 
+// True when the stored attribute has `file_type` and the extent of `space`, and is not a
+// variable-length string: then H5Awrite rewrites its value where it is, which changes no
+// metadata layout (a variable-length string would take new global-heap space).
+bool rewritable_in_place(hid_t attr, hid_t file_type, hid_t space) {
+  Handle stored_type = own(H5Aget_type(attr), H5Tclose, "attribute type");
+  Handle stored_space = own(H5Aget_space(attr), H5Sclose, "attribute space");
+  return H5Tequal(stored_type.get(), file_type) > 0 && H5Tis_variable_str(file_type) == 0 &&
+         H5Sextent_equal(stored_space.get(), space) > 0;
+}
+
+// Writes an attribute: in place when it exists with the same type and shape (the only kind of
+// attribute write a running case makes: see the header's crash-safety note), else created anew.
 void replace_attribute(hid_t object, const std::string& name, hid_t file_type, hid_t space,
                        hid_t memory_type, const void* data) {
   const htri_t exists = H5Aexists(object, name.c_str());
   if (exists < 0) fail("check attribute '" + name + "'");
-  if (exists > 0) check(H5Adelete(object, name.c_str()), "delete attribute '" + name + "'");
+  if (exists > 0) {
+    Handle attr =
+        own(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose, "open attribute '" + name + "'");
+    if (rewritable_in_place(attr.get(), file_type, space)) {
+      check(H5Awrite(attr.get(), memory_type, data), "write attribute '" + name + "'");
+      return;
+    }
+    attr.reset();
+    check(H5Adelete(object, name.c_str()), "delete attribute '" + name + "'");
+  }
   Handle attr = own(H5Acreate2(object, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT),
                     H5Aclose, "create attribute '" + name + "'");
   check(H5Awrite(attr.get(), memory_type, data), "write attribute '" + name + "'");
+}
+
+// A fixed-length UTF-8 string type of `bytes` bytes, padded with NULs.
+Handle fixed_string_type(std::size_t bytes) {
+  Handle t = own(H5Tcopy(H5T_C_S1), H5Tclose, "copy string type");
+  check(H5Tset_size(t.get(), std::max<std::size_t>(bytes, 1)), "set string size");
+  check(H5Tset_strpad(t.get(), H5T_STR_NULLPAD), "set string padding");
+  check(H5Tset_cset(t.get(), H5T_CSET_UTF8), "set string charset");
+  return t;
+}
+
+// The first bytes of `text` that fit in `bytes`, cut at a UTF-8 character boundary.
+std::string utf8_prefix(std::string_view text, std::size_t bytes) {
+  if (text.size() <= bytes) return std::string(text);
+  std::size_t n = bytes;
+  while (n > 0 && (static_cast<unsigned char>(text[n]) & 0xC0) == 0x80) --n;
+  return std::string(text.substr(0, n));
 }
 
 Handle open_attribute(hid_t object, std::string_view name) {
@@ -259,6 +297,25 @@ void Object::set_attribute(std::string_view name, const std::vector<std::string>
   replace_attribute(id(), std::string(name), type.get(), space.get(), type.get(), data.data());
 }
 
+void Object::reserve_string_attribute(std::string_view name, std::size_t bytes) const {
+  Handle space = scalar_space();
+  Handle type = fixed_string_type(bytes);
+  const std::string empty(std::max<std::size_t>(bytes, 1), '\0');
+  replace_attribute(id(), std::string(name), type.get(), space.get(), type.get(), empty.data());
+}
+
+void Object::write_reserved_string(std::string_view name, std::string_view value) const {
+  Handle attr = open_attribute(id(), name);
+  Handle type = own(H5Aget_type(attr.get()), H5Tclose, "attribute type");
+  if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
+    throw Error("HDF5: attribute '" + std::string(name) + "' is not a reserved string");
+  const std::size_t bytes = H5Tget_size(type.get());
+  std::string text = utf8_prefix(value, bytes);
+  text.resize(bytes, '\0');
+  check(H5Awrite(attr.get(), type.get(), text.data()),
+        "write attribute '" + std::string(name) + "'");
+}
+
 bool Object::has_attribute(std::string_view name) const {
   const htri_t exists = H5Aexists(id(), std::string(name).c_str());
   if (exists < 0) fail("check attribute '" + std::string(name) + "'");
@@ -394,6 +451,21 @@ void Dataset::write(std::span<const long long> values) const {
         "write dataset");
 }
 
+void Dataset::write_prefix(std::span<const double> values) const {
+  Handle file_space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+  if (H5Sget_simple_extent_ndims(file_space.get()) != 1 ||
+      static_cast<std::size_t>(element_count(file_space.get())) < values.size())
+    throw Error("HDF5: values do not fit the dataset");
+  if (values.empty()) return;
+  const hsize_t start[1] = {0}, count[1] = {values.size()};
+  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
+        "select elements");
+  Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
+  check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
+                 values.data()),
+        "write dataset");
+}
+
 std::vector<std::string> Dataset::filters() const {
   Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
   const int n = H5Pget_nfilters(plist.get());
@@ -520,7 +592,6 @@ void Series::truncate(std::size_t rows) {
 
 void Series::finish() {
   commit();
-  if (capacity_ != committed_) set_extent(committed_);
 }
 
 // ---------------------------------------------------------------- Group
@@ -785,6 +856,10 @@ void CaseProgress::set_state(std::size_t index, CaseState state) {
   write_element(state_ds_, index, state_[index]);
 }
 
+std::string failure_message(const Group& case_group) {
+  return case_group.has_attribute("failed") ? case_group.attribute_string("failed") : "";
+}
+
 void File::close() {
   handle_.reset();
 }
@@ -801,9 +876,16 @@ void write_result_header(File& file, const ResultHeader& header) {
   root.set_attribute("title", header.title);
   root.set_attribute("created", iso8601_utc_now());
   root.set_attribute("completed", 0);
+  root.set_attribute("layout_complete", 0);
   root.write_text("scene", header.scene_text, "the scene file, verbatim");
   const Group units = root.create_group("units");
   for (const auto& [name, unit] : header.units) units.set_attribute(name, unit);
+  file.flush();
+}
+
+void mark_layout_complete(File& file) {
+  file.flush();  // everything the layout created is in the file before it says so
+  file.root().set_attribute("layout_complete", 1);
   file.flush();
 }
 

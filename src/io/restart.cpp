@@ -49,6 +49,11 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
                "; a continued run would not be identical to an uninterrupted one");
   }
   if (root.attribute_int("completed") == 1) refuse(file, "completed", "the run completed");
+  if (!root.has_attribute("layout_complete") || root.attribute_int("layout_complete") != 1) {
+    refuse(file, "layout_complete",
+           "the run stopped before its result layout was written, so the file holds no result; "
+           "run the scene again (--force to replace the file)");
+  }
   if (!root.has("progress") || !root.has("cases") || !root.has("scene"))
     refuse(file, "progress", "the file has no /progress, /cases or /scene (it was never started)");
   RestartInfo info;

@@ -313,7 +313,7 @@ std::string case_state_text(const ResultFile& r, const std::string& c, const h5:
     case CaseState::running:
       return ": RUNNING or interrupted" + valid;
     case CaseState::unknown:
-      return g.has_attribute("failed") ? ": FAILED" : "";
+      return h5::failure_message(g).empty() ? "" : ": FAILED";
     case CaseState::not_started:
     case CaseState::completed:
       break;

@@ -103,6 +103,11 @@ struct RunPosition {
   double next_step = 0.0;     // adaptive stepping: the step the next increment tries (else 0)
 };
 
+// Values per grain in a checkpoint of a phase of N slip systems (see AggregateCheckpoint).
+constexpr int checkpoint_values_per_grain(int slip_count) {
+  return 15 + 4 * slip_count;
+}
+
 // Everything a run carries from one increment to the next: continuing from a checkpoint gives
 // the results of the uninterrupted run bit for bit. A plain value (the I/O layer stores it).
 struct AggregateCheckpoint {
@@ -111,7 +116,7 @@ struct AggregateCheckpoint {
   Mat3 segment_start_stress = Mat3::Zero();  // where the segment's stress ramp starts
   Eigen::VectorXd free_velocity_gradient;    // mixed control: the free components of L
   AggregateStats stats;                      // counters so far; wall_seconds over all sessions
-  int values_per_grain = 0;                  // 15 + 4 N
+  int values_per_grain = 0;                  // checkpoint_values_per_grain(N)
   // Per grain: Cauchy stress (lattice frame, Mandel) 6, orientation g row-major 9, then mu,
   // r_s, slip and slip rate, N each.
   std::vector<double> grains;

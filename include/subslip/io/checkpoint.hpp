@@ -1,19 +1,23 @@
-// Checkpoints of a crystal case, stored in the result file next to the case's series:
+// Checkpoints of the running crystal case, stored in the result file:
 //
-//   /cases/<case>/checkpoint/
+//   /checkpoint/                         attribute capacity: grain values a slot holds
 //       a/, b/                           two slots, written alternately:
-//           grains    [G, 15 + 4N] f64   per grain: stress (lattice, Mandel) 6, orientation g 9,
-//                                        mu N, r_s N, slip N, slip rate N
+//           grains    [capacity] f64     per grain (G x (15 + 4N), row-major): stress
+//                                        (lattice, Mandel) 6, orientation g 9, mu N, r_s N,
+//                                        slip N, slip rate N; the rest unused
 //           values    [K] f64            attribute names: the K macro numbers (see below)
-//           counters  [M] i64            attribute names: position, row count, statistics
+//           counters  [M] i64            attribute names: position, row count, statistics,
+//                                        the case (index in /cases names), G, 15 + 4N
 //           sequence  scalar i64         1, 2, 3, ... for a complete slot; -1 while written
 //
-// Why two slots in the result file: a checkpoint is written into the slot that does not hold
-// the latest one, and its `sequence` is set to -1 before and to the new number after the data,
-// all in place (the datasets are allocated when the first checkpoint is written, so later ones
-// change no HDF5 metadata, and the file has no write buffers: the order of the writes is the
-// order in the file). A kill while a slot is written leaves that slot at -1 and the other one
-// intact. The case's series rows named by a checkpoint are in the file before it.
+// One store serves every case of a run (a case's checkpoint is useless once it ends), so its
+// size is that of the largest case, not the sum. It is created with the rest of the layout,
+// before the run (h5_writer.hpp, crash safety): a checkpoint is written into the slot that does
+// not hold the latest one, and its `sequence` is set to -1 before and to the new number after
+// the data, all in place, changing no HDF5 metadata; the file has no write buffers, so the
+// order of the writes is the order in the file. A kill while a slot is written leaves that
+// slot at -1 and the other one intact. The case's series rows named by a checkpoint are in the
+// file before it.
 #pragma once
 
 #include <cstddef>
@@ -33,25 +37,26 @@ struct StoredCheckpoint {
 
 class CheckpointStore {
  public:
-  // The checkpoints of one case group (nothing is created until the first write).
-  explicit CheckpointStore(const h5::Group& case_group) : case_(case_group) {}
+  // Creates /checkpoint under `parent` for checkpoints of up to `capacity` grain values
+  // (grains x values per grain); the layout phase, before the run.
+  static void create(const h5::Group& parent, std::size_t capacity);
+  // The store under `parent` (throws h5::Error when there is none).
+  explicit CheckpointStore(const h5::Group& parent);
 
-  // Writes a checkpoint into the slot that does not hold the latest one. The first write
-  // creates both slots and flushes `file`.
-  void write(h5::File& file, const crystal::AggregateCheckpoint& state, std::size_t rows,
+  // Writes a checkpoint of case `case_index` into the slot that does not hold the latest one.
+  void write(std::size_t case_index, const crystal::AggregateCheckpoint& state, std::size_t rows,
              const crystal::MacroState& last_output);
 
-  // The complete checkpoint with the highest sequence, if any.
-  std::optional<StoredCheckpoint> latest() const;
+  // The complete checkpoint with the highest sequence, if it belongs to case `case_index`.
+  std::optional<StoredCheckpoint> latest(std::size_t case_index) const;
 
   long long sequence() const { return sequence_; }  // of the latest write (0: none yet)
 
  private:
-  void create_slots(h5::File& file, std::size_t grains, int values_per_grain);
-
-  const h5::Group& case_;
+  h5::Group store_;
   long long sequence_ = 0;
   int next_slot_ = 0;  // 0: a, 1: b
+  bool continued_ = false;
 };
 
 }  // namespace subslip::io

@@ -53,17 +53,22 @@ double steady_ratio_analytical(const ContactCase& c);
 // A group left by an earlier (killed) run under the same name is replaced.
 class ContactCaseWriter {
  public:
-  // `rows`: the rows to reserve (0: as many as the case's increments give).
+  // Creates the case's group with everything the run will write into (the layout, before any
+  // computation): attributes, summary placeholders, the series with the rows the case's
+  // increments give reserved.
+  static void lay_out(const h5::Group& cases, const ContactCase& c, int index, const Units& units);
+  // The group lay_out made, written from row 0 (a case that starts, or starts again after a
+  // kill: contact cases take milliseconds).
   ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index, const Units& units,
-                    h5::CaseProgress& progress, std::size_t rows = 0);
+                    h5::CaseProgress& progress);
   // One row in every dataset (no heap allocation on our side).
   void append(const contact::ContactState& s, int segment);
   // Writes the rows gathered so far and then their number to /progress.
   void commit();
-  // Commits, trims the datasets to their rows, and writes the summary attributes.
+  // Commits and writes the summary attributes (in place).
   void finish(const ContactSummary& summary);
-  // Commits, trims, and records why the case stopped.
-  void mark_failed(const std::string& why);
+  // finish(), and records why the case stopped in the reserved `failed` attribute.
+  void mark_failed(const ContactSummary& summary, const std::string& why);
   const SummaryTracker& tracker() const { return tracker_; }
 
  private:
@@ -92,7 +97,7 @@ struct ContactRunOptions {
   // Continue the run whose file this is (header, /cases and /progress exist): cases marked
   // completed or failed are kept, every other case is run again from its start.
   bool restart = false;
-  // Called once the file holds a complete header, /cases and /progress (not on a restart): the
+  // Called once the file holds its whole layout (not on a restart): the
   // command line writes to a temporary name and renames it here, so that the result path never
   // names a file that is not a readable result file.
   std::function<void()> on_header_written;
@@ -104,9 +109,9 @@ struct ContactRunOptions {
 // completed = 1. One thread streams each output step to the file; several threads compute
 // cases in memory and write them in case order, so the file's data do not depend on the thread
 // count. /progress records each case's valid rows and state as the run goes. A case that fails
-// numerically (contact::StepFailure) keeps the rows it reached, gets a `failed` attribute and a
-// result with `failure` set; the other cases still run, and the file then stays completed = 0.
-// Other errors (HDF5) are thrown.
+// numerically (contact::StepFailure) keeps the rows it reached, writes its `failed` attribute and
+// gets a result with `failure` set; the other cases still run, and the file then stays completed =
+// 0. Other errors (HDF5) are thrown.
 std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
                                                  const ContactRunOptions& options = {});
 

@@ -51,29 +51,28 @@ struct CrystalSummary {
 // The case's valid rows are counted in /progress (index `index`).
 class CrystalCaseWriter {
  public:
-  // A new group (the name must be free).
-  CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units,
-                    h5::CaseProgress& progress);
-  // The group an interrupted run left (a restart), continued after its first `rows` rows. Throws
-  // InputError when the case's orientations are not those the group was written with.
+  // Creates the case's group with everything the run will write into (the layout, before any
+  // computation): attributes, summary placeholders, the series with their rows reserved.
+  static void lay_out(const h5::Group& cases, const CrystalCase& c, int index, const Units& units);
+  // The group lay_out made, written from row `rows` on (0: a case that starts; else a restart
+  // continuing from a checkpoint). Throws InputError when the case's orientations are not those
+  // the group was laid out for.
   CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units,
                     h5::CaseProgress& progress, std::size_t rows);
   // One row in every dataset.
   void append(const crystal::MacroState& m, const crystal::GrainFields& grains);
   // Writes the rows gathered so far and then their number to /progress.
   void commit();
-  // Commits, trims the datasets to their rows, and writes the summary attributes.
+  // Commits and writes the summary attributes (in place).
   void finish(const CrystalSummary& summary);
-  // Commits, trims, and records why the case stopped.
-  void mark_failed(const std::string& why);
+  // finish(), and records why the case stopped in the reserved `failed` attribute.
+  void mark_failed(const CrystalSummary& summary, const std::string& why);
   const crystal::MacroState& last_state() const { return last_; }
   void set_last_state(const crystal::MacroState& m) { last_ = m; }  // a restart
   std::size_t rows() const;                                         // appended so far
   const h5::Group& group() const { return group_; }
 
  private:
-  void create_macro(const CrystalCase& c);
-  void create_grains(const CrystalCase& c);
   void close_series();
 
   h5::Group group_;
@@ -121,7 +120,7 @@ struct CrystalRunOptions {
   bool restart = false;
   // --checkpoint-every: overrides every case's checkpoint_policy.
   std::optional<long> checkpoint_every;
-  // Called once the file holds a complete header, /cases and /progress (not on a restart): the
+  // Called once the file holds its whole layout (not on a restart): the
   // command line writes to a temporary name and renames it here, so that the result path never
   // names a file that is not a readable result file.
   std::function<void()> on_header_written;
@@ -138,7 +137,7 @@ struct CrystalRunOptions {
 // Writes the result header, runs every case in order (the grains of a case run in parallel
 // inside the aggregate) into /cases and, when all succeeded, sets completed = 1. Each output
 // step is streamed to the file as it is computed. A case that fails numerically
-// (crystal::CrystalStepFailure) keeps the rows it reached, gets a `failed` attribute and a
+// (crystal::CrystalStepFailure) keeps the rows it reached, writes its `failed` attribute and gets a
 // result with `failure` set; the other cases still run and the file stays completed = 0.
 // Other errors (HDF5) are thrown.
 std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,

@@ -5,15 +5,21 @@
 // `description` attributes, fixed arrays rewritten in place (checkpoints), and the /progress
 // table of a result file.
 //
-// Crash safety (a run killed by SIGKILL at any moment). HDF5 1.10 writes its metadata (extents,
-// chunk indices, free space) in no particular order, so a file whose metadata change at every
-// output step is damaged by a kill that lands in a flush (measured: 2-16 % of random kills left
-// wrong or unreadable rows). Hence a live series changes no metadata: its rows are reserved
-// ahead (allocated at once, filled with NaN), written in place without compression and without
-// HDF5 caches (the chunk cache is off, and the file has no sieve buffer), so each row is in the
-// file when commit() returns; the number of valid rows is then written, also in place, into
-// /progress. Metadata change only when a case starts or ends, when a series outgrows its
-// reservation, and at a checkpoint's first write; each such change is followed by a flush.
+// Crash safety (a run killed by SIGKILL at any moment). HDF5 1.10 writes its metadata (links,
+// object headers, chunk indices, free space, the end-of-file address) in no particular order
+// and in several writes, so a kill that lands in a flush after a structural change (a group,
+// dataset or attribute created or deleted, an extent changed) can leave a file that does not
+// open (measured: 2-4 % of random kills of a two-case crystal run, when case groups were
+// created and attributes replaced while the run went). Hence a result file is laid out whole
+// before any computation: every case group with its attributes (the summary ones as NaN / 0
+// placeholders, `failed` as a reserved fixed-length string), every series with its rows
+// reserved (allocated at once, filled with NaN), the checkpoint slots; then one flush and
+// `layout_complete = 1`. While the run goes, only values are written, in place: rows of a
+// series (no compression, no chunk cache, no sieve buffer, so each row is in the file when
+// commit() returns), the /progress table, checkpoint slots, and attributes of unchanged type
+// and shape. The one structural change left is a series that outgrows its reservation (an
+// adaptive run taking more output steps than its scene plans): its extent is doubled and
+// flushed, and a kill inside that flush can damage that series of the running case.
 //
 // The header does not include hdf5.h: identifiers are carried as std::int64_t (hid_t in
 // HDF5 >= 1.10), so users of this layer need neither HDF5's include path nor its macros.
@@ -82,7 +88,8 @@ class Object {
  public:
   Id id() const { return handle_.get(); }
 
-  // Writing an attribute that exists replaces it.
+  // Writing an attribute that exists with the same type and shape rewrites its value in place
+  // (no metadata change); otherwise the attribute is replaced (layout time only).
   void set_attribute(std::string_view name, double value) const;
   void set_attribute(std::string_view name, long long value) const;  // stored as int64
   void set_attribute(std::string_view name, int value) const {
@@ -97,6 +104,12 @@ class Object {
   }
   void set_attribute(std::string_view name, std::span<const double> values) const;  // 1-D array
   void set_attribute(std::string_view name, const std::vector<std::string>& values) const;
+
+  // A fixed-length UTF-8 string attribute of `bytes` bytes, empty (NUL-padded): a message
+  // written later, while the run goes, by write_reserved_string (in place; longer text is cut
+  // at a character boundary).
+  void reserve_string_attribute(std::string_view name, std::size_t bytes) const;
+  void write_reserved_string(std::string_view name, std::string_view value) const;
 
   bool has_attribute(std::string_view name) const;
   std::vector<std::string> attribute_names() const;      // in creation order
@@ -127,14 +140,17 @@ class Dataset : public Object {
   // Overwrite the whole dataset in place (size = number of elements); see Group::create_fixed.
   void write(std::span<const double> values) const;
   void write(std::span<const long long> values) const;
+  // Overwrite the first values.size() elements of a 1-D float64 dataset in place.
+  void write_prefix(std::span<const double> values) const;
 };
 
 // An extendible dataset, [n] (columns == 0), [n, columns] or [n, d1, d2, ...] (a row shape), that
 // grows one row at a time; a row is row-major, of the row shape's size.
 // Rows are gathered in a block in memory and written in place by commit() (or when the block is
 // full) into rows reserved ahead; a series that outgrows its reservation doubles it (and
-// flushes). While a case runs the dataset's extent is its reservation: rows beyond the valid
-// ones read as NaN (int32: kInt32Fill). finish() shrinks the extent to the rows written.
+// flushes). The dataset's extent is its reservation: rows beyond the valid ones (/progress
+// rows) read as NaN (int32: kInt32Fill); they are not trimmed at the end, since a trim is a
+// structural change (see the crash-safety note).
 class Series {
  public:
   // A series whose rows have `row_shape` (empty: scalar rows); float64 only when rank > 2.
@@ -153,7 +169,7 @@ class Series {
   void commit();
   // Forgets every row from `rows` on (later appends overwrite them): a restart from a checkpoint.
   void truncate(std::size_t rows);
-  // Commits and shrinks the extent to the rows written (the end of a case).
+  // Commits what is left (the end of a case; the reservation is kept).
   void finish();
   std::size_t rows() const { return committed_ + pending_; }
   std::size_t capacity() const { return capacity_; }
@@ -291,6 +307,12 @@ class CaseProgress {
   std::vector<long long> rows_, state_;
 };
 
+// A case group's `failed` attribute: reserved at layout time (this many bytes, UTF-8), written
+// when the case stops on a numerical failure; empty while it has not.
+inline constexpr std::size_t kFailureMessageBytes = 1024;
+// The case's failure message ("" when it did not fail, or has no `failed` attribute).
+std::string failure_message(const Group& case_group);
+
 // The part of a result file every scene kind shares.
 struct ResultHeader {
   std::string scene_kind;  // "contact", "crystal", ...
@@ -300,15 +322,20 @@ struct ResultHeader {
   std::vector<std::pair<std::string, std::string>> units;  // ("stress", "MPa"), ...
 };
 
-// Root attributes format = "subslip", format_version = 1, program_version, scene_kind,
-// scene_file, title, created (ISO-8601 UTC), completed = 0; dataset /scene; group /units with
-// one string attribute per unit. Flushes.
+// Root attributes format = "subslip", format_version, program_version, scene_kind,
+// scene_file, title, created (ISO-8601 UTC), completed = 0, layout_complete = 0; dataset
+// /scene; group /units with one string attribute per unit. Flushes.
 void write_result_header(File& file, const ResultHeader& header);
+// Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes
+// values only (a restart refuses a file whose layout is not complete).
+void mark_layout_complete(File& file);
 // Sets completed = 1 and flushes.
 void mark_completed(File& file);
 // Sets completed = 0 and flushes (a restart, before it changes anything).
 void mark_running(File& file);
 
-inline constexpr int kFormatVersion = 1;
+// 2: the whole layout is written before the run (summary attributes as placeholders, `failed`
+// a fixed-length string, series keep their reservation, checkpoints in /checkpoint).
+inline constexpr int kFormatVersion = 2;
 
 }  // namespace subslip::io::h5
