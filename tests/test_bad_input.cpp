@@ -298,3 +298,36 @@ TEST(BadInputCli, ExistingResultIsNotTouchedEvenWithForce) {
   }
   fs::remove_all(dir);
 }
+
+// Fuzz finding (scene_fuzzer): a NUL byte in a key of a swept case. what() is a C string, so
+// the message was cut at the NUL, and re-prefixing it for the sweep case read past its end
+// (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart.
+TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
+  std::string text = R"(scene: contact
+units: {stress: MPa, length: mm, time: min}
+law:
+  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.1}
+    increments: 10
+sweep:
+  "loading[0].slide.speed": [1, 2]
+)";
+  text.replace(text.find("kappa: 0.2"), 10,
+               std::string("kappa:\0"
+                           "0.2",
+                           10));
+  try {
+    parse_contact_scene(YamlDocument::from_string(text, "nul.yaml"));
+    FAIL() << "the key with a NUL byte was accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find('\0'), std::string::npos);
+    EXPECT_NE(what.find("unknown key 'kappa:\\x00"), std::string::npos) << what;
+    EXPECT_NE(what.find("(in sweep case 'speed=1')"), std::string::npos) << what;
+    EXPECT_EQ(what, InputError::format(e.file, e.line, e.key, e.message));
+  }
+}

@@ -32,12 +32,6 @@ constexpr int kMaxGeneratedGrains = 10'000'000;
 // conversions overflow or degenerate.
 constexpr double kMinCOverA = 0.1, kMaxCOverA = 10.0;
 
-// The message of an InputError without its "FILE:LINE: KEY: " prefix.
-std::string bare_message(const InputError& e) {
-  const std::string prefix = InputError::format(e.file, e.line, e.key, "");
-  return std::string(e.what()).substr(prefix.size());
-}
-
 // ---------------------------------------------------------------- slip systems
 
 std::vector<std::string_view> family_names() {
@@ -271,7 +265,7 @@ std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node
   } catch (const InputError& e) {
     if (e.line == 0) node.fail(e.what());
     throw InputError(e.file, e.line, e.key,
-                     bare_message(e) + " (orientation file given at " +
+                     e.message + " (orientation file given at " +
                          InputError::format(node.file(), node.line(), node.path(), "") + ")");
   }
 }

@@ -58,9 +58,7 @@ auto parse_sweep_cases(const YamlDocument& scene, std::span<const std::string_vi
       cases.push_back(parse_case(std::move(swept)));
     } catch (const InputError& e) {
       if (!swept_case) throw;
-      const std::string prefix = InputError::format(e.file, e.line, e.key, "");
-      const std::string message = std::string(e.what()).substr(prefix.size());
-      throw InputError(e.file, e.line, e.key, message + " (in sweep case '" + name + "')");
+      throw InputError(e.file, e.line, e.key, e.message + " (in sweep case '" + name + "')");
     }
   }
   return cases;
