@@ -1312,27 +1312,16 @@ TEST(ExtremeFindings, ReversalWithinOneIncrementResetsTheSubloadingRatio) {
   EXPECT_LT(std::abs(end.traction_t.x() - end_fine.traction_t.x()) / yield, 10 * tol);
 }
 
-// ---------------------------------------------------------------------------------------------
-// Findings not fixed here (reported to the lead; enable when fixed).
-// ---------------------------------------------------------------------------------------------
-
 // The crystal image: one slip system sheared to steady state (r_s = 1), then
 // sheared back by 1.5 times its elastic strain in one increment (the trial
-// shear ends at -0.5 of the steady one, below r_s0 = 1, so the implicit grain
-// step is purely elastic with r_s = r_end ~ 0.5), against the same in 1000
-// increments (r_s ~ 0.14). The fix of the contact step carried over to
-// implicit_grain_step (start r_s from 0 for a system whose trial shear changes
-// sign: |tau|/fn is monotone on the path otherwise) passes this test (r_s
-// 0.135694 in one increment and in 1000), but with it six multi-slip cases of
-// the extreme set that pass without it failed: the BCC {110}, {112}, {123} and
-// all five HCP families at G/tau0 = 1e5 (grain Newton: "slip increments did not converge"
-// from systems restarting at r_s = 0, where dr_s/dslip = U(0) is infinite,
-// while others slip) and the FCC [001] holds of crystal_fcc_schmid_stiff.yaml
-// (mixed control stalls at a free-stress error of 2e-10: the four zero-Schmid
-// systems flip sign by rounding and restart at r_s = 0). Enable with the fix
-// once the grain Newton handles such restarts. (forward Euler applies it:
-// explicit_grain_step.)
-TEST(ExtremeFindings, DISABLED_CrystalReversalWithinOneIncrementResetsTheSubloadingRatio) {
+// shear ends at -0.5 of the steady one, below r_s0 = 1: without the fix the
+// implicit grain step stays elastic with r_s = r_end ~ 0.5), against the same
+// in 1000 increments (r_s ~ 0.14). implicit_grain_step starts a system that
+// slips against its shear at the start of the step from r_s = 0, over the time
+// after the elastic predictor's crossing; the multi-slip cases this once broke
+// (systems restarting at r_s = 0 while others slip, U(0) infinite) run through
+// ExtremeScenes.EveryCrystalCaseRunsToTheEndAdmissibly.
+TEST(ExtremeFindings, CrystalReversalWithinOneIncrementResetsTheSubloadingRatio) {
   const SingleThread one;
   const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_single_slip_stiffness.yaml");
   const io::CrystalCase* found = nullptr;

@@ -108,8 +108,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       observe(macro_, *this);
     }
     for (size_t k = first; k < segments.size(); ++k) {
-      run_segment(segments[k], static_cast<int>(k), opt, observe, control,
-                  k == first ? resume : nullptr);
+      run_segment(segments[k], k > 0 ? &segments[k - 1] : nullptr, static_cast<int>(k), opt,
+                  observe, control, k == first ? resume : nullptr);
     }
     stats_.wall_seconds = wall_seconds();
     return stats_;
@@ -176,13 +176,21 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   // The segment's stress ramp start and free components of L: from the checkpoint, or from the
   // state the segment starts in (the free components start from the previous step's values).
-  void start_segment(const std::vector<FreeComponent>& fc, const AggregateCheckpoint* resume) {
+  // A stress component the previous segment prescribed ramps from that prescribed value, not
+  // from the stress reached (which differs by up to the tolerance): errors do not carry over
+  // from segment to segment.
+  void start_segment(const std::vector<FreeComponent>& fc, const LoadSegment* previous,
+                     const AggregateCheckpoint* resume) {
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
       return;
     }
     cursor_.stress_start = macro_.stress;
+    if (previous != nullptr)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          if (previous->free(i, j)) cursor_.stress_start(i, j) = previous->stress_target(i, j);
     cursor_.free = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
     for (size_t k = 0; k < fc.size(); ++k)
       cursor_.free(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
@@ -193,15 +201,15 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (control.after_increment) control.after_increment(cursor_.position, macro_);
   }
 
-  void run_segment(const LoadSegment& seg, int index, const AggregateOptions& opt,
-                   const MacroObserver& observe, const RunControl& control,
-                   const AggregateCheckpoint* resume) {
+  void run_segment(const LoadSegment& seg, const LoadSegment* previous, int index,
+                   const AggregateOptions& opt, const MacroObserver& observe,
+                   const RunControl& control, const AggregateCheckpoint* resume) {
     if (opt.tolerance > 0.0 && opt.method == CrystalMethod::implicit) {
-      run_segment_adaptive(seg, index, opt, observe, control, resume);
+      run_segment_adaptive(seg, previous, index, opt, observe, control, resume);
       return;
     }
     const auto fc = free_components(seg.free);
-    start_segment(fc, resume);
+    start_segment(fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
@@ -221,11 +229,11 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // One segment with adaptive steps (AggregateOptions::tolerance): the first step is the
   // segment's first increment; then the step follows the error estimate, and a step that fails
   // (a grain or the mixed control does not converge) is halved like a cutback.
-  void run_segment_adaptive(const LoadSegment& seg, int index, const AggregateOptions& opt,
-                            const MacroObserver& observe, const RunControl& control,
-                            const AggregateCheckpoint* resume) {
+  void run_segment_adaptive(const LoadSegment& seg, const LoadSegment* previous, int index,
+                            const AggregateOptions& opt, const MacroObserver& observe,
+                            const RunControl& control, const AggregateCheckpoint* resume) {
     const auto fc = free_components(seg.free);
-    start_segment(fc, resume);
+    start_segment(fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     if (resume != nullptr && resume->position.segment_time >= seg.duration) return;

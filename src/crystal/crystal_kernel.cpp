@@ -85,6 +85,10 @@ struct Iterate {
   int bad_system = -1;
 };
 
+// Below this subloading ratio at the start of a step, a system that starts to slip gets its own
+// scalar root first (see ImplicitSolver::needs_scalar_start).
+constexpr double kSteepStartRatio = 1e-3;
+
 template <int N>
 class ImplicitSolver {
  public:
@@ -96,41 +100,66 @@ class ImplicitSolver {
       : ph_(ph), s0_(s0), dt_(dt), n_(ph.slip_count) {
     tau_trial_ = ph.schmid.transpose() * stress_trial;
     fn_trial_ = normal_traction(ph, stress_trial);
+    tau_start_ = ph.schmid.transpose() * s0.stress;
     // Row scale c_a: the elastic stiffness of system a in ratio units, so that both branches of
     // min(c x, -G) are traction ratios.
     scale_.resize(n_);
-    exponent_.resize(n_);
     for (int a = 0; a < n_; ++a) {
+      const auto& law = ph.laws[static_cast<size_t>(a)];
       scale_(a) = ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a));
-      exponent_(a) = ph.laws[static_cast<size_t>(a)].slip_exponent();
-      start_[static_cast<size_t>(a)] = ph.laws[static_cast<size_t>(a)].subloading_start(s0.r_s(a));
+      auto& along = starts_[static_cast<size_t>(a)][0];
+      auto& against = starts_[static_cast<size_t>(a)][1];
+      along = {law.subloading_start(s0.r_s(a)), law.slip_exponent(), dt, 0.0, false};
+      // (3.12): a system that slips against its shear at the start of the step has seen that
+      // shear pass through zero, and r_s with it: it starts from r_s = 0. Its slip can only
+      // follow the crossing; where the elastic predictor places it (tau linear in time), the
+      // slip takes the time left.
+      const bool trial_crosses = tau_start_(a) * tau_trial_(a) < 0.0;
+      const double crossing = trial_crosses ? tau_start_(a) / (tau_start_(a) - tau_trial_(a)) : 0.0;
+      against = {law.subloading_start(0.0), law.slip_exponent(), (1.0 - crossing) * dt,
+                 trial_crosses ? -dt * crossing / (tau_start_(a) - tau_trial_(a)) : 0.0, false};
+      // From a small r_s, dr_s/dslip = U(r_s) is infinite (r_s = 0) or huge at zero slip.
+      along.steep_start = s0.r_s(a) < kSteepStartRatio;
+      against.steep_start = true;
     }
-    unit_exponents_ = (exponent_.array() == 1.0).all();
+  }
+
+  // How system a starts the step when it slips in direction `sign`.
+  struct SystemStart {
+    law::SubloadingFrictionLaw::SubloadingStart subloading;
+    double exponent;         // p of the unknown z = slip^(1/p)
+    double slip_time;        // the time over which the step's slip occurs
+    double slip_time_slope;  // its derivative with respect to the trial shear
+    bool steep_start;        // r_s starts (nearly) at 0, where U(r_s) is (nearly) infinite
+  };
+  const SystemStart& start(int a, double sign) const {
+    return starts_[static_cast<size_t>(a)][sign * tau_start_(a) < 0.0 ? 1 : 0];
   }
 
   // Slip magnitude of an unknown z and back.
-  double slip_of(int a, double z) const {
-    return exponent_(a) == 1.0 ? z : std::pow(z, exponent_(a));
+  double slip_of(int a, double sign, double z) const {
+    const double p = start(a, sign).exponent;
+    return p == 1.0 ? z : std::pow(z, p);
   }
-  double unknown_of(int a, double slip) const {
-    return exponent_(a) == 1.0 ? slip : std::pow(slip, 1.0 / exponent_(a));
+  double unknown_of(int a, double sign, double slip) const {
+    const double p = start(a, sign).exponent;
+    return p == 1.0 ? slip : std::pow(slip, 1.0 / p);
   }
 
   void evaluate(const VecN& x, const VecN& sign, Iterate<N>& it) const {
     it.x = x;
     it.sign = sign;
     it.slip.resize(n_), it.dslip_dx.resize(n_);
-    for (int a = 0; a < n_; ++a) {
-      const double p = exponent_(a);
-      it.slip(a) = slip_of(a, x(a));
-      it.dslip_dx(a) = p == 1.0 ? 1.0 : p * std::pow(x(a), p - 1.0);
-    }
+    for (int a = 0; a < n_; ++a) it.slip(a) = slip_of(a, sign(a), x(a));
     const VecN dgamma = sign.cwiseProduct(it.slip);
     it.tau = tau_trial_ - ph_.interaction * dgamma;
     // An idle system may slip either way: its direction is that of its current shear (which
     // its own sign does not affect, its slip being zero).
-    for (int a = 0; a < n_; ++a)
+    for (int a = 0; a < n_; ++a) {
       if (x(a) == 0.0) it.sign(a) = sign_of(it.tau(a));
+      const double p = start(a, it.sign(a)).exponent;
+      it.dslip_dx(a) = p == 1.0 ? 1.0 : p * std::pow(x(a), p - 1.0);
+    }
     it.fn = ph_.pressure_sensitive ? VecN(fn_trial_ + ph_.normal_interaction * dgamma) : ph_.tau0;
     it.effective = ph_.has_latent ? VecN(ph_.latent * it.slip) : it.slip;
     const VecN& effective = it.effective;
@@ -143,7 +172,8 @@ class ImplicitSolver {
     for (int a = 0; a < n_; ++a) {
       const auto& law = ph_.laws[static_cast<size_t>(a)];
       const auto mu = law.friction_coefficient_after(s0_.mu(a), effective(a), dt_);
-      const auto rs = law.subloading_ratio_after(start_[static_cast<size_t>(a)], it.slip(a));
+      const SystemStart& st = start(a, it.sign(a));
+      const auto rs = law.subloading_ratio_after(st.subloading, it.slip(a));
       it.mu(a) = mu.value, it.d_mu(a) = mu.d_slip, it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
       if (!(it.fn(a) > 0.0) || !(mu.value > 0.0)) {
         it.admissible = false, it.bad_system = a;
@@ -151,7 +181,7 @@ class ImplicitSolver {
         return;
       }
       it.r(a) = it.sign(a) * it.tau(a) / (mu.value * it.fn(a));
-      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
+      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), st.slip_time);
       it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
       const double inactive_row = scale_(a) * x(a);
       it.active(a) = inactive_row > -g.value;
@@ -182,7 +212,7 @@ class ImplicitSolver {
       j.noalias() += pressure_row.asDiagonal() * ph_.normal_interaction * it.sign.asDiagonal();
     }
     j.diagonal() -= it.g_drs.cwiseProduct(it.d_rs) + it.g_dslip;
-    if (!unit_exponents_) j = j * it.dslip_dx.asDiagonal();  // d/dslip -> d/dx
+    j = j * it.dslip_dx.asDiagonal();  // d/dslip -> d/dx
     for (int a = 0; a < n_; ++a) {
       if (it.active(a)) continue;
       j.row(a).setZero();
@@ -200,21 +230,32 @@ class ImplicitSolver {
           it.sign(a) * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
       if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
       j.row(a) = -it.g_dr(a) * dr;
+      // A reversal inside the step: G depends on the slip rate slip/T, T the time left after
+      // the crossing, and T on the trial shear: dG/dT = -dG/dslip slip/T.
+      if (const SystemStart& st = start(a, it.sign(a)); st.slip_time_slope != 0.0)
+        j.row(a) += it.g_dslip(a) * it.slip(a) / st.slip_time * st.slip_time_slope *
+                    ph_.c_schmid.col(a).transpose();
     }
     return j;
   }
 
   const VecN& tau_trial() const { return tau_trial_; }
 
-  // An active system at zero slip can have an infinite slope: dr_s/dslip = U(0) when r_s = 0, and
-  // dG/dslip with the power overstress (G ~ -slip^(1/n)). Newton cannot start there.
-  bool infinite_slope(const Iterate<N>& it, int a) const {
-    return it.active(a) && (!std::isfinite(it.d_rs(a)) || !std::isfinite(it.g_dslip(a)));
+  // Newton cannot start an active system at zero slip where its slope is infinite or huge
+  // (dr_s/dslip = U(r_s) from r_s = 0 or nearly 0, as after a reversal; dG/dslip with the power
+  // overstress, G ~ -slip^(1/n)), or where its Jacobian column vanishes (in z = slip^(1/p),
+  // p > 1, dslip/dz = 0). Such a system gets its own scalar root instead (the coupled Newton
+  // holds it meanwhile); from there its slopes are moderate.
+  bool needs_scalar_start(const Iterate<N>& it, int a) const {
+    if (!it.active(a)) return false;
+    const SystemStart& st = start(a, it.sign(a));
+    const bool steep = it.x(a) == 0.0 && (st.exponent != 1.0 || st.steep_start);
+    return steep || !std::isfinite(it.d_rs(a)) || !std::isfinite(it.g_dslip(a));
   }
 
-  bool finite_slopes(const Iterate<N>& it) const {
+  bool newton_can_start(const Iterate<N>& it) const {
     for (int a = 0; a < n_; ++a)
-      if (infinite_slope(it, a)) return false;
+      if (needs_scalar_start(it, a)) return false;
     return true;
   }
 
@@ -228,20 +269,21 @@ class ImplicitSolver {
     const double tau_free = it.sign(a) * it.tau(a) + stiffness * it.slip(a);
     const double effective_other = it.effective(a) - it.slip(a);
     if (!(tau_free > 0.0) || !(fn > 0.0)) return 0.0;
-    const double p = exponent_(a);
+    const SystemStart& st = start(a, it.sign(a));
+    const double p = st.exponent;
     auto residual = [&](double z) {
-      const double slip = slip_of(a, z);
+      const double slip = p == 1.0 ? z : std::pow(z, p);
       const auto mu = law.friction_coefficient_after(s0_.mu(a), effective_other + slip, dt_);
-      const auto rs = law.subloading_ratio_after(start_[static_cast<size_t>(a)], slip);
+      const auto rs = law.subloading_ratio_after(st.subloading, slip);
       const double r = (tau_free - stiffness * slip) / (mu.value * fn);
       const double dr = -stiffness / (mu.value * fn) - r / mu.value * mu.d_slip;
-      const auto g = law.flow_residual(r, rs.value, slip, dt_);
+      const auto g = law.flow_residual(r, rs.value, slip, st.slip_time);
       if (!g.admissible) return std::pair{g.value, 0.0};
       const double dslip_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
       return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dslip_dz};
     };
     if (residual(0.0).first <= 0.0) return 0.0;
-    const double z_max = unknown_of(a, tau_free / stiffness);
+    const double z_max = unknown_of(a, it.sign(a), tau_free / stiffness);
     const auto root = safeguarded_newton(residual, 0.0, z_max, 0.5 * z_max, tolerance,
                                          4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
     return root.x;
@@ -257,7 +299,7 @@ class ImplicitSolver {
     for (int round = 0; round < rounds; ++round) {
       bool changed = false;
       for (int a = 0; a < n_; ++a) {
-        if (!infinite_slope(it, a) && std::isfinite(it.g_value(a))) continue;
+        if (!needs_scalar_start(it, a) && std::isfinite(it.g_value(a))) continue;
         sign(a) = it.sign(a);
         const double z = solve_single(a, it, tolerance);
         changed = changed || z != x(a);
@@ -286,7 +328,7 @@ class ImplicitSolver {
         if (x(a) == 0.0) sign(a) = sign_of(it.tau(a));
         const double more =
             (sign(a) * it.tau(a) - target * it.mu(a) * it.fn(a)) / ph_.interaction(a, a);
-        x(a) = unknown_of(a, it.slip(a) + more);
+        x(a) = unknown_of(a, sign(a), it.slip(a) + more);
       }
     }
     evaluate(x, sign, it);
@@ -298,9 +340,8 @@ class ImplicitSolver {
   const GrainState<N>& s0_;
   double dt_;
   int n_;
-  VecN tau_trial_, fn_trial_, scale_, exponent_;
-  std::array<law::SubloadingFrictionLaw::SubloadingStart, T::MaxN> start_;
-  bool unit_exponents_ = true;
+  VecN tau_trial_, fn_trial_, tau_start_, scale_;
+  std::array<std::array<SystemStart, 2>, T::MaxN> starts_;  // along, against the start shear
 };
 
 // The Newton step of the grain iteration. A system at zero slip whose step is negative cannot
@@ -308,9 +349,9 @@ class ImplicitSolver {
 // systems with a step computed for a slip the pinned one never takes: with a stiff, rank-deficient
 // A (G/tau0 ~ 1e5, FCC: rank 5 of 12) that direction is no descent direction and the line search
 // stalls. So such systems are held at zero (row x_a = 0) and the others re-solved.
-template <int N>
-typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j,
-                                        const Iterate<N>& it) {
+template <int N, class Held>
+typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it,
+                                        Held&& held_by_solver) {
   using VecN = typename SlipTypes<N>::VecN;
   VecN step = -Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(it.merit_rows);
   if (!step.allFinite()) return step;
@@ -318,7 +359,7 @@ typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j,
   VecN rows = it.merit_rows;
   bool any = false;
   for (int a = 0; a < step.size(); ++a) {
-    if (!(it.x(a) == 0.0 && step(a) < 0.0)) continue;
+    if (!(it.x(a) == 0.0 && step(a) < 0.0) && !held_by_solver(a)) continue;
     held.row(a).setZero();
     held(a, a) = 1.0;
     rows(a) = 0.0;
@@ -459,7 +500,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   for (int a = 0; a < n; ++a) {
     sign(a) = sign_of(solver.tau_trial()(a));
     const double previous = s0.rate(a) * dt;
-    x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, std::abs(previous)) : 0.0;
+    x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, sign(a), std::abs(previous)) : 0.0;
   }
   Iterate<N> it, trial;
   // The Jacobi sweep freezes the other systems' slip and normal traction; when that does not
@@ -485,7 +526,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
       converged = true;
       break;
     }
-    const VecN step = newton_step(j, it);
+    const VecN step = newton_step(j, it, [&](int a) { return solver.needs_scalar_start(it, a); });
     if (!step.allFinite()) break;
     // Backtracking line search on the merit 1/2 |rows|^2, projected onto x >= 0; a trial point
     // beyond r_hat counts as infinitely bad, so the iterate never leaves the admissible set.
@@ -499,6 +540,12 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
       VecN xt = it.x + alpha * step;
       for (int a = 0; a < n; ++a) xt(a) = std::max(xt(a), it.active(a) ? 0.01 * it.x(a) : 0.0);
       solver.evaluate(xt, it.sign, trial);
+      // Systems the Newton step holds (see needs_scalar_start) follow the others through their
+      // own scalar roots, so that the merit measures the step of the systems it moved.
+      if (!solver.newton_can_start(trial)) {
+        VecN st = trial.sign;
+        solver.make_admissible(xt, st, trial, opt.tolerance);
+      }
       if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) {
         accepted = true;
         break;
@@ -506,10 +553,6 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     }
     if (!accepted) break;
     std::swap(it, trial);
-    if (!solver.finite_slopes(it)) {
-      VecN xs = it.x, ss = it.sign;
-      if (!solver.make_admissible(xs, ss, it, opt.tolerance)) break;
-    }
   }
   if (!converged) {
     rep.why = "slip increments did not converge";
