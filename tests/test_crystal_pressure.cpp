@@ -63,3 +63,57 @@ TEST(CrystalPressureSensitive, SaturatedShearFollowsCoulombOnTheSlipPlane) {
     EXPECT_NEAR(without, mu * tau0, 1e-5 * mu * tau0) << "p = " << p;
   }
 }
+
+// A plane whose tensile normal stress exceeds tau0 is open (f_n <= 0): like an open contact it
+// carries no shear, so its system slips freely and tau stays 0 (the grain step resolves
+// tau_a = 0 instead of refusing it); closed again under compression, the Coulomb limit
+// mu (tau0 + p) returns.
+TEST(CrystalPressureSensitive, AnOpenPlaneCarriesNoShearAndClosesAgain) {
+  PhaseDescription d;
+  d.custom_systems = {{Vec3(1, 0, 0), Vec3(0, 1, 0)}};
+  d.custom_settings.tau0 = 10.0;
+  d.custom_settings.law.friction = {0.5, 0.5, 0.0, 0.0};
+  d.custom_settings.law.subloading = {law::SubloadingFunction::cot, 2000.0};
+  d.custom_settings.law.overstress = {law::OverstressForm::exponential, 1e-6, 16.0, 1.6};
+  d.stiffness = isotropic_from_G_nu(1e4, 0.3);
+  d.kinematics = Kinematics::small_strain;
+  d.pressure_sensitive = true;
+  std::vector<Orientation> grain(1);
+  grain[0].g = Mat3::Identity();
+  grain[0].weight = 1.0;
+  auto aggregate = build_taylor_aggregate(d, grain);
+  LoadSegment pull, shear_open, close, shear_closed;
+  pull.free(1, 1) = true;
+  pull.stress_target(1, 1) = 15.0;  // f_n = tau0 - 15 = -5: open
+  pull.duration = 1.0;
+  pull.increments = 10;
+  shear_open = pull;
+  shear_open.velocity_gradient(0, 1) = 1e-2;
+  shear_open.duration = 1.0;
+  close = shear_open;
+  close.stress_target(1, 1) = -5.0;  // f_n = 15: closed
+  shear_closed = close;
+  shear_closed.duration = 10.0;
+  shear_closed.increments = 200;
+  std::vector<double> tau, sigma22;
+  std::vector<int> segment;
+  const auto stats = aggregate->run({pull, shear_open, close, shear_closed}, AggregateOptions{},
+                                    [&](const MacroState& m, const GrainFields&) {
+                                      tau.push_back(m.stress(0, 1));
+                                      sigma22.push_back(m.stress(1, 1));
+                                      segment.push_back(m.segment);
+                                    });
+  ASSERT_EQ(tau.size(), 1u + 10 + 10 + 10 + 200);
+  const double mu = 0.5, tau0 = 10.0;
+  for (size_t k = 0; k < tau.size(); ++k) {
+    ASSERT_TRUE(std::isfinite(tau[k]) && std::isfinite(sigma22[k]));
+    // Open while sigma_22 > tau0: no shear (the shear strain rate alone would load it by
+    // G 1e-2 = 77 MPa/s).
+    if (sigma22[k] > tau0 + 1e-9) {
+      EXPECT_LT(std::abs(tau[k]), 1e-9 * tau0) << "output " << k;
+    }
+  }
+  EXPECT_NEAR(sigma22.back(), -5.0, 1e-6);
+  EXPECT_NEAR(tau.back(), mu * (tau0 + 5.0), 1e-5 * mu * (tau0 + 5.0));
+  EXPECT_GE(stats.increments, 230);
+}

@@ -288,15 +288,6 @@ TEST(ExtremeScenes, EveryContactCaseRunsToTheEndAdmissibly) {
 const std::set<std::string> kKnownCrystalFailures = {
     "crystal_parser_edges.yaml: "
     "initial_mu=100,eta_v=1.0e6,n=0.5,r_hat=100,u_tilde=1.0e6",
-    "crystal_pressure_sensitive.yaml: friction={mu_s: 0.3, mu_k: 0.3, kappa: "
-    "0.0, xi: 0.0},"
-    "overstress={form: power, eta_v: 1.0e-3, n: 16, r_hat: 1.6}",
-    "crystal_pressure_sensitive.yaml: friction={mu_s: 0.3, mu_k: 0.5, kappa: "
-    "10.0, xi: 1.0},"
-    "overstress={form: power, eta_v: 1.0e-3, n: 16, r_hat: 1.6}",
-    "crystal_pressure_sensitive.yaml: friction={mu_s: 0.3, mu_k: 0.5, kappa: "
-    "0.0, xi: 1.0},"
-    "overstress={form: power, eta_v: 1.0e-3, n: 16, r_hat: 1.6}",
 };
 
 // Cases left to subslip_extreme_report for their run time here (tens of seconds

@@ -9,6 +9,10 @@
 #include <limits>
 #include <numbers>
 
+#include <Eigen/QR>
+#include <cstdio>
+#include <cstdlib>
+
 namespace subslip::crystal {
 
 namespace {
@@ -72,6 +76,18 @@ typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const Vec6& stre
   return ph.tau0 - ph.plane_normal_dyad.transpose() * stress;
 }
 
+// r_a = |tau_a| / (mu_a f_n,a); 0 on an open plane (f_n <= 0: no contact, no ratio).
+template <int N>
+typename SlipTypes<N>::VecN loading_ratio_of(const Phase<N>& ph, const Vec6& stress,
+                                             const typename SlipTypes<N>::VecN& mu,
+                                             const typename SlipTypes<N>::VecN& fn) {
+  const typename SlipTypes<N>::VecN tau = ph.schmid.transpose() * stress;
+  typename SlipTypes<N>::VecN r = tau.cwiseAbs().cwiseQuotient(mu.cwiseProduct(fn));
+  for (int a = 0; a < ph.slip_count; ++a)
+    if (fn(a) <= 0.0) r(a) = 0.0;
+  return r;
+}
+
 // What the Newton iteration needs at one iterate of the slip magnitudes x.
 template <int N>
 struct Iterate {
@@ -80,6 +96,7 @@ struct Iterate {
   typename T::VecN x, slip, dslip_dx, effective, sign, tau, fn, mu, d_mu, rs, d_rs, r, merit_rows;
   typename T::VecN g_value, g_dr, g_drs, g_dslip;
   Eigen::Matrix<bool, N, 1, 0, T::MaxN, 1> active;  // row is the flow rule (else x_a = 0)
+  Eigen::Matrix<bool, N, 1, 0, T::MaxN, 1> open;    // slip plane open (f_n <= 0): tau_a = 0
   double merit = 0.0;
   bool admissible = true;
   int bad_system = -1;
@@ -167,6 +184,7 @@ class ImplicitSolver {
                     &it.g_dslip, &it.merit_rows})
       v->setZero(n_);
     it.active.setConstant(n_, false);
+    it.open.setConstant(n_, false);
     it.admissible = true;
     it.bad_system = -1;
     for (int a = 0; a < n_; ++a) {
@@ -175,10 +193,19 @@ class ImplicitSolver {
       const SystemStart& st = start(a, it.sign(a));
       const auto rs = law.subloading_ratio_after(st.subloading, it.slip(a));
       it.mu(a) = mu.value, it.d_mu(a) = mu.d_slip, it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
-      if (!(it.fn(a) > 0.0) || !(mu.value > 0.0)) {
+      if (!(mu.value > 0.0) || std::isnan(it.fn(a))) {
         it.admissible = false, it.bad_system = a;
         it.merit = std::numeric_limits<double>::infinity();
         return;
+      }
+      if (!(it.fn(a) > 0.0)) {
+        // An open slip plane carries no shear, like an open contact: the system slips freely
+        // until tau_a = 0. Its row is that shear in ratio units (r = 0, no flow rule).
+        it.open(a) = true;
+        it.g_value(a) = it.sign(a) * it.tau(a) / (mu.value * ph_.tau0(a));
+        it.active(a) = scale_(a) * x(a) > -it.g_value(a);
+        it.merit_rows(a) = it.active(a) ? -it.g_value(a) : scale_(a) * x(a);
+        continue;
       }
       it.r(a) = it.sign(a) * it.tau(a) / (mu.value * it.fn(a));
       const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), st.slip_time);
@@ -212,6 +239,13 @@ class ImplicitSolver {
       j.noalias() += pressure_row.asDiagonal() * ph_.normal_interaction * it.sign.asDiagonal();
     }
     j.diagonal() -= it.g_drs.cwiseProduct(it.d_rs) + it.g_dslip;
+    for (int a = 0; a < n_; ++a) {
+      // Open plane: d(-s_a tau_a/(mu_a tau0_a))/dslip_b = s_a A_ab s_b/(mu_a tau0_a) (mu frozen:
+      // its term vanishes with tau_a at the solution).
+      if (!it.open(a)) continue;
+      j.row(a) =
+          it.sign(a) / (it.mu(a) * ph_.tau0(a)) * ph_.interaction.row(a) * it.sign.asDiagonal();
+    }
     j = j * it.dslip_dx.asDiagonal();  // d/dslip -> d/dx
     for (int a = 0; a < n_; ++a) {
       if (it.active(a)) continue;
@@ -226,6 +260,10 @@ class ImplicitSolver {
     typename T::MatN6 j = T::MatN6::Zero(n_, 6);
     for (int a = 0; a < n_; ++a) {
       if (!it.active(a)) continue;
+      if (it.open(a)) {
+        j.row(a) = -it.sign(a) / (it.mu(a) * ph_.tau0(a)) * ph_.c_schmid.col(a).transpose();
+        continue;
+      }
       Eigen::Matrix<double, 1, 6> dr =
           it.sign(a) * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
       if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
@@ -268,7 +306,8 @@ class ImplicitSolver {
     // Shear on a (signed along its slip) and effective slip with a's own slip taken out.
     const double tau_free = it.sign(a) * it.tau(a) + stiffness * it.slip(a);
     const double effective_other = it.effective(a) - it.slip(a);
-    if (!(tau_free > 0.0) || !(fn > 0.0)) return 0.0;
+    if (!(tau_free > 0.0)) return 0.0;
+    if (!(fn > 0.0)) return unknown_of(a, it.sign(a), tau_free / stiffness);  // open: tau_a = 0
     const SystemStart& st = start(a, it.sign(a));
     const double p = st.exponent;
     auto residual = [&](double z) {
@@ -344,6 +383,18 @@ class ImplicitSolver {
   std::array<std::array<SystemStart, 2>, T::MaxN> starts_;  // along, against the start shear
 };
 
+// j^-1 rhs. Coplanar systems of an open plane have dependent rows (FCC: P_1 + P_2 + P_3 = 0):
+// then the minimum-norm solution (one system alone has no such dependence).
+template <int N, class Rhs>
+typename Rhs::PlainObject solve_newton_system(const typename SlipTypes<N>::MatNN& j, const Rhs& rhs,
+                                              bool dependent_rows) {
+  if constexpr (N != 1) {
+    if (dependent_rows)
+      return Eigen::CompleteOrthogonalDecomposition<typename SlipTypes<N>::MatNN>(j).solve(rhs);
+  }
+  return Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(rhs);
+}
+
 // The Newton step of the grain iteration. A system at zero slip whose step is negative cannot
 // follow it (x >= 0, and the line search projects it back to zero), which leaves the other
 // systems with a step computed for a slip the pinned one never takes: with a stiff, rank-deficient
@@ -353,7 +404,7 @@ template <int N, class Held>
 typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it,
                                         Held&& held_by_solver) {
   using VecN = typename SlipTypes<N>::VecN;
-  VecN step = -Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(it.merit_rows);
+  VecN step = -solve_newton_system<N>(j, it.merit_rows, it.open.any());
   if (!step.allFinite()) return step;
   typename SlipTypes<N>::MatNN held = j;
   VecN rows = it.merit_rows;
@@ -366,14 +417,17 @@ typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j, c
     any = true;
   }
   if (!any) return step;
-  const VecN reduced = -Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(held).solve(rows);
+  const VecN reduced = -solve_newton_system<N>(held, rows, it.open.any());
   return reduced.allFinite() ? reduced : step;
 }
+
+// Open slip planes (f_n <= 0, r = 0) are admissible where the step resolved them (implicit).
+enum class OpenPlanes { refused, resolved };
 
 template <int N>
 bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
                       const typename SlipTypes<N>::VecN& r, const typename SlipTypes<N>::VecN& fn,
-                      GrainStepReport& rep) {
+                      GrainStepReport& rep, OpenPlanes open = OpenPlanes::refused) {
   if (!s.stress.allFinite() || !s.orientation.allFinite()) {
     rep.why = "non-finite stress or orientation";
     return false;
@@ -386,7 +440,7 @@ bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
       rep.why = "non-finite slip-system state", rep.system = a;
       return false;
     }
-    if (!(s.mu(a) > 0.0) || !(fn(a) > 0.0)) {
+    if (!(s.mu(a) > 0.0) || (open == OpenPlanes::refused && !(fn(a) > 0.0))) {
       rep.why = "mu <= 0 or slip plane not in compression", rep.system = a;
       return false;
     }
@@ -478,9 +532,7 @@ void grain_rates(const Phase<N>& ph, const GrainState<N>& s, const SlipRates<N>&
 
 template <int N>
 typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s) {
-  const typename SlipTypes<N>::VecN tau = ph.schmid.transpose() * s.stress;
-  const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
-  return tau.cwiseAbs().cwiseQuotient(s.mu.cwiseProduct(fn));
+  return loading_ratio_of(ph, s.stress, s.mu, normal_traction(ph, s.stress));
 }
 
 template <int N>
@@ -568,16 +620,15 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   // r from the stress as stored (not from it.tau): with a large elastic trial the two differ by
   // rounding of order eps |sigma_trial| / CRSS, and r_s <= r must hold for what is output.
   const VecN fn1 = normal_traction(ph, s1.stress);
-  const VecN r_abs =
-      (ph.schmid.transpose() * s1.stress).cwiseAbs().cwiseQuotient(it.mu.cwiseProduct(fn1));
+  const VecN r_abs = loading_ratio_of(ph, s1.stress, it.mu, fn1);
   s1.r_s = it.rs.cwiseMin(r_abs);  // (3.12): r_s follows r down where no slip occurs
   s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
-  if (!admissible_state(ph, s1, r_abs, fn1, rep)) return rep;
+  if (!admissible_state(ph, s1, r_abs, fn1, rep, OpenPlanes::resolved)) return rep;
 
   if (tangent) {
     const typename T::MatNN j = solver.jacobian(it);
     const typename T::MatN6 dx =
-        -Eigen::PartialPivLU<typename T::MatNN>(j).solve(solver.strain_jacobian(it));
+        -solve_newton_system<N>(j, solver.strain_jacobian(it), it.open.any());
     const typename T::MatN6 dgamma_de = it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
     const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
     Mat6 sample_tangent = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
