@@ -384,13 +384,16 @@ class ImplicitSolver {
 };
 
 // j^-1 rhs. Coplanar systems of an open plane have dependent rows (FCC: P_1 + P_2 + P_3 = 0):
-// then the minimum-norm solution (one system alone has no such dependence).
+// then the minimum-norm solution. That case is rare, so it goes through one dynamic-size
+// decomposition (allocating) instead of one per slip count: compile time and code size.
 template <int N, class Rhs>
 typename Rhs::PlainObject solve_newton_system(const typename SlipTypes<N>::MatNN& j, const Rhs& rhs,
                                               bool dependent_rows) {
-  if constexpr (N != 1) {
-    if (dependent_rows)
-      return Eigen::CompleteOrthogonalDecomposition<typename SlipTypes<N>::MatNN>(j).solve(rhs);
+  if (dependent_rows) {
+    const Eigen::MatrixXd jd = j;
+    const Eigen::MatrixXd rd = rhs;
+    return typename Rhs::PlainObject(
+        Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(jd).solve(rd));
   }
   return Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(rhs);
 }
