@@ -14,11 +14,12 @@ namespace law = subslip::law;
 
 // Saturated shear stress of one slip system (s = e1, m = e2) sheared quasi-statically while
 // the normal stress on its plane is held at -p (compression p) by mixed control.
-double saturated_shear(double p, bool pressure_sensitive) {
+// One grain with one slip system (s = e1, m = e2), tau0 = 10 MPa, G = 1e4 MPa: no hardening
+// (mu_s = mu_k = 0.5), quasi-static (eta_v tiny), fast r_s saturation, small strain.
+std::unique_ptr<Aggregate> one_system_grain(bool pressure_sensitive) {
   PhaseDescription d;
   d.custom_systems = {{Vec3(1, 0, 0), Vec3(0, 1, 0)}};
   d.custom_settings.tau0 = 10.0;
-  // No hardening (mu_s = mu_k), quasi-static (eta_v tiny), fast r_s saturation.
   d.custom_settings.law.friction = {0.5, 0.5, 0.0, 0.0};
   d.custom_settings.law.subloading = {law::SubloadingFunction::cot, 2000.0};
   d.custom_settings.law.overstress = {law::OverstressForm::exponential, 1e-6, 16.0, 1.6};
@@ -28,7 +29,11 @@ double saturated_shear(double p, bool pressure_sensitive) {
   std::vector<Orientation> grain(1);
   grain[0].g = Mat3::Identity();
   grain[0].weight = 1.0;
-  auto aggregate = build_taylor_aggregate(d, grain);
+  return build_taylor_aggregate(d, grain);
+}
+
+double saturated_shear(double p, bool pressure_sensitive) {
+  auto aggregate = one_system_grain(pressure_sensitive);
   // First bring sigma_22 to -p (L_22 free), then shear with sigma_22 held at -p.
   LoadSegment press, shear;
   press.free(1, 1) = true;
@@ -69,19 +74,7 @@ TEST(CrystalPressureSensitive, SaturatedShearFollowsCoulombOnTheSlipPlane) {
 // tau_a = 0 instead of refusing it); closed again under compression, the Coulomb limit
 // mu (tau0 + p) returns.
 TEST(CrystalPressureSensitive, AnOpenPlaneCarriesNoShearAndClosesAgain) {
-  PhaseDescription d;
-  d.custom_systems = {{Vec3(1, 0, 0), Vec3(0, 1, 0)}};
-  d.custom_settings.tau0 = 10.0;
-  d.custom_settings.law.friction = {0.5, 0.5, 0.0, 0.0};
-  d.custom_settings.law.subloading = {law::SubloadingFunction::cot, 2000.0};
-  d.custom_settings.law.overstress = {law::OverstressForm::exponential, 1e-6, 16.0, 1.6};
-  d.stiffness = isotropic_from_G_nu(1e4, 0.3);
-  d.kinematics = Kinematics::small_strain;
-  d.pressure_sensitive = true;
-  std::vector<Orientation> grain(1);
-  grain[0].g = Mat3::Identity();
-  grain[0].weight = 1.0;
-  auto aggregate = build_taylor_aggregate(d, grain);
+  auto aggregate = one_system_grain(true);
   LoadSegment pull, shear_open, close, shear_closed;
   pull.free(1, 1) = true;
   pull.stress_target(1, 1) = 15.0;  // f_n = tau0 - 15 = -5: open
