@@ -118,36 +118,38 @@ class ImplicitSolver {
     tau_trial_ = ph.schmid.transpose() * stress_trial;
     fn_trial_ = normal_traction(ph, stress_trial);
     tau_start_ = ph.schmid.transpose() * s0.stress;
-    // Row scale c_a: the elastic stiffness of system a in ratio units, so that both branches of
-    // min(c x, -G) are traction ratios.
+    // Row scale c_a of min(c x, -G): how fast G falls with x, so that both branches measure
+    // the same thing. That is the elastic stiffness of system a in ratio units, or, for a
+    // viscous law over a short step, the overstress term's slope (eta_v (r_hat - r)/(n dt) can
+    // exceed it by 1e11): with the elastic scale alone, a system slipping 1e-14 in a step would
+    // sit on the x = 0 branch while G is still 1e-12 from its root, and Newton would throw
+    // that slip away (G(0) ~ 0.2).
     scale_.resize(n_);
+    const VecN r_start = loading_ratio_of(ph, s0.stress, s0.mu, normal_traction(ph, s0.stress));
     for (int a = 0; a < n_; ++a) {
       const auto& law = ph.laws[static_cast<size_t>(a)];
-      scale_(a) = ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a));
+      scale_(a) = std::max(ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a)),
+                           law.viscous_slope_at_zero_slip(r_start(a), dt));
       auto& along = starts_[static_cast<size_t>(a)][0];
       auto& against = starts_[static_cast<size_t>(a)][1];
-      along = {law.subloading_start(s0.r_s(a)), law.slip_exponent(), dt, 0.0, false};
+      along = {law.subloading_start(s0.r_s(a)), law.slip_exponent(), false};
       // (3.12): a system that slips against its shear at the start of the step has seen that
-      // shear pass through zero, and r_s with it: it starts from r_s = 0. Its slip can only
-      // follow the crossing; where the elastic predictor places it (tau linear in time), the
-      // slip takes the time left.
-      const bool trial_crosses = tau_start_(a) * tau_trial_(a) < 0.0;
-      const double crossing = trial_crosses ? tau_start_(a) / (tau_start_(a) - tau_trial_(a)) : 0.0;
-      against = {law.subloading_start(0.0), law.slip_exponent(), (1.0 - crossing) * dt,
-                 trial_crosses ? -dt * crossing / (tau_start_(a) - tau_trial_(a)) : 0.0, false};
+      // shear pass through zero, and r_s with it: it starts from r_s = 0. Its slip is spread
+      // over the whole step, like any other: when the crossing happens is not known (the other
+      // systems' slip moves the shear too), and placing it where the elastic predictor crosses
+      // zero makes the step's response jump as that predictor passes zero (the slip time drops
+      // from dt to 0), which stalled the mixed control of stiff HCP <c+a> aggregates.
+      against = {law.subloading_start(0.0), law.slip_exponent(), true};
       // From a small r_s, dr_s/dslip = U(r_s) is infinite (r_s = 0) or huge at zero slip.
       along.steep_start = s0.r_s(a) < kSteepStartRatio;
-      against.steep_start = true;
     }
   }
 
   // How system a starts the step when it slips in direction `sign`.
   struct SystemStart {
     law::SubloadingFrictionLaw::SubloadingStart subloading;
-    double exponent;         // p of the unknown z = slip^(1/p)
-    double slip_time;        // the time over which the step's slip occurs
-    double slip_time_slope;  // its derivative with respect to the trial shear
-    bool steep_start;        // r_s starts (nearly) at 0, where U(r_s) is (nearly) infinite
+    double exponent;   // p of the unknown z = slip^(1/p)
+    bool steep_start;  // r_s starts (nearly) at 0, where U(r_s) is (nearly) infinite
   };
   const SystemStart& start(int a, double sign) const {
     return starts_[static_cast<size_t>(a)][sign * tau_start_(a) < 0.0 ? 1 : 0];
@@ -208,7 +210,7 @@ class ImplicitSolver {
         continue;
       }
       it.r(a) = it.sign(a) * it.tau(a) / (mu.value * it.fn(a));
-      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), st.slip_time);
+      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
       it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
       const double inactive_row = scale_(a) * x(a);
       it.active(a) = inactive_row > -g.value;
@@ -268,11 +270,6 @@ class ImplicitSolver {
           it.sign(a) * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
       if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
       j.row(a) = -it.g_dr(a) * dr;
-      // A reversal inside the step: G depends on the slip rate slip/T, T the time left after
-      // the crossing, and T on the trial shear: dG/dT = -dG/dslip slip/T.
-      if (const SystemStart& st = start(a, it.sign(a)); st.slip_time_slope != 0.0)
-        j.row(a) += it.g_dslip(a) * it.slip(a) / st.slip_time * st.slip_time_slope *
-                    ph_.c_schmid.col(a).transpose();
     }
     return j;
   }
@@ -316,7 +313,7 @@ class ImplicitSolver {
       const auto rs = law.subloading_ratio_after(st.subloading, slip);
       const double r = (tau_free - stiffness * slip) / (mu.value * fn);
       const double dr = -stiffness / (mu.value * fn) - r / mu.value * mu.d_slip;
-      const auto g = law.flow_residual(r, rs.value, slip, st.slip_time);
+      const auto g = law.flow_residual(r, rs.value, slip, dt_);
       if (!g.admissible) return std::pair{g.value, 0.0};
       const double dslip_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
       return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dslip_dz};
@@ -398,30 +395,52 @@ typename Rhs::PlainObject solve_newton_system(const typename SlipTypes<N>::MatNN
   return Eigen::PartialPivLU<typename SlipTypes<N>::MatNN>(j).solve(rhs);
 }
 
-// The Newton step of the grain iteration. A system at zero slip whose step is negative cannot
-// follow it (x >= 0, and the line search projects it back to zero), which leaves the other
-// systems with a step computed for a slip the pinned one never takes: with a stiff, rank-deficient
-// A (G/tau0 ~ 1e5, FCC: rank 5 of 12) that direction is no descent direction and the line search
-// stalls. So such systems are held at zero (row x_a = 0) and the others re-solved.
+// The Newton step of the grain iteration. A system whose step would take its slip below zero
+// cannot follow it (x >= 0), which leaves the other systems with a step computed for a slip the
+// pinned one never takes: with a stiff, rank-deficient A (G/tau0 ~ 1e5, FCC: rank 5 of 12) that
+// direction is no descent direction and the line search stalls. So such systems are pinned
+// (row step_a = -x_a) and the others re-solved: with Pin::at_zero only systems already at zero
+// slip, with Pin::below_zero also slipping ones the step would take below zero (they then land on
+// zero). Systems the solver holds (scalar starts) keep their x.
+enum class Pin { at_zero, below_zero };
+
+template <int N>
+struct NewtonStep {
+  typename SlipTypes<N>::VecN step;
+  Eigen::Matrix<bool, N, 1, 0, SlipTypes<N>::MaxN, 1> pinned;  // step_a = -x_a exactly
+  bool pins_slipping_system = false;                           // some pinned x_a > 0
+};
+
 template <int N, class Held>
-typename SlipTypes<N>::VecN newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it,
-                                        Held&& held_by_solver) {
+NewtonStep<N> newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it, Pin pin,
+                          Held&& held_by_solver) {
   using VecN = typename SlipTypes<N>::VecN;
-  VecN step = -solve_newton_system<N>(j, it.merit_rows, it.open.any());
-  if (!step.allFinite()) return step;
+  NewtonStep<N> out{-solve_newton_system<N>(j, it.merit_rows, it.open.any()), {}};
+  out.pinned.setConstant(it.x.size(), false);
+  if (!out.step.allFinite()) return out;
   typename SlipTypes<N>::MatNN held = j;
   VecN rows = it.merit_rows;
   bool any = false;
-  for (int a = 0; a < step.size(); ++a) {
-    if (!(it.x(a) == 0.0 && step(a) < 0.0) && !held_by_solver(a)) continue;
+  for (int a = 0; a < out.step.size(); ++a) {
+    const bool held_here = held_by_solver(a);
+    const bool below_zero = it.x(a) + out.step(a) < 0.0;
+    out.pinned(a) = !held_here && below_zero && (it.x(a) == 0.0 || pin == Pin::below_zero);
+    if (!out.pinned(a) && !held_here) continue;
+    out.pins_slipping_system = out.pins_slipping_system || (out.pinned(a) && it.x(a) > 0.0);
     held.row(a).setZero();
     held(a, a) = 1.0;
-    rows(a) = 0.0;
+    rows(a) = out.pinned(a) ? it.x(a) : 0.0;
     any = true;
   }
-  if (!any) return step;
+  if (!any) return out;
   const VecN reduced = -solve_newton_system<N>(held, rows, it.open.any());
-  return reduced.allFinite() ? reduced : step;
+  if (reduced.allFinite()) {
+    out.step = reduced;
+  } else {
+    out.pinned.setConstant(false);
+    out.pins_slipping_system = false;
+  }
+  return out;
 }
 
 // Open slip planes (f_n <= 0, r = 0) are admissible where the step resolved them (implicit).
@@ -581,30 +600,38 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
       converged = true;
       break;
     }
-    const VecN step = newton_step(j, it, [&](int a) { return solver.needs_scalar_start(it, a); });
-    if (!step.allFinite()) break;
     // Backtracking line search on the merit 1/2 |rows|^2, projected onto x >= 0; a trial point
     // beyond r_hat counts as infinitely bad, so the iterate never leaves the admissible set.
-    double alpha = 1.0;
+    auto line_search = [&](const NewtonStep<N>& newton) {
+      double alpha = 1.0;
+      for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+        // x >= 0; a slipping system (flow-rule row) may shrink by at most 99 % per iteration
+        // (fraction to the boundary) unless the step pins it: a system that should stop is
+        // switched to the x_a = 0 row by the semismooth branch and then lands on zero exactly.
+        VecN xt = it.x + alpha * newton.step;
+        for (int a = 0; a < n; ++a)
+          xt(a) = std::max(xt(a), it.active(a) && !newton.pinned(a) ? 0.01 * it.x(a) : 0.0);
+        solver.evaluate(xt, it.sign, trial);
+        // Systems the Newton step holds (see needs_scalar_start) follow the others through
+        // their own scalar roots, so that the merit measures the step of the systems it moved.
+        if (!solver.newton_can_start(trial)) {
+          VecN st = trial.sign;
+          solver.make_admissible(xt, st, trial, opt.tolerance);
+        }
+        if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) return true;
+      }
+      return false;
+    };
+    // Systems the step drives below zero first shrink gradually (the others' slips adjust);
+    // where that stalls (nearly degenerate active sets, e.g. HCP <c+a> at G/tau0 = 1e5), they
+    // are pinned at zero instead.
+    auto held = [&](int a) { return solver.needs_scalar_start(it, a); };
     bool accepted = false;
-    for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
-      // x >= 0; a slipping system (flow-rule row) may shrink by at most 99 % per iteration
-      // (fraction to the boundary): overshooting to exactly zero slip would put it where its
-      // slope dr_s/dslip = U(r_s) can be infinite, while a system that should stop is switched
-      // to the x_a = 0 row by the semismooth branch and then lands on zero exactly.
-      VecN xt = it.x + alpha * step;
-      for (int a = 0; a < n; ++a) xt(a) = std::max(xt(a), it.active(a) ? 0.01 * it.x(a) : 0.0);
-      solver.evaluate(xt, it.sign, trial);
-      // Systems the Newton step holds (see needs_scalar_start) follow the others through their
-      // own scalar roots, so that the merit measures the step of the systems it moved.
-      if (!solver.newton_can_start(trial)) {
-        VecN st = trial.sign;
-        solver.make_admissible(xt, st, trial, opt.tolerance);
-      }
-      if (trial.merit <= (1.0 - 1e-4 * alpha) * it.merit) {
-        accepted = true;
-        break;
-      }
+    for (const Pin pin : {Pin::at_zero, Pin::below_zero}) {
+      const NewtonStep<N> newton = newton_step(j, it, pin, held);
+      if (pin == Pin::below_zero && !newton.pins_slipping_system) break;
+      if (!newton.step.allFinite()) continue;
+      if ((accepted = line_search(newton))) break;
     }
     if (!accepted) break;
     std::swap(it, trial);

@@ -241,6 +241,14 @@ FlowResidual SubloadingFrictionLaw::flow_residual(double r, double r_s, double s
   return {(r - r_s) - inv, d_r, -1.0, d_slip, true};
 }
 
+double SubloadingFrictionLaw::viscous_slope_at_zero_slip(double r, double dt) const {
+  const auto& o = p_.overstress;
+  if (is_rate_independent()) return 0.0;
+  const double rate_scale = o.eta_v * std::max(o.r_hat - r, 0.0) / dt;
+  if (o.form == OverstressForm::exponential) return rate_scale / o.n;
+  return o.n >= 1.0 ? std::pow(rate_scale, 1.0 / o.n) : 0.0;
+}
+
 SubloadingFrictionLaw::SteadyState SubloadingFrictionLaw::steady_state(double v) const {
   const auto& f = p_.friction;
   const double mu = (f.kappa * v + f.xi) / (f.kappa * v / f.mu_k + f.xi / f.mu_s);

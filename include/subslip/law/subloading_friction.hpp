@@ -145,6 +145,13 @@ class SubloadingFrictionLaw {
     return p_.overstress.form == OverstressForm::power ? std::max(p_.overstress.n, 1.0) : 1.0;
   }
 
+  // |dG/dz| of the flow residual's overstress term at zero slip over a step dt from loading
+  // ratio r (z = ds^(1/p), see slip_exponent): eta_v (r_hat - r)/(n dt) for the exponential
+  // form, (eta_v (r_hat - r)/dt)^(1/n) for the power form with n >= 1, 0 where that slope
+  // vanishes (power form with n < 1) or there is no overstress. For small steps of a viscous
+  // law it dwarfs the elastic response of r to slip: the scale of the flow rule in z.
+  double viscous_slope_at_zero_slip(double r, double dt) const;
+
   // The accumulated slip needed to bring r_s from 0 to r_s (the integral of 1/U): the inverse
   // of subloading_ratio_after. Monotone increasing, infinite at r_s = 1.
   double subloading_slip_integral(double r_s) const;
