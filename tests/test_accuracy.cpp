@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "scene_text.hpp"
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/elasticity.hpp"
@@ -496,13 +497,10 @@ TEST(AccuracyOutput, TimeToReachAnError) {
 TEST(AccuracyOutput, CommandWritesAndRefusesOverwrite) {
   const fs::path dir = scratch("cli");
   fs::create_directories(dir);
-  std::ofstream(dir / "scene.yaml") << R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e3, alpha_t: 1.0e3, normal_traction: 5.56}
+  std::ofstream(dir / "scene.yaml")
+      << "scene: contact\n"
+      << subslip::testing::kContactUnitsAndLaw
+      << R"(contact: {alpha_n: 1.0e3, alpha_t: 1.0e3, normal_traction: 5.56}
 loading:
   - slide: {speed: 1, distance: 0.1}
     increments: 20

@@ -20,6 +20,7 @@
 
 #include "copper_phase.hpp"
 #include "grain_recorder.hpp"
+#include "scene_text.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/elasticity.hpp"
@@ -335,14 +336,7 @@ TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
 
 namespace {
 
-const std::string kContactHead = R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction:   {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+const std::string kContactHead = subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, distance: 1.0}
     increments: 1
 )";

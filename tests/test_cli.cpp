@@ -9,6 +9,7 @@
 #include <sstream>
 #include <string>
 
+#include "scene_text.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -19,15 +20,8 @@ namespace {
 const fs::path kSource = SUBSLIP_SOURCE_DIR;
 const std::string kBinary = SUBSLIP_BINARY;
 
-const std::string kScene = R"(scene: contact
-title: "cli test"
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+const std::string kScene =
+    subslip::testing::contact_scene_start("title: \"cli test\"\n") + R"(loading:
   - slide: {speed: 10, direction: [1, 0], distance: 0.2}
     increments: 200
     growth: 1.03
