@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
@@ -224,12 +225,7 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_bad_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("bad");
 }
 
 // Runs `subslip ARGS` in `dir`; stdout is discarded, stderr captured.

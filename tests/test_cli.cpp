@@ -10,6 +10,7 @@
 #include <string>
 
 #include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -43,12 +44,7 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_cli_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("cli");
 }
 
 // Runs `subslip ARGS` in `dir`, capturing stdout and stderr.

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "scratch_dir.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
@@ -53,12 +54,7 @@ const std::string kAllGrains =
     "output:\n  grains: [stress, orientation, slip, slip_rate, crss, r, r_s]\n";
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_crystal_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("crystal");
 }
 
 // What the aggregate handed to the observer at one output step.

@@ -13,6 +13,7 @@
 
 #include "child_process.hpp"
 #include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -39,12 +40,7 @@ output:
 
 // A fresh directory per test (tests may run in parallel processes).
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_h5_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("h5");
 }
 
 struct Recorded {

@@ -21,6 +21,7 @@
 #include "child_process.hpp"
 #include "grain_recorder.hpp"
 #include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -37,12 +38,7 @@ using subslip::testing::run_subslip;
 namespace {
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_restart_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("restart");
 }
 
 // Copper-like FCC: tension along z under mixed control with a lateral stress ramped to 5 MPa,
