@@ -11,6 +11,7 @@
 
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -52,14 +53,8 @@ Outcome run(const fs::path& dir, const std::string& args) {
   const fs::path err = dir / "stderr.txt";
   const std::string command =
       "cd '" + dir.string() + "' && '" + kBinary + "' " + args + " 2>'" + err.string() + "'";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "", "popen failed"};
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, slurp(err)};
+  const auto [code, out] = subslip::testing::run_command(command);
+  return {code, out, slurp(err)};
 }
 
 void write(const fs::path& p, const std::string& text) {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
@@ -270,21 +271,12 @@ TEST(CrystalOutput, LoadingComponentAndVonMises) {
 
 namespace {
 
-struct Outcome {
-  int code;
-  std::string out;
-};
+using Outcome = subslip::testing::CommandOutput;
 
+// Runs `subslip ARGS` in `dir`, stdout and stderr together in `out`.
 Outcome run_cli(const fs::path& dir, const std::string& args) {
-  const std::string command = "cd '" + dir.string() + "' && '" + kBinary + "' " + args + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string out;
-  char buf[4096];
-  std::size_t got;
-  while ((got = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, got);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  return subslip::testing::run_command("cd '" + dir.string() + "' && '" + kBinary + "' " + args +
+                                       " 2>&1");
 }
 
 }  // namespace
