@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "paper_law.hpp"
 #include "scene_text.hpp"
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
@@ -62,13 +63,7 @@ double observed_order(const std::vector<double>& factor, const std::vector<doubl
 // sliding and the peak, in graded increments (the first 1.6e-5 mm) that resolve the onset.
 constexpr double kFn = 5.56;
 
-law::LawParameters paper_law() {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
-  return p;
-}
+using subslip::testing::paper_law;
 
 ct::ContactModel contact_model(double alpha) {
   ct::ContactModel m;

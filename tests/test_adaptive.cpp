@@ -20,6 +20,7 @@
 
 #include "copper_phase.hpp"
 #include "grain_recorder.hpp"
+#include "paper_law.hpp"
 #include "scene_text.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
@@ -44,14 +45,7 @@ std::ostream& measured() {
 
 constexpr double kFn = 5.56;  // the paper's section 5 normal traction [MPa]
 
-// The paper's section 5 constants (figure 11a/12).
-law::LawParameters paper_law() {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
-  return p;
-}
+using subslip::testing::paper_law;  // the paper's section 5 constants (figure 11a/12)
 
 contact::ContactModel paper_model() {
   contact::ContactModel m;
