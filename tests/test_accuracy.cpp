@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "paper_law.hpp"
+#include "scene_text.hpp"
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/elasticity.hpp"
@@ -61,13 +63,7 @@ double observed_order(const std::vector<double>& factor, const std::vector<doubl
 // sliding and the peak, in graded increments (the first 1.6e-5 mm) that resolve the onset.
 constexpr double kFn = 5.56;
 
-law::LawParameters paper_law() {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
-  return p;
-}
+using subslip::testing::paper_law;
 
 ct::ContactModel contact_model(double alpha) {
   ct::ContactModel m;
@@ -496,13 +492,10 @@ TEST(AccuracyOutput, TimeToReachAnError) {
 TEST(AccuracyOutput, CommandWritesAndRefusesOverwrite) {
   const fs::path dir = scratch("cli");
   fs::create_directories(dir);
-  std::ofstream(dir / "scene.yaml") << R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e3, alpha_t: 1.0e3, normal_traction: 5.56}
+  std::ofstream(dir / "scene.yaml")
+      << "scene: contact\n"
+      << subslip::testing::kContactUnitsAndLaw
+      << R"(contact: {alpha_n: 1.0e3, alpha_t: 1.0e3, normal_traction: 5.56}
 loading:
   - slide: {speed: 1, distance: 0.1}
     increments: 20

@@ -20,6 +20,8 @@
 
 #include "copper_phase.hpp"
 #include "grain_recorder.hpp"
+#include "paper_law.hpp"
+#include "scene_text.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/elasticity.hpp"
@@ -43,14 +45,7 @@ std::ostream& measured() {
 
 constexpr double kFn = 5.56;  // the paper's section 5 normal traction [MPa]
 
-// The paper's section 5 constants (figure 11a/12).
-law::LawParameters paper_law() {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
-  return p;
-}
+using subslip::testing::paper_law;  // the paper's section 5 constants (figure 11a/12)
 
 contact::ContactModel paper_model() {
   contact::ContactModel m;
@@ -335,14 +330,7 @@ TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
 
 namespace {
 
-const std::string kContactHead = R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction:   {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+const std::string kContactHead = subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, distance: 1.0}
     increments: 1
 )";

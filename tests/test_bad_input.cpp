@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
@@ -223,12 +225,7 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_bad_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("bad");
 }
 
 // Runs `subslip ARGS` in `dir`; stdout is discarded, stderr captured.
@@ -303,14 +300,7 @@ TEST(BadInputCli, ExistingResultIsNotTouchedEvenWithForce) {
 // the message was cut at the NUL, and re-prefixing it for the sweep case read past its end
 // (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart.
 TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
-  std::string text = R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+  std::string text = subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, direction: [1, 0], distance: 0.1}
     increments: 10
 sweep:

@@ -9,6 +9,9 @@
 #include <sstream>
 #include <string>
 
+#include "scene_text.hpp"
+#include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -19,15 +22,8 @@ namespace {
 const fs::path kSource = SUBSLIP_SOURCE_DIR;
 const std::string kBinary = SUBSLIP_BINARY;
 
-const std::string kScene = R"(scene: contact
-title: "cli test"
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+const std::string kScene =
+    subslip::testing::contact_scene_start("title: \"cli test\"\n") + R"(loading:
   - slide: {speed: 10, direction: [1, 0], distance: 0.2}
     increments: 200
     growth: 1.03
@@ -49,12 +45,7 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_cli_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("cli");
 }
 
 // Runs `subslip ARGS` in `dir`, capturing stdout and stderr.
@@ -62,14 +53,8 @@ Outcome run(const fs::path& dir, const std::string& args) {
   const fs::path err = dir / "stderr.txt";
   const std::string command =
       "cd '" + dir.string() + "' && '" + kBinary + "' " + args + " 2>'" + err.string() + "'";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "", "popen failed"};
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, slurp(err)};
+  const auto [code, out] = subslip::testing::run_command(command);
+  return {code, out, slurp(err)};
 }
 
 void write(const fs::path& p, const std::string& text) {

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "paper_law.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
@@ -39,16 +40,8 @@ constexpr double kResidualTol = 1e-12;
 constexpr double kSlipResolution = 1e-14;
 constexpr double kFn = 5.56;  // normal traction of the paper's section 5 test [MPa]
 
-// The paper's section 5 constants (figure 11a): alpha = 1000 GPa/mm, mu_s 0.097, mu_k 0.085,
-// kappa 0.2 /mm, xi 0.009 /min, u_tilde 80 /mm, eta_v 950 min/mm, n 16, r_hat 1.8.
-law::LawParameters paper_law(law::OverstressForm form = law::OverstressForm::exponential,
-                             law::SubloadingFunction f = law::SubloadingFunction::cot) {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {f, 80.0};
-  p.overstress = {form, 950.0, 16.0, 1.8};
-  return p;
-}
+// The paper's section 5 constants (figure 11a); its contact: alpha = 1000 GPa/mm.
+using subslip::testing::paper_law;
 
 ContactModel make_model(const law::LawParameters& p, double alpha = 1e6) {
   ContactModel m;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <omp.h>
+#include "crystal_law.hpp"
 #include "grain_recorder.hpp"
 
 #include <Eigen/Dense>
@@ -39,14 +40,7 @@ std::ostream& measured() {
   return std::cout << std::setprecision(6) << "[ measured ] ";
 }
 
-law::LawParameters crystal_law(double mu_s, double mu_k, double kappa, double xi, double u_tilde,
-                               double eta_v, double n = 16.0, double r_hat = 1.8) {
-  law::LawParameters p;
-  p.friction = {mu_s, mu_k, kappa, xi};
-  p.subloading = {law::SubloadingFunction::cot, u_tilde};
-  p.overstress = {law::OverstressForm::exponential, eta_v, n, r_hat};
-  return p;
-}
+using subslip::testing::crystal_law;
 
 // Copper and alpha-iron cubic constants [MPa], Voigt convention.
 Mat6 copper() {

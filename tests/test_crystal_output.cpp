@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
@@ -53,12 +55,7 @@ const std::string kAllGrains =
     "output:\n  grains: [stress, orientation, slip, slip_rate, crss, r, r_s]\n";
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_crystal_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("crystal");
 }
 
 // What the aggregate handed to the observer at one output step.
@@ -274,21 +271,12 @@ TEST(CrystalOutput, LoadingComponentAndVonMises) {
 
 namespace {
 
-struct Outcome {
-  int code;
-  std::string out;
-};
+using Outcome = subslip::testing::CommandOutput;
 
+// Runs `subslip ARGS` in `dir`, stdout and stderr together in `out`.
 Outcome run_cli(const fs::path& dir, const std::string& args) {
-  const std::string command = "cd '" + dir.string() + "' && '" + kBinary + "' " + args + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string out;
-  char buf[4096];
-  std::size_t got;
-  while ((got = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, got);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  return subslip::testing::run_command("cd '" + dir.string() + "' && '" + kBinary + "' " + args +
+                                       " 2>&1");
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <omp.h>
+#include "crystal_law.hpp"
 #include "grain_recorder.hpp"
 
 #include <Eigen/Dense>
@@ -54,14 +55,7 @@ using subslip::testing::SingleThread;
 // Copper, cubic constants in MPa (Voigt convention, as tabulated).
 constexpr double kC11 = 168400.0, kC12 = 121400.0, kC44 = 75400.0;
 
-law::LawParameters crystal_law(double mu_s, double mu_k, double kappa, double xi, double u_tilde,
-                               double eta_v, double n = 16.0, double r_hat = 1.8) {
-  law::LawParameters p;
-  p.friction = {mu_s, mu_k, kappa, xi};
-  p.subloading = {law::SubloadingFunction::cot, u_tilde};
-  p.overstress = {law::OverstressForm::exponential, eta_v, n, r_hat};
-  return p;
-}
+using subslip::testing::crystal_law;
 
 // A Phase<12> (fcc {111}<110>) built by hand, one law for all systems.
 Phase<12> fcc_phase(const law::LawParameters& p, double tau0, Kinematics k) {

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "paper_law.hpp"
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
@@ -40,14 +41,7 @@ namespace {
   return std::cout << std::setprecision(4) << "[ measured ] ";
 }
 
-// Section 5 fit (figure 11a).
-law::LawParameters paper_law() {
-  law::LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
-  return p;
-}
+using subslip::testing::paper_law;  // the section 5 fit (figure 11a)
 
 constexpr double kFn = 5.56;      // [MPa]
 constexpr double kAlpha = 1.0e6;  // [MPa/mm]

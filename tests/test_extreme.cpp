@@ -16,6 +16,7 @@
 
 #include <omp.h>
 #include "grain_recorder.hpp"
+#include "paper_law.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -850,10 +851,7 @@ bool contact_fe_stable(const law::SubloadingFrictionLaw& lw, const ct::ContactSt
 }  // namespace
 
 TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
-  law::LawParameters p;  // the paper's section 5 fit
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {law::SubloadingFunction::cot, 80.0};
-  p.overstress = {law::OverstressForm::exponential, 950.0, 16.0, 1.8};
+  const law::LawParameters p = subslip::testing::paper_law();  // the paper's section 5 fit
   const law::SubloadingFrictionLaw lw(p);
   const double v = 1.0, fn = 5.56;
   for (double alpha : {1e5, 1e6, 1e8}) {

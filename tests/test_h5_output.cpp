@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "child_process.hpp"
+#include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -24,15 +26,8 @@ using namespace subslip::io;
 
 namespace {
 
-const std::string kScene = R"(scene: contact
-title: "h5 test"
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+const std::string kScene =
+    subslip::testing::contact_scene_start("title: \"h5 test\"\n") + R"(loading:
   - slide: {speed: 10, direction: [1, 0], distance: 0.2}
     increments: 300
     growth: 1.02
@@ -45,12 +40,7 @@ output:
 
 // A fresh directory per test (tests may run in parallel processes).
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_h5_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("h5");
 }
 
 struct Recorded {

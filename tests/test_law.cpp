@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "paper_law.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 using namespace subslip::law;
@@ -27,15 +28,8 @@ constexpr double kEps = std::numeric_limits<double>::epsilon();
 const SubloadingFunction kAllFunctions[] = {SubloadingFunction::cot, SubloadingFunction::neg_log,
                                             SubloadingFunction::reciprocal};
 
-// The material constants of the paper's section 5 (figure 11a), in N, mm, min units.
-LawParameters paper_parameters(OverstressForm form = OverstressForm::exponential,
-                               SubloadingFunction function = SubloadingFunction::cot) {
-  LawParameters p;
-  p.friction = {0.097, 0.085, 0.2, 0.009};
-  p.subloading = {function, 80.0};
-  p.overstress = {form, 950.0, 16.0, 1.8};
-  return p;
-}
+// The material constants of the paper's section 5 (figure 11a).
+using subslip::testing::paper_law;
 
 // U(r) written out again here, from (2.27) and (2.29), so that the reference integrations do not
 // call the code under test.
@@ -101,7 +95,7 @@ TEST(LawDerivatives, FrictionCoefficientSlopeMatchesFiniteDifferences) {
                         {0.097, 0.085, 1.0, 0.0},   {0.5, 1.5, 20.0, 3.0}};
   int checked = 0;
   for (const auto& c : cases) {
-    LawParameters p = paper_parameters();
+    LawParameters p = paper_law();
     p.friction = {c.mu_s, c.mu_k, c.kappa, c.xi};
     const SubloadingFrictionLaw law(p);
     for (double mu0 : {c.mu_s, c.mu_k, 0.5 * (c.mu_s + c.mu_k), 1.3 * std::max(c.mu_s, c.mu_k)}) {
@@ -134,7 +128,7 @@ TEST(LawDerivatives, FrictionCoefficientSlopeMatchesFiniteDifferences) {
 TEST(LawDerivatives, FrictionCoefficientValueSatisfiesTheOde) {
   for (const auto& fr : {FrictionCoefficientEvolution{0.097, 0.085, 0.2, 0.009},
                          FrictionCoefficientEvolution{0.085, 0.097, 1.0, 0.005}}) {
-    LawParameters p = paper_parameters();
+    LawParameters p = paper_law();
     p.friction = fr;
     const SubloadingFrictionLaw law(p);
     for (double sdot : {0.0, 1e-5, 1.0, 200.0}) {
@@ -163,7 +157,7 @@ TEST(LawDerivatives, FrictionCoefficientValueSatisfiesTheOde) {
 
 TEST(LawDerivatives, SubloadingRatioSlopeIsUAndMatchesFiniteDifferences) {
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     for (double r0 : {0.0, 1e-6, 0.1, 0.5, 0.9, 0.999}) {
       for (double slip : {1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 5e-2}) {
         const auto out = law.subloading_ratio_after(r0, slip);
@@ -201,7 +195,7 @@ TEST(LawDerivatives, FlowResidualPartialsMatchFiniteDifferences) {
   int checked = 0;
   for (auto form :
        {OverstressForm::exponential, OverstressForm::power, OverstressForm::rate_independent}) {
-    const SubloadingFrictionLaw law(paper_parameters(form));
+    const SubloadingFrictionLaw law(paper_law(form));
     const double r_hat = 1.8;
     for (double r_s : {0.0, 0.3, 0.99, 1.0}) {
       for (double over : {-0.2, 0.01, 0.3, 0.7}) {  // r - r_s
@@ -247,7 +241,7 @@ TEST(LawDerivatives, FlowResidualPartialsMatchFiniteDifferences) {
 // slip = dt * phi(r, r_s) (3.10, 3.15), and is positive (too little slip) below it.
 TEST(LawDerivatives, FlowResidualVanishesOnTheForwardSlipRate) {
   for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
-    const SubloadingFrictionLaw law(paper_parameters(form));
+    const SubloadingFrictionLaw law(paper_law(form));
     const auto& o = law.parameters().overstress;
     for (double r_s : {0.0, 0.5, 1.0}) {
       for (double x : {1e-3, 0.1, 0.5, 0.79}) {
@@ -274,7 +268,7 @@ TEST(LawDerivatives, FlowResidualVanishesOnTheForwardSlipRate) {
 TEST(LawDerivatives, SlipRateMatchesPaperAndSlopeMatchesFiniteDifferences) {
   for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
     for (double n : {1.0, 4.0, 16.0}) {
-      LawParameters p = paper_parameters(form);
+      LawParameters p = paper_law(form);
       p.overstress.n = n;
       const SubloadingFrictionLaw law(p);
       const auto& o = law.parameters().overstress;
@@ -301,9 +295,8 @@ TEST(LawDerivatives, SlipRateMatchesPaperAndSlopeMatchesFiniteDifferences) {
       EXPECT_EQ(law.slip_rate(o.r_hat, 0.5), std::numeric_limits<double>::infinity());
     }
   }
-  EXPECT_EQ(
-      SubloadingFrictionLaw(paper_parameters(OverstressForm::rate_independent)).slip_rate(1.5, 0.5),
-      0.0);
+  EXPECT_EQ(SubloadingFrictionLaw(paper_law(OverstressForm::rate_independent)).slip_rate(1.5, 0.5),
+            0.0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -373,7 +366,7 @@ TEST(LawExactUpdates, SubloadingRatioEqualsRk4FromZero) {
   const double u = 80.0;
   const std::vector<double> targets = {1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 0.1};
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     const double r0 = small_r_start_ratio(f);
     const double s0 = small_r_start_slip(f, u, r0);
     ASSERT_LT(s0, targets.front());
@@ -395,7 +388,7 @@ TEST(LawExactUpdates, SubloadingRatioEqualsRk4FromInteriorStart) {
   const double u = 80.0;
   const std::vector<double> targets = {1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 0.1};
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     for (double r0 : {0.05, 0.3, 0.7, 0.95}) {
       const auto coarse = rk4_subloading(f, u, 0.0, r0, targets, 2e-3);
       const auto fine = rk4_subloading(f, u, 0.0, r0, targets, 1e-3);
@@ -412,7 +405,7 @@ TEST(LawExactUpdates, SubloadingRatioEqualsRk4FromInteriorStart) {
 // R(R(r0, a), b) = R(r0, a + b): the update is the flow of an autonomous ODE.
 TEST(LawExactUpdates, SubloadingRatioComposes) {
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     for (double r0 : {0.0, 1e-4, 0.2, 0.6, 0.97}) {
       for (double a : {1e-7, 1e-4, 3e-3, 2e-2}) {
         for (double b : {1e-7, 1e-4, 3e-3, 2e-2}) {
@@ -434,7 +427,7 @@ TEST(LawExactUpdates, SubloadingRatioComposes) {
 // s - s0 = (2/(pi u)) ln[cos(pi r0/2)/cos(pi r/2)], evaluated directly as printed.
 TEST(LawExactUpdates, CotFormMatchesPaperClosedForm) {
   const double u = 80.0;
-  const SubloadingFrictionLaw law(paper_parameters());
+  const SubloadingFrictionLaw law(paper_law());
   for (double r0 : {0.0, 0.01, 0.2, 0.5, 0.8, 0.99}) {
     for (double s : {1e-6, 1e-4, 1e-3, 1e-2, 0.05}) {
       const double paper =
@@ -461,7 +454,7 @@ TEST(LawExactUpdates, CotFormMatchesPaperClosedForm) {
 TEST(LawExactUpdates, SlipIntegralInvertsTheUpdate) {
   const double u = 80.0;
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     EXPECT_EQ(law.subloading_slip_integral(0.0), 0.0);
     EXPECT_EQ(law.subloading_slip_integral(1.0), std::numeric_limits<double>::infinity());
     double previous = 0.0;
@@ -483,7 +476,7 @@ TEST(LawExactUpdates, SlipIntegralInvertsTheUpdate) {
   const double wg[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889,
                         0.4786286704993665, 0.2369268850561891};
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     const double r = 0.8;
     double sum = 0.0;
     for (double hi = r; hi > 0.0;) {
@@ -506,7 +499,7 @@ TEST(LawExactUpdates, SlipIntegralInvertsTheUpdate) {
 // s = (pi r^2/(4u)) (1 + (pi r/2)^2/6), accurate to ~(pi r/2)^4 relative, i.e. to rounding here.
 TEST(LawExactUpdates, CotSlipIntegralAccurateAtSmallRatio) {
   const double u = 80.0;
-  const SubloadingFrictionLaw law(paper_parameters());
+  const SubloadingFrictionLaw law(paper_law());
   for (double r : {1e-3, 1e-6, 1e-9}) {
     const double z = 0.5 * kPi * r;
     const double series = kPi * r * r / (4.0 * u) * (1.0 + z * z / 6.0);
@@ -549,7 +542,7 @@ TEST(LawExactUpdates, FrictionCoefficientEqualsRk4AtConstantSlipRate) {
   const std::pair<double, double> steps[] = {{0.0, 1.0},  {1e-6, 1e-3},  {0.5, 1.0},
                                              {5.0, 0.01}, {0.01, 100.0}, {20.0, 1e4}};
   for (const auto& fr : cases) {
-    LawParameters p = paper_parameters();
+    LawParameters p = paper_law();
     p.friction = fr;
     const SubloadingFrictionLaw law(p);
     for (double mu0 : {fr.mu_s, fr.mu_k, 0.05, 0.12}) {
@@ -588,7 +581,7 @@ TEST(LawExactUpdates, FrictionCoefficientEqualsRk4AtConstantSlipRate) {
 TEST(LawExactUpdates, FrictionCoefficientLimitsInClosedForm) {
   for (double mu0 : {0.05, 0.09, 0.12}) {
     for (auto [s, t] : {std::pair{0.3, 2.0}, std::pair{3.0, 50.0}, std::pair{1e-7, 1e-5}}) {
-      LawParameters p = paper_parameters();
+      LawParameters p = paper_law();
       p.friction = {0.097, 0.085, 0.0, 0.009};
       double expected = 0.097 + (mu0 - 0.097) * std::exp(-0.009 * t / 0.097);
       // Closed form vs closed form: a few eps of mu.
@@ -632,7 +625,7 @@ double steady_r(const Overstress& o, double v) {
 
 TEST(LawSteadyState, MatchesIndependentSolution) {
   for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
-    const SubloadingFrictionLaw law(paper_parameters(form));
+    const SubloadingFrictionLaw law(paper_law(form));
     const auto& p = law.parameters();
     for (double v : {1e-4, 1.0, 10.0, 200.0, 1e6}) {
       const auto ss = law.steady_state(v);
@@ -646,7 +639,7 @@ TEST(LawSteadyState, MatchesIndependentSolution) {
       EXPECT_NEAR(ss.ratio, ss.r * ss.mu, 2 * kEps * ss.ratio);
     }
   }
-  const SubloadingFrictionLaw ri(paper_parameters(OverstressForm::rate_independent));
+  const SubloadingFrictionLaw ri(paper_law(OverstressForm::rate_independent));
   const auto ss = ri.steady_state(1.0);
   EXPECT_EQ(ss.r, 1.0);
   EXPECT_NEAR(ss.mu, steady_mu(ri.parameters().friction, 1.0), 4 * kEps);
@@ -656,7 +649,7 @@ TEST(LawSteadyState, MatchesIndependentSolution) {
 // (2.31): cot -> -inf as r -> 2.
 TEST(LawSubloadingFunction, SatisfiesPaperConditions) {
   for (auto f : kAllFunctions) {
-    const SubloadingFrictionLaw law(paper_parameters(OverstressForm::exponential, f));
+    const SubloadingFrictionLaw law(paper_law(OverstressForm::exponential, f));
     EXPECT_EQ(law.subloading_rate(0.0), std::numeric_limits<double>::infinity());
     EXPECT_GT(law.subloading_rate(1e-300), 1e3);
     EXPECT_NEAR(law.subloading_rate(1.0), 0.0, 1e-13);
@@ -674,13 +667,13 @@ TEST(LawSubloadingFunction, SatisfiesPaperConditions) {
       previous = U;
     }
   }
-  const SubloadingFrictionLaw cot(paper_parameters());
+  const SubloadingFrictionLaw cot(paper_law());
   EXPECT_LT(cot.subloading_rate(2.0 - 1e-9), -1e9);
 }
 
 // (2.41): m^p = kappa (1 - mu/mu_k) r + U(r) mu, m^c = xi (1 - mu/mu_s) r >= 0 for mu <= mu_s.
 TEST(LawModuli, PlasticAndCreepModuli) {
-  const SubloadingFrictionLaw law(paper_parameters(OverstressForm::rate_independent));
+  const SubloadingFrictionLaw law(paper_law(OverstressForm::rate_independent));
   for (double r : {0.1, 0.5, 1.0, 1.3}) {
     for (double mu : {0.085, 0.09, 0.097}) {
       EXPECT_NEAR(law.plastic_modulus(r, mu),
@@ -696,7 +689,7 @@ TEST(LawModuli, PlasticAndCreepModuli) {
 
 TEST(LawParametersCheck, RejectsOutOfRange) {
   auto make = [](auto edit) {
-    LawParameters p = paper_parameters();
+    LawParameters p = paper_law();
     edit(p);
     return SubloadingFrictionLaw(p);
   };

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "shell_command.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -407,17 +408,11 @@ Outcome run_subslip(const fs::path& dir, const std::string& args) {
   std::string command = "cd '";
   command.append(dir.string()).append("' && '").append(SUBSLIP_BINARY).append("' ");
   command.append(args).append(" 2>'").append(err.string()).append("'");
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "", "popen failed"};
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = ::pclose(pipe);
+  const auto [code, out] = subslip::testing::run_command(command);
   std::ifstream in(err);
   std::stringstream e;
   e << in.rdbuf();
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, e.str()};
+  return {code, out, e.str()};
 }
 
 }  // namespace

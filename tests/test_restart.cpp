@@ -20,6 +20,8 @@
 
 #include "child_process.hpp"
 #include "grain_recorder.hpp"
+#include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -36,12 +38,7 @@ using subslip::testing::run_subslip;
 namespace {
 
 fs::path scratch_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / ("subslip_restart_" + std::string(info->name()) +
-                                                    "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return subslip::testing::scratch_dir("restart");
 }
 
 // Copper-like FCC: tension along z under mixed control with a lateral stress ramped to 5 MPa,
@@ -396,14 +393,7 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
 // Contact cases take milliseconds: an unfinished one is run again from its start.
 TEST(Restart, KilledContactRunRerunsUnfinishedCases) {
   const fs::path dir = scratch_dir();
-  std::ofstream(dir / "scene.yaml") << R"(scene: contact
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
-loading:
+  std::ofstream(dir / "scene.yaml") << subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, direction: [1, 0], distance: 2.0}
     increments: 4000
     growth: 1.001

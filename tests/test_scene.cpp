@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "scene_text.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_common.hpp"
@@ -24,14 +25,8 @@ namespace {
 const fs::path kSource = SUBSLIP_SOURCE_DIR;
 
 // A valid one-segment scene; tests append or substitute lines.
-const std::string kTiny = R"(scene: contact
-title: "tiny"
-units: {stress: MPa, length: mm, time: min}
-law:
-  friction: {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
-  subloading: {function: cot, u_tilde: 80}
-  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 1.8}
-contact:
+const std::string kTiny = std::string("scene: contact\ntitle: \"tiny\"\n") +
+                          subslip::testing::kContactUnitsAndLaw + R"(contact:
   alpha_n: 1.0e6
   alpha_t: 1.0e6
   normal_traction: 5.56

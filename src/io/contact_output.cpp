@@ -7,6 +7,8 @@
 #include <exception>
 #include <utility>
 
+#include "subslip/io/case_group.hpp"
+
 namespace subslip::io {
 
 namespace {
@@ -56,23 +58,6 @@ constexpr std::size_t kBlockRows = 256;
 // Chunks of about one case's length (bounded): one chunk holds a typical run.
 std::size_t chunk_rows_for(const ContactCase& c) {
   return std::clamp<std::size_t>(output_count(c.segments), 16, 4096);
-}
-
-// An attribute with its unit in a sibling attribute "<name>.unit".
-void set_with_unit(const h5::Group& g, const std::string& name, double value,
-                   std::string_view unit) {
-  g.set_attribute(name, value);
-  g.set_attribute(name + ".unit", unit);
-}
-
-void write_overrides(const h5::Group& g, const ContactCase& c) {
-  for (const SweepOverride& o : c.overrides) {
-    if (o.number) {
-      g.set_attribute("sweep:" + o.path, *o.number);
-    } else {
-      g.set_attribute("sweep:" + o.path, o.value);
-    }
-  }
 }
 
 void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) {
@@ -339,10 +324,7 @@ ContactSummary placeholder_summary() {
 
 void ContactCaseWriter::lay_out(const h5::Group& cases, const ContactCase& c, int index,
                                 const Units& units) {
-  const h5::Group group = cases.create_group(c.name);
-  group.set_attribute("name", c.name);
-  group.set_attribute("index", index);
-  write_overrides(group, c);
+  const h5::Group group = create_case_group(cases, c.name, index, c.overrides);
   write_parameters(group, c, units);
   write_summary(group, placeholder_summary(), units, true);
   group.reserve_string_attribute("failed", h5::kFailureMessageBytes);

@@ -9,6 +9,7 @@
 #include <span>
 
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/io/case_group.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/input_error.hpp"
 
@@ -105,29 +106,11 @@ FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
   return {0, h5::Type::float64, one, "", ""};
 }
 
-// An attribute with its unit in a sibling attribute "<name>.unit".
-template <class Value>
-void set_with_unit(const h5::Group& g, const std::string& name, const Value& value,
-                   std::string_view unit) {
-  g.set_attribute(name, value);
-  g.set_attribute(name + ".unit", unit);
-}
-
 std::array<double, 9> row_major(const Mat3& m) {
   std::array<double, 9> v{};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) v[static_cast<std::size_t>(3 * i + j)] = m(i, j);
   return v;
-}
-
-void write_overrides(const h5::Group& g, const CrystalCase& c) {
-  for (const SweepOverride& o : c.overrides) {
-    if (o.number) {
-      g.set_attribute("sweep:" + o.path, *o.number);
-    } else {
-      g.set_attribute("sweep:" + o.path, o.value);
-    }
-  }
 }
 
 // The settings of every slip system, in output order.
@@ -443,10 +426,7 @@ CrystalSummary placeholder_summary() {
 
 void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, int index,
                                 const Units& units) {
-  const h5::Group group = cases.create_group(c.name);
-  group.set_attribute("name", c.name);
-  group.set_attribute("index", index);
-  write_overrides(group, c);
+  const h5::Group group = create_case_group(cases, c.name, index, c.overrides);
   write_phase_parameters(group, c, units);
   write_law_parameters(group, c, units);
   write_run_parameters(group, c);

@@ -622,13 +622,7 @@ std::vector<std::pair<std::string, std::string>> crystal_units(const Units& unit
 }
 
 std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments) {
-  std::size_t n = 1;  // the initial state
-  for (const auto& s : segments) {
-    const auto inc = static_cast<std::size_t>(s.increments);
-    const auto every = static_cast<std::size_t>(s.output_every);
-    n += inc / every + (inc % every != 0 ? 1 : 0);
-  }
-  return n;
+  return count_output_states(segments);
 }
 
 }  // namespace subslip::io

@@ -1,6 +1,8 @@
-// Pieces every scene kind shares: the `scene:` kind, the `units:` block and unit strings.
+// Pieces every scene kind shares: the `scene:` kind, the `units:` block, unit strings and the
+// stepping of loading segments.
 #pragma once
 
+#include <cstddef>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -41,6 +43,20 @@ Units parse_units_without_length(const CheckedNode& node);
 // `growth`) and the smallest increment must not underflow (reported at `increments`).
 void check_increment_lengths(const CheckedNode& segment, double duration, int increments,
                              double growth);
+
+// How many states a loading history writes: the initial one, then every `output_every`-th
+// increment of each segment and always its last (for any segment type with `increments` and
+// `output_every`).
+template <class Segment>
+std::size_t count_output_states(const std::vector<Segment>& segments) {
+  std::size_t n = 1;  // the initial state
+  for (const auto& s : segments) {
+    const auto inc = static_cast<std::size_t>(s.increments);
+    const auto every = static_cast<std::size_t>(s.output_every);
+    n += inc / every + (inc % every != 0 ? 1 : 0);
+  }
+  return n;
+}
 
 // The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
 std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);
