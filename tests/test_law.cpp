@@ -237,6 +237,41 @@ TEST(LawDerivatives, FlowResidualPartialsMatchFiniteDifferences) {
   EXPECT_GT(checked, 200);
 }
 
+// The row scale the crystal's Newton takes from the law: the overstress term's slope in the
+// unknown z = slip^(1/p) at zero slip, checked against a one-sided difference of the flow
+// residual itself (where the slope exists: exponential any n, power n >= 1; 0 for n < 1).
+TEST(LawDerivatives, ViscousSlopeAtZeroSlipIsTheResidualsSlopeInZ) {
+  for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
+    for (double n : {0.5, 1.0, 16.0}) {
+      LawParameters p = paper_law(form);
+      p.overstress.n = n;
+      const SubloadingFrictionLaw law(p);
+      const double exponent = law.slip_exponent();
+      for (double r : {0.2, 1.0, 1.5}) {
+        for (double dt : {1e-5, 1.0, 1e3}) {
+          const double slope = law.viscous_slope_at_zero_slip(r, dt);
+          ASSERT_TRUE(std::isfinite(slope) && slope >= 0.0);
+          // G(z) = (r - r_s) - overstress^-1(z): its fall over a z small enough that the
+          // overstress term is still linear in z (relative curvature below 1e-6).
+          const double r_s = 0.1;
+          const double g0 = law.flow_residual(r, r_s, 0.0, dt).value;
+          const double z = slope > 0.0 ? 1e-8 / slope : 1e-8;
+          const double fall = g0 - law.flow_residual(r, r_s, std::pow(z, exponent), dt).value;
+          if (form == OverstressForm::power && n < 1.0) {
+            EXPECT_EQ(slope, 0.0);
+          } else {
+            EXPECT_NEAR(fall / z, slope, 1e-5 * slope)
+                << to_string(form) << " n=" << n << " r=" << r << " dt=" << dt;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(SubloadingFrictionLaw(paper_law(OverstressForm::rate_independent))
+                .viscous_slope_at_zero_slip(1.0, 1.0),
+            0.0);
+}
+
 // The implicit residual and the explicit slip rate describe the same flow rule: G vanishes at
 // slip = dt * phi(r, r_s) (3.10, 3.15), and is positive (too little slip) below it.
 TEST(LawDerivatives, FlowResidualVanishesOnTheForwardSlipRate) {
