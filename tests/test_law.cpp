@@ -31,6 +31,13 @@ const SubloadingFunction kAllFunctions[] = {SubloadingFunction::cot, SubloadingF
 // The material constants of the paper's section 5 (figure 11a).
 using subslip::testing::paper_law;
 
+// The paper's law with another overstress form and exponent n.
+SubloadingFrictionLaw paper_law_with_exponent(OverstressForm form, double n) {
+  LawParameters p = paper_law(form);
+  p.overstress.n = n;
+  return SubloadingFrictionLaw(p);
+}
+
 // U(r) written out again here, from (2.27) and (2.29), so that the reference integrations do not
 // call the code under test.
 double U_ref(SubloadingFunction f, double u, double r) {
@@ -243,9 +250,7 @@ TEST(LawDerivatives, FlowResidualPartialsMatchFiniteDifferences) {
 TEST(LawDerivatives, ViscousSlopeAtZeroSlipIsTheResidualsSlopeInZ) {
   for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
     for (double n : {0.5, 1.0, 16.0}) {
-      LawParameters p = paper_law(form);
-      p.overstress.n = n;
-      const SubloadingFrictionLaw law(p);
+      const SubloadingFrictionLaw law = paper_law_with_exponent(form, n);
       const double exponent = law.slip_exponent();
       for (double r : {0.2, 1.0, 1.5}) {
         for (double dt : {1e-5, 1.0, 1e3}) {
@@ -303,9 +308,7 @@ TEST(LawDerivatives, FlowResidualVanishesOnTheForwardSlipRate) {
 TEST(LawDerivatives, SlipRateMatchesPaperAndSlopeMatchesFiniteDifferences) {
   for (auto form : {OverstressForm::exponential, OverstressForm::power}) {
     for (double n : {1.0, 4.0, 16.0}) {
-      LawParameters p = paper_law(form);
-      p.overstress.n = n;
-      const SubloadingFrictionLaw law(p);
+      const SubloadingFrictionLaw law = paper_law_with_exponent(form, n);
       const auto& o = law.parameters().overstress;
       for (double r_s : {0.0, 0.4, 1.0}) {
         for (double x : {1e-3, 0.05, 0.3, 0.75}) {
