@@ -40,6 +40,7 @@
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/explicit_stability.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -570,17 +571,7 @@ FeRow contact_fe_row(double alpha) {
   const auto ss = lw.steady_state(v);
   const double lambda = lw.traction_relaxation_rate(alpha, ss.r, 1.0, ss.mu, fn);
   auto stable = [&](double dt) {
-    ct::ContactState s = steady;
-    s.traction_t *= 1.0 + 1e-6;
-    s.r *= 1.0 + 1e-6;
-    const double d0 = std::abs(s.r - steady.r);
-    for (int i = 0; i < 400; ++i) {
-      const auto a = ct::forward_euler_step(lw, m.stiffness, s, ct::Vec2(v * dt, 0.0), fn, dt,
-                                            subslip::integrators::ExplicitStability::unchecked);
-      if (!a.ok) return false;
-      s = a.state;
-    }
-    return std::abs(s.r - steady.r) < d0;
+    return study::forward_euler_damps_contact_perturbation(lw, m.stiffness, steady, v, dt);
   };
   const double measured = bisect_critical_step(2.0 / lambda, stable);
   // From rest over the first 0.1 mm (the peak at ~0.04 mm included), uniform steps: the largest
@@ -643,18 +634,7 @@ FeRow crystal_fe_row(double g_over_tau0) {
   const double a = ph.interaction(0, 0);
   const double lambda = lw.traction_relaxation_rate(a, r, s.r_s(0), s.mu(0), tau0);
   auto stable = [&](double dt) {
-    cr::GrainState<1> x = s;
-    x.stress *= 1.0 + 1e-6;
-    const double d0 = std::abs(cr::loading_ratio(ph, x)(0) - r);
-    for (int i = 0; i < 400; ++i) {
-      cr::GrainState<1> next = x;
-      if (!cr::explicit_grain_step(ph, x, L, dt, next, nullptr,
-                                   subslip::integrators::ExplicitStability::unchecked)
-               .ok)
-        return false;
-      x = next;
-    }
-    return std::abs(cr::loading_ratio(ph, x)(0) - r) < d0;
+    return study::forward_euler_damps_grain_perturbation(ph, s, L, dt);
   };
   return {g_over_tau0, lambda, bisect_critical_step(2.0 / lambda, stable), std::nan(""),
           std::nan("")};

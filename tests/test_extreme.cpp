@@ -43,6 +43,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/explicit_stability.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -827,28 +828,8 @@ TEST(ExtremeKernel, PowerFormSystemStartsFromZeroSlip) {
 // (= G in single slip) and f_n -> tau0. The windows [0.9, 1.1] x 2/lambda leave
 // the amplification at 0.8 or 1.2 per step, 400 steps: 1e-39 or 1e31, no
 // ambiguity.
+// The damping test itself: study::forward_euler_damps_*_perturbation.
 // ---------------------------------------------------------------------------------------------
-
-namespace {
-
-// Whether 400 forward Euler steps of dt from `steady` (perturbed by 1e-6) damp
-// the perturbation.
-bool contact_fe_stable(const law::SubloadingFrictionLaw& lw, const ct::ContactStiffness& c,
-                       const ct::ContactState& steady, double v, double dt) {
-  ct::ContactState s = steady;
-  s.traction_t *= 1.0 + 1e-6;
-  s.r *= 1.0 + 1e-6;
-  const double d0 = std::abs(s.r - steady.r);
-  for (int i = 0; i < 400; ++i) {
-    const auto a = ct::forward_euler_step(lw, c, s, ct::Vec2(v * dt, 0.0), s.traction_n, dt,
-                                          subslip::integrators::ExplicitStability::unchecked);
-    if (!a.ok) return false;
-    s = a.state;
-  }
-  return std::abs(s.r - steady.r) < d0;
-}
-
-}  // namespace
 
 TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
   const law::LawParameters p = subslip::testing::paper_law();  // the paper's section 5 fit
@@ -880,8 +861,10 @@ TEST(ExtremeForwardEuler, ContactStabilityLimitIsTwoOverLambda) {
     EXPECT_NEAR(lambda, alpha * (o.n / (o.eta_v * gap) + o.n * v + v / gap) / (fn * ss.mu),
                 1e-10 * lambda);
     const double dt_crit = 2.0 / lambda;
-    EXPECT_TRUE(contact_fe_stable(lw, c.model.stiffness, steady, v, 0.9 * dt_crit));
-    EXPECT_FALSE(contact_fe_stable(lw, c.model.stiffness, steady, v, 1.1 * dt_crit));
+    EXPECT_TRUE(study::forward_euler_damps_contact_perturbation(lw, c.model.stiffness, steady, v,
+                                                                0.9 * dt_crit));
+    EXPECT_FALSE(study::forward_euler_damps_contact_perturbation(lw, c.model.stiffness, steady, v,
+                                                                 1.1 * dt_crit));
     // By default forward Euler refuses the unstable step (the driver then cuts it back) and
     // takes the stable one.
     for (double f : {0.9, 1.1}) {
@@ -930,18 +913,7 @@ TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
     EXPECT_NEAR(ph.interaction(0, 0), g_over_tau0 * tau0,
                 1e-9 * g_over_tau0);  // A = G
     auto stable = [&](double dt) {
-      cr::GrainState<1> x = steady;
-      x.stress *= 1.0 + 1e-6;
-      const double d0 = std::abs(cr::loading_ratio(ph, x)(0) - r);
-      for (int i = 0; i < 400; ++i) {
-        cr::GrainState<1> next = x;
-        if (!cr::explicit_grain_step(ph, x, L, dt, next, nullptr,
-                                     subslip::integrators::ExplicitStability::unchecked)
-                 .ok)
-          return false;
-        x = next;
-      }
-      return std::abs(cr::loading_ratio(ph, x)(0) - r) < d0;
+      return study::forward_euler_damps_grain_perturbation(ph, steady, L, dt);
     };
     EXPECT_TRUE(stable(0.9 * 2.0 / lambda));
     EXPECT_FALSE(stable(1.1 * 2.0 / lambda));
