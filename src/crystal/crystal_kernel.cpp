@@ -10,8 +10,6 @@
 #include <numbers>
 
 #include <Eigen/QR>
-#include <cstdio>
-#include <cstdlib>
 
 namespace subslip::crystal {
 
@@ -125,11 +123,13 @@ class ImplicitSolver {
     // sit on the x = 0 branch while G is still 1e-12 from its root, and Newton would throw
     // that slip away (G(0) ~ 0.2).
     scale_.resize(n_);
-    const VecN r_start = loading_ratio_of(ph, s0.stress, s0.mu, normal_traction(ph, s0.stress));
+    const VecN fn_start = normal_traction(ph, s0.stress);
     for (int a = 0; a < n_; ++a) {
       const auto& law = ph.laws[static_cast<size_t>(a)];
-      scale_(a) = std::max(ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a)),
-                           law.viscous_slope_at_zero_slip(r_start(a), dt));
+      scale_(a) = std::max(
+          ph.interaction(a, a) / (s0.mu(a) * ph.tau0(a)),
+          law.viscous_slope_at_zero_slip(
+              fn_start(a) > 0.0 ? std::abs(tau_start_(a)) / (s0.mu(a) * fn_start(a)) : 0.0, dt));
       auto& along = starts_[static_cast<size_t>(a)][0];
       auto& against = starts_[static_cast<size_t>(a)][1];
       along = {law.subloading_start(s0.r_s(a)), law.slip_exponent(), false};
@@ -411,11 +411,12 @@ struct NewtonStep {
   bool pins_slipping_system = false;                           // some pinned x_a > 0
 };
 
+// `full` is the plain Newton step -j^-1 rows (computed once per iteration, for both pin modes).
 template <int N, class Held>
-NewtonStep<N> newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it, Pin pin,
-                          Held&& held_by_solver) {
+NewtonStep<N> newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N>& it,
+                          const typename SlipTypes<N>::VecN& full, Pin pin, Held&& held_by_solver) {
   using VecN = typename SlipTypes<N>::VecN;
-  NewtonStep<N> out{-solve_newton_system<N>(j, it.merit_rows, it.open.any()), {}};
+  NewtonStep<N> out{full, {}};
   out.pinned.setConstant(it.x.size(), false);
   if (!out.step.allFinite()) return out;
   typename SlipTypes<N>::MatNN held = j;
@@ -626,9 +627,10 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     // where that stalls (nearly degenerate active sets, e.g. HCP <c+a> at G/tau0 = 1e5), they
     // are pinned at zero instead.
     auto held = [&](int a) { return solver.needs_scalar_start(it, a); };
+    const VecN full = -solve_newton_system<N>(j, it.merit_rows, it.open.any());
     bool accepted = false;
     for (const Pin pin : {Pin::at_zero, Pin::below_zero}) {
-      const NewtonStep<N> newton = newton_step(j, it, pin, held);
+      const NewtonStep<N> newton = newton_step(j, it, full, pin, held);
       if (pin == Pin::below_zero && !newton.pins_slipping_system) break;
       if (!newton.step.allFinite()) continue;
       if ((accepted = line_search(newton))) break;
