@@ -67,8 +67,22 @@ std::string sci(double v) {
 // ------------------------------------------------------------------------------------------
 
 struct Series {
-  std::vector<double> time;
+  // Where each output is along the history: its segment (-1: the initial state) and the time into
+  // it. Not the absolute time, which cannot resolve 1e-11 s steps after 1e6 s; not a fraction of
+  // the segment either, which cannot resolve a 1e-12 s relaxation at the start of a 1e6 s one.
+  std::vector<int> segment;
+  std::vector<double> segment_time;
   std::vector<std::vector<double>> value;  // one vector per output
+
+  void add(int k, double t, std::vector<double> v) {
+    segment.push_back(k);
+    segment_time.push_back(k < 0 ? 0.0 : t);
+    value.push_back(std::move(v));
+  }
+  size_t size() const { return value.size(); }
+  bool before(size_t i, int k, double t) const {
+    return segment[i] < k || (segment[i] == k && segment_time[i] < t);
+  }
 };
 
 // max over the outputs of |s - ref| (max norm) for runs with the same output steps (a split
@@ -83,20 +97,27 @@ double max_error_nested(const Series& s, const Series& ref) {
 }
 
 // The same for an adaptive run, which reports every accepted step, against a fixed-step
-// reference: the run is interpolated linearly in time at the reference's output times. (Not
+// reference: the run is interpolated linearly in time (its history position) at the
+// reference's outputs. (Not
 // the other way round: at the onset of a hold the traction relaxes within ~alpha-scale times,
 // 1e-8 min, which the adaptive run resolves and a fixed reference step of 1e-5 min jumps over;
 // the implicit reference is right at its own nodes, L-stable, but not in between.)
 double max_error_interpolated(const Series& s, const Series& ref) {
-  if (s.time.size() < 2 || ref.time.empty()) return std::nan("");
+  if (s.size() < 2 || ref.size() == 0) return std::nan("");
   double worst = 0.0;
-  for (size_t i = 0; i < ref.time.size(); ++i) {
-    const double t = ref.time[i];
-    const auto hi = std::lower_bound(s.time.begin(), s.time.end(), t);
-    const size_t k =
-        std::clamp<size_t>(static_cast<size_t>(hi - s.time.begin()), 1, s.time.size() - 1);
-    const double t0 = s.time[k - 1], t1 = s.time[k];
-    const double w = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 1.0;
+  size_t k = 1;  // s's outputs k - 1 and k bracket the reference output
+  for (size_t i = 0; i < ref.size(); ++i) {
+    const int seg = ref.segment[i];
+    const double t = ref.segment_time[i];
+    while (k + 1 < s.size() && s.before(k, seg, t)) ++k;
+    // A bracket across segments starts at the end of the previous one: time 0 of this one. A
+    // reference output past this run's last one in the same segment (their end times differ in
+    // the last bits) takes that last one.
+    const double t1 = s.segment_time[k];
+    const double t0 = s.segment[k - 1] == s.segment[k] ? s.segment_time[k - 1] : 0.0;
+    const double w = s.segment[k] != seg ? 0.0
+                     : t1 > t0           ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0)
+                                         : 1.0;
     for (size_t j = 0; j < ref.value[i].size(); ++j) {
       const double v = (1.0 - w) * s.value[k - 1][j] + w * s.value[k][j];
       worst = std::max(worst, std::abs(v - ref.value[i][j]));
@@ -180,14 +201,17 @@ CaseRun run_contact(const io::ContactCase& c, int split_by, bool every_step, dou
   ct::IntegratorOptions opt = c.integrator;
   if (tolerance >= 0.0) opt.tolerance = tolerance;
   const bool rate_dependent = p.overstress.form != law::OverstressForm::rate_independent;
+  std::vector<double> segment_start(1, 0.0);
+  for (const auto& seg : c.segments) segment_start.push_back(segment_start.back() + seg.duration);
   const auto t0 = std::chrono::steady_clock::now();
   try {
     const ct::RunStats st = ct::run_history(
-        c.model, split(c.segments, split_by, every_step), opt, [&](const ct::ContactState& s, int) {
+        c.model, split(c.segments, split_by, every_step), opt,
+        [&](const ct::ContactState& s, int k) {
           if (out.violation.empty()) out.violation = contact_inadmissible(s, p);
           if (rate_dependent) out.min_gap = std::min(out.min_gap, p.overstress.r_hat - s.r);
-          out.series.time.push_back(s.time);
-          out.series.value.push_back({s.traction_t.x() / out.scale, s.traction_t.y() / out.scale});
+          const double into = k < 0 ? 0.0 : s.time - segment_start[static_cast<size_t>(k)];
+          out.series.add(k, into, {s.traction_t.x() / out.scale, s.traction_t.y() / out.scale});
         });
     out.steps = st.substeps;
     out.increments = st.increments;
@@ -270,11 +294,10 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, dou
                    for (size_t i = 0; i < cells; ++i)
                      if (std::isfinite(r_hat[i % n]))
                        out.min_gap = std::min(out.min_gap, r_hat[i % n] - r[i]);
-                   out.series.time.push_back(m.time);
                    std::vector<double> v(9);
                    for (int k = 0; k < 9; ++k)
                      v[static_cast<size_t>(k)] = m.stress(k / 3, k % 3) / out.scale;
-                   out.series.value.push_back(std::move(v));
+                   out.series.add(m.segment, m.segment_time, std::move(v));
                  });
     out.steps = st.substeps;
     out.increments = st.increments;
@@ -326,6 +349,8 @@ struct Options {
   bool skip_cases = false;
   bool skip_adaptive = false;
   bool skip_fe = false;
+  bool adaptive_cases = false;       // per-case adaptive convergence table
+  double adaptive_reference = 1e-6;  // tolerance of the adaptive reference run
 };
 
 std::string outcome(const CaseRun& r) {
@@ -395,6 +420,88 @@ void case_table(const std::string& file, const std::string& title, const std::ve
               << (r1.min_gap == kInf ? std::string("-") : sci(r1.min_gap)) << " | " << sci(err[0])
               << " | " << sci(err[1]) << " | " << sci(err[2]) << " | " << order << " | "
               << fmt("%.3f", r1.wall) << " |\n";
+  }
+}
+
+// Convergence as the adaptive tolerance tightens: every case at tolerances 1e-2, 1e-3, 1e-4
+// against an adaptive run at `adaptive_reference`, which is itself compared with the fixed
+// reference (every increment split into `reference`): two references built differently (steps
+// chosen by the error estimate; the scene's grading split uniformly) that agree bound the
+// error of both. Adaptive runs report every accepted step; the coarser run is interpolated
+// linearly at the reference's output times.
+struct AdaptiveTotals {
+  int cases = 0, failed = 0, not_converging = 0;
+  double worst_reference_gap = 0.0;
+};
+
+template <class Case, class Run>
+void adaptive_case_table(const std::string& file, const std::vector<Case>& cases, Run&& run,
+                         const Options& o, AdaptiveTotals& totals) {
+  constexpr double kTolerances[] = {1e-2, 1e-3, 1e-4};
+  constexpr double kMinimumFall = 3.0;
+  std::cout << "\n### `" << file << "`: adaptive, tolerance 1e-2 / 1e-3 / 1e-4\n\n"
+            << "| case | outcome | steps 1e-2 / 1e-3 / 1e-4 | err 1e-2 | err 1e-3 | err 1e-4 | "
+               "converges | reference steps | adaptive ref. - fixed ref. | wall [s] |\n"
+            << "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const Case& c : cases) {
+    ++totals.cases;
+    const auto t0 = std::chrono::steady_clock::now();
+    const CaseRun ref = run(c, 1, false, o.adaptive_reference);
+    std::vector<CaseRun> runs;
+    for (double tol : kTolerances) runs.push_back(run(c, 1, false, tol));
+    const CaseRun fixed_ref = run(c, o.reference, false, 0.0);
+    std::string failure = ref.failure;
+    for (const CaseRun& r : runs)
+      if (failure.empty()) failure = r.failure.empty() ? r.violation : r.failure;
+    std::vector<double> err(3, std::nan(""));
+    std::string verdict = "-";
+    double gap = std::nan("");
+    if (failure.empty()) {
+      for (size_t k = 0; k < 3; ++k) err[k] = max_error_interpolated(runs[k].series, ref.series);
+      if (fixed_ref.failure.empty()) {
+        gap = max_error_interpolated(ref.series, fixed_ref.series);
+        totals.worst_reference_gap = std::max(totals.worst_reference_gap, gap);
+      }
+      // Falling, or at the level where the reference itself (tolerance 1e-6) is resolved.
+      const double floor = std::max(kConvergedFloor, 10.0 * o.adaptive_reference);
+      // Falling from each tolerance to the next, and by at least kMinimumFall over both decades
+      // (the estimate is first order in dt, so the error should go as tol^(1/2): a factor 10);
+      // or already at the level the reference resolves.
+      const bool falling = (err[1] < err[0] || err[1] <= floor) &&
+                           (err[2] < err[1] || err[2] <= floor) &&
+                           (err[2] <= err[0] / kMinimumFall || err[2] <= floor);
+      verdict = falling ? "yes" : "**no**";
+      if (!falling) ++totals.not_converging;
+    } else {
+      ++totals.failed;
+      std::replace(failure.begin(), failure.end(), '|', '/');
+      verdict = "**failed**: " + failure;
+    }
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::cout << "| " << c.name << " | " << (failure.empty() ? "ran to end" : "**failed**") << " | "
+              << runs[0].steps << " / " << runs[1].steps << " / " << runs[2].steps << " | "
+              << sci(err[0]) << " | " << sci(err[1]) << " | " << sci(err[2]) << " | " << verdict
+              << " | " << ref.steps << " | " << sci(gap) << " | " << fmt("%.2f", wall) << " |\n";
+  }
+}
+
+void report_scene_adaptive(const fs::path& path, const Options& o, AdaptiveTotals& totals) {
+  const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
+  if (kind == "contact") {
+    adaptive_case_table(
+        path.filename().string(), io::load_contact_scene(path).cases,
+        [](const io::ContactCase& c, int k, bool every, double tol) {
+          return run_contact(c, k, every, tol);
+        },
+        o, totals);
+  } else {
+    adaptive_case_table(
+        path.filename().string(), io::load_crystal_scene(path).cases,
+        [](const io::CrystalCase& c, int k, bool every, double tol) {
+          return run_crystal(c, k, every, tol);
+        },
+        o, totals);
   }
 }
 
@@ -680,6 +787,12 @@ int main(int argc, char** argv) {
   app.add_flag("--skip-cases", o.skip_cases, "no per-case tables");
   app.add_flag("--skip-adaptive", o.skip_adaptive, "no adaptive-stepping table");
   app.add_flag("--skip-fe", o.skip_fe, "no forward-Euler stability tables");
+  app.add_flag("--adaptive-cases", o.adaptive_cases,
+               "every case also adaptive at tolerances 1e-2, 1e-3, 1e-4 against an adaptive "
+               "reference");
+  app.add_option("--adaptive-reference", o.adaptive_reference,
+                 "tolerance of the adaptive reference run (--adaptive-cases)")
+      ->check(CLI::Range(1e-12, 1e-5));
   CLI11_PARSE(app, argc, argv);
   omp_set_num_threads(1);  // small aggregates: a parallel region per step costs more than it gains
 
@@ -705,6 +818,16 @@ int main(int argc, char** argv) {
                 << " Newton iterations per step (or grain solve), "
                 << fmt("%.3f", totals.max_cutbacks)
                 << " cutbacks per increment; smallest r_hat - r: " << sci(totals.min_gap) << "\n";
+    }
+    if (o.adaptive_cases) {
+      std::cout << "\n## Every case adaptive\n";
+      AdaptiveTotals totals;
+      for (const auto& path : scenes) report_scene_adaptive(path, o, totals);
+      std::cout << "\n**Adaptive summary**: " << totals.cases << " cases, " << totals.failed
+                << " failed, " << totals.not_converging
+                << " with errors not falling as the tolerance tightens; largest difference "
+                   "between the adaptive and the fixed reference: "
+                << sci(totals.worst_reference_gap) << "\n";
     }
     if (!o.skip_adaptive) report_adaptive(dir, o);
     if (!o.skip_fe) report_forward_euler();

@@ -326,6 +326,38 @@ TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
   EXPECT_LT(reference[3], reference[2]);
 }
 
+TEST(AdaptiveCrystal, SegmentTimeResolvesStepsTheAbsoluteTimeCannot) {
+  // A fast segment after 1e9 s: its adaptive steps at yield are below ulp(1e9 s) = 1.2e-7 s, so
+  // the absolute time of neighbouring outputs can coincide; the time into the segment cannot.
+  const std::vector<crystal::LoadSegment> segs = {uniaxial(1e-12, 1e9, 4), uniaxial(1e3, 1e-4, 1),
+                                                  uniaxial(0.0, 1.0, 1)};
+  auto agg = crystal::build_taylor_aggregate(
+      fcc_copper(),
+      {crystal::single_crystal_orientation(crystal::Vec3(-1, 2, 3), crystal::Vec3(3, 0, 1))});
+  crystal::AggregateOptions opt;
+  opt.tolerance = 1e-4;
+  std::vector<crystal::MacroState> out;
+  agg->run(segs, opt,
+           [&](const crystal::MacroState& m, const crystal::GrainFields&) { out.push_back(m); });
+  int repeated_times = 0;
+  for (size_t i = 1; i < out.size(); ++i) {
+    const auto& a = out[i - 1];
+    const auto& b = out[i];
+    if (b.time == a.time) ++repeated_times;
+    const bool last_of_segment = i + 1 == out.size() || out[i + 1].segment != b.segment;
+    if (last_of_segment) {
+      EXPECT_EQ(b.segment_time, segs[static_cast<size_t>(b.segment)].duration) << "output " << i;
+    }
+    EXPECT_GT(b.segment_time, a.segment == b.segment ? a.segment_time : 0.0) << "output " << i;
+    double start = 0.0;
+    for (int k = 0; k < b.segment; ++k) start += segs[static_cast<size_t>(k)].duration;
+    EXPECT_NEAR(b.time - b.segment_time, start, 1e-12 * (start + 1.0)) << "output " << i;
+  }
+  measured() << "outputs " << out.size()
+             << ", of them at the same absolute time as the one before: " << repeated_times << "\n";
+  EXPECT_GT(repeated_times, 0) << "the case no longer shows what segment_time is for";
+}
+
 // ---- scenes -------------------------------------------------------------------------------
 
 namespace {

@@ -181,6 +181,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // from segment to segment.
   void start_segment(const std::vector<FreeComponent>& fc, const LoadSegment* previous,
                      const AggregateCheckpoint* resume) {
+    macro_.segment_time = resume != nullptr ? resume->position.segment_time : 0.0;
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
@@ -221,6 +222,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       ++stats_.increments;
       macro_.segment = index;
       const bool last = i + 1 == dts.size();
+      macro_.segment_time = last ? seg.duration : t_local;
       if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) observe(macro_, *this);
       end_increment(index, static_cast<long>(i + 1), t_local, 0.0, control);
     }
@@ -268,6 +270,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       u = u_try;
       commit(seg, fc, u, h);
       clock.accept(error.value);
+      macro_.segment_time = clock.time();
       ++stats_.increments;
       ++stats_.substeps;
       macro_.segment = index;
@@ -584,6 +587,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     macro_.stress = symmetric_from_mandel(sum);
     macro_.velocity_gradient = l;
     macro_.time += dt;
+    macro_.segment_time += dt;
   }
 
   // GrainFields

@@ -59,6 +59,9 @@ struct AggregateOptions {
 // What an observer sees at an output step.
 struct MacroState {
   double time = 0.0;
+  // Time into the current segment. Exact where `time` cannot resolve the steps: 1e-11 s steps
+  // of a 1e-4 s segment after 1e6 s of loading all round to the same double.
+  double segment_time = 0.0;
   int segment = -1;  // -1 for the initial state
   Mat3 velocity_gradient = Mat3::Zero();
   Mat3 deformation_gradient = Mat3::Identity();
