@@ -482,7 +482,8 @@ void adaptive_case_table(const std::string& file, const std::vector<Case>& cases
     std::cout << "| " << c.name << " | " << (failure.empty() ? "ran to end" : "**failed**") << " | "
               << runs[0].steps << " / " << runs[1].steps << " / " << runs[2].steps << " | "
               << sci(err[0]) << " | " << sci(err[1]) << " | " << sci(err[2]) << " | " << verdict
-              << " | " << ref.steps << " | " << sci(gap) << " | " << fmt("%.2f", wall) << " |\n";
+              << " | " << ref.steps << " | " << sci(gap) << " | " << fmt("%.2f", wall) << " |"
+              << std::endl;  // flushed: rows of long runs show as they finish
   }
 }
 

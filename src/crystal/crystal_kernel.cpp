@@ -371,6 +371,32 @@ class ImplicitSolver {
     return it.admissible;
   }
 
+  // A converged system on the x = 0 branch (inactive row) has a slip within tolerance/c of zero,
+  // not zero. Left in, such a slip against the start shear selects the reversal start (r_s from
+  // 0) for a system whose shear never changed sign: r_s jumps from r to 0, and the next step must
+  // relax that whole overstress however short it is (HCP <c+a> at G/tau0 = 1e5: adaptive steps
+  // refused down to dt = 2e-14 s). Those slips are set to zero where the iterate stays converged
+  // (every row within `allowed`) with them at zero and their directions re-derived from their
+  // shear, and those systems stay idle. (Where not, a system's shear has turned against its stale
+  // direction and it would slip the other way: that iterate is kept as it is; see
+  // docs/extreme_cases.md, finding 6.)
+  void drop_leftover_slip(Iterate<N>& it, Iterate<N>& scratch, const VecN& allowed) const {
+    VecN x = it.x;
+    std::array<bool, T::MaxN> dropped{};
+    bool leftover = false;
+    for (int a = 0; a < n_; ++a) {
+      if (it.active(a) || x(a) == 0.0) continue;
+      x(a) = 0.0;
+      dropped[static_cast<size_t>(a)] = leftover = true;
+    }
+    if (!leftover) return;
+    evaluate(x, it.sign, scratch);
+    if (!scratch.admissible || (scratch.merit_rows.cwiseAbs() - allowed).maxCoeff() > 0.0) return;
+    for (int a = 0; a < n_; ++a)
+      if (dropped[static_cast<size_t>(a)] && scratch.active(a)) return;  // idle no longer
+    std::swap(it, scratch);
+  }
+
  private:
   const Phase<N>& ph_;
   const GrainState<N>& s0_;
@@ -598,6 +624,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
         (4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x))
             .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
     if ((it.merit_rows.cwiseAbs() - resolution.cwiseMax(opt.tolerance)).maxCoeff() <= 0.0) {
+      solver.drop_leftover_slip(it, trial, resolution.cwiseMax(opt.tolerance));
       converged = true;
       break;
     }
