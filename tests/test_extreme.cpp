@@ -1320,6 +1320,8 @@ TEST(ExtremeFindings, CrystalReversalWithinOneIncrementResetsTheSubloadingRatio)
   EXPECT_NEAR(end_c.macro.stress(0, 1) / crss, end_f.macro.stress(0, 1) / crss, 0.05);
 }
 
+constexpr char kStiffHcpPyramidalCa[] = "families=[hcp_pyramidal_ca],tau0=0.163";
+
 // The eight-grain aggregate the <= 2-grain sweep above leaves out, at its
 // hardest: first-order pyramidal <c+a> alone (12 systems, nearly degenerate
 // active sets) at C44/tau0 = 1e5, 1e-2 strain steps, tension, compression and a
@@ -1331,10 +1333,7 @@ TEST(ExtremeFindings, CrystalReversalWithinOneIncrementResetsTheSubloadingRatio)
 TEST(ExtremeFindings, HcpPyramidalCaAggregateAtStiffRatioRunsToTheEnd) {
   const SingleThread one;
   const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_hcp_families.yaml");
-  const io::CrystalCase* found = nullptr;
-  for (const auto& c : scene.cases)
-    if (c.name == "families=[hcp_pyramidal_ca],tau0=0.163") found = &c;
-  ASSERT_NE(found, nullptr);
+  const io::CrystalCase* found = &case_named(scene, kStiffHcpPyramidalCa);
   ASSERT_EQ(found->orientations.size(), 8u);
   const CrystalTrace t = run_crystal(*found);
   ASSERT_EQ(t.snaps.size(), io::crystal_output_count(found->segments));
@@ -1359,10 +1358,7 @@ TEST(ExtremeFindings, HcpPyramidalCaAggregateAtStiffRatioRunsToTheEnd) {
 TEST(ExtremeFindings, HcpPyramidalCaAggregateRunsAdaptivelyAtStiffRatio) {
   const SingleThread one;
   const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_hcp_families.yaml");
-  const io::CrystalCase* found = nullptr;
-  for (const auto& c : scene.cases)
-    if (c.name == "families=[hcp_pyramidal_ca],tau0=0.163") found = &c;
-  ASSERT_NE(found, nullptr);
+  const io::CrystalCase* found = &case_named(scene, kStiffHcpPyramidalCa);
   CrystalTrace t;
   ASSERT_NO_THROW(t = run_crystal(*found, 1, 1e-2));
   const auto laws = system_laws(found->phase);
