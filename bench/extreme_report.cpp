@@ -28,6 +28,7 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "subslip/contact/contact_point.hpp"
@@ -147,13 +148,13 @@ struct CaseRun {
 
 // Every increment of every segment split into k: k times the increments with growth^(1/k)
 // gives the same increment boundaries (a geometric progression of ratio g^(1/k) summed over k
-// terms is proportional to g^i). Outputs stay at the original increments unless `every_step`.
+// terms is proportional to g^i). Outputs stay at the original increments.
 template <class Seg>
-std::vector<Seg> split(std::vector<Seg> segs, int k, bool every_step) {
+std::vector<Seg> split(std::vector<Seg> segs, int k) {
   for (Seg& s : segs) {
     s.increments *= k;
     s.growth = std::pow(s.growth, 1.0 / k);
-    s.output_every = every_step ? 1 : k;
+    s.output_every = k;
   }
   return segs;
 }
@@ -194,7 +195,7 @@ std::string contact_inadmissible(const ct::ContactState& s, const law::LawParame
   return why.str();
 }
 
-CaseRun run_contact(const io::ContactCase& c, int split_by, bool every_step, double tolerance) {
+CaseRun run_contact(const io::ContactCase& c, int split_by, double tolerance) {
   CaseRun out;
   const auto& p = c.model.law;
   out.scale = c.model.initial_normal_traction * p.friction.mu_s;
@@ -206,8 +207,7 @@ CaseRun run_contact(const io::ContactCase& c, int split_by, bool every_step, dou
   const auto t0 = std::chrono::steady_clock::now();
   try {
     const ct::RunStats st = ct::run_history(
-        c.model, split(c.segments, split_by, every_step), opt,
-        [&](const ct::ContactState& s, int k) {
+        c.model, split(c.segments, split_by), opt, [&](const ct::ContactState& s, int k) {
           if (out.violation.empty()) out.violation = contact_inadmissible(s, p);
           if (rate_dependent) out.min_gap = std::min(out.min_gap, p.overstress.r_hat - s.r);
           const double into = k < 0 ? 0.0 : s.time - segment_start[static_cast<size_t>(k)];
@@ -259,7 +259,7 @@ struct TimeLimit : std::runtime_error {
 constexpr char kTimeLimitPrefix[] = "time limit";
 
 // `seconds` > 0 stops the run after that much wall time (checked after every increment).
-CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, double tolerance,
+CaseRun run_crystal(const io::CrystalCase& c, int split_by, double tolerance,
                     double seconds = 0.0) {
   CaseRun out;
   out.scale = crss_scale(c.phase);
@@ -280,7 +280,7 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, dou
     const size_t cells = n * static_cast<size_t>(agg->grain_count());
     std::vector<double> r(cells), rs(cells), crss(cells);
     const cr::AggregateStats st = agg->run(
-        split(c.segments, split_by, every_step), opt,
+        split(c.segments, split_by), opt,
         [&](const cr::MacroState& m, const cr::GrainFields& f) {
           f.ratio(r.data());
           f.subloading_ratio(rs.data());
@@ -326,6 +326,28 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, bool every_step, dou
   }
   out.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
+}
+
+// One name for both kinds of case, so that the tables are written once: every increment split
+// into `split_by`; adaptive at `tolerance` (0: fixed steps); a crystal run stops after `seconds`
+// of wall time when > 0 (contacts take seconds at most).
+CaseRun run_case(const io::ContactCase& c, int split_by, double tolerance, double = 0.0) {
+  return run_contact(c, split_by, tolerance);
+}
+CaseRun run_case(const io::CrystalCase& c, int split_by, double tolerance, double seconds = 0.0) {
+  return run_crystal(c, split_by, tolerance, seconds);
+}
+template <class Case>
+constexpr bool is_crystal = std::is_same_v<Case, io::CrystalCase>;
+
+// Calls f with the contact or crystal scene at `path`.
+template <class F>
+void with_scene(const fs::path& path, F&& f) {
+  if (io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"}) == "contact") {
+    f(io::load_contact_scene(path));
+  } else {
+    f(io::load_crystal_scene(path));
+  }
 }
 
 // The error below which differences are rounding, not discretisation: a few ulps of the
@@ -386,21 +408,22 @@ struct Totals {
   double max_newton = 0.0, max_cutbacks = 0.0, min_gap = kInf;
 };
 
-template <class Case, class Run>
+template <class Case>
 void case_table(const std::string& file, const std::string& title, const std::vector<Case>& cases,
-                Run&& run, const Options& o, bool crystal, Totals& totals) {
+                const Options& o, Totals& totals) {
+  constexpr bool crystal = is_crystal<Case>;
   std::cout << "\n### `" << file << "`: " << title << "\n\n";
   std::cout << "| case | outcome | steps | Newton/" << (crystal ? "grain solve" : "step")
             << " | cutbacks/step | min(r_hat - r) | err x1 | err x2 | err x4 | order | wall [s] |\n"
             << "|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const Case& c : cases) {
-    const CaseRun r1 = run(c, 1, false);
+    const CaseRun r1 = run_case(c, 1, 0.0);
     ++totals.cases;
     std::vector<double> err(3, std::nan(""));
     std::string order = "-";
     if (r1.failure.empty()) {
-      const CaseRun ref = run(c, o.reference, false);
-      const CaseRun r2 = run(c, 2, false), r4 = run(c, 4, false);
+      const CaseRun ref = run_case(c, o.reference, 0.0);
+      const CaseRun r2 = run_case(c, 2, 0.0), r4 = run_case(c, 4, 0.0);
       if (ref.failure.empty()) {
         err = {max_error_nested(r1.series, ref.series), max_error_nested(r2.series, ref.series),
                max_error_nested(r4.series, ref.series)};
@@ -452,9 +475,9 @@ struct AdaptiveTotals {
   double worst_reference_gap = 0.0;
 };
 
-template <class Case, class Run>
-void adaptive_case_table(const std::string& file, const std::vector<Case>& cases, Run&& run,
-                         const Options& o, AdaptiveTotals& totals) {
+template <class Case>
+void adaptive_case_table(const std::string& file, const std::vector<Case>& cases, const Options& o,
+                         AdaptiveTotals& totals) {
   constexpr double kTolerances[] = {1e-2, 1e-3, 1e-4};
   constexpr double kMinimumFall = 3.0;
   std::cout << "\n### `" << file << "`: adaptive, tolerance 1e-2 / 1e-3 / 1e-4\n\n"
@@ -464,10 +487,10 @@ void adaptive_case_table(const std::string& file, const std::vector<Case>& cases
   for (const Case& c : cases) {
     ++totals.cases;
     const auto t0 = std::chrono::steady_clock::now();
-    const CaseRun ref = run(c, 1, false, o.adaptive_reference, o.adaptive_seconds);
+    const CaseRun ref = run_case(c, 1, o.adaptive_reference, o.adaptive_seconds);
     std::vector<CaseRun> runs;
-    for (double tol : kTolerances) runs.push_back(run(c, 1, false, tol, 0.0));
-    const CaseRun fixed_ref = run(c, o.reference, false, 0.0, 0.0);
+    for (double tol : kTolerances) runs.push_back(run_case(c, 1, tol));
+    const CaseRun fixed_ref = run_case(c, o.reference, 0.0);
     std::string failure = ref.failure;
     for (const CaseRun& r : runs)
       if (failure.empty()) failure = r.failure.empty() ? r.violation : r.failure;
@@ -510,22 +533,9 @@ void adaptive_case_table(const std::string& file, const std::vector<Case>& cases
 }
 
 void report_scene_adaptive(const fs::path& path, const Options& o, AdaptiveTotals& totals) {
-  const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
-  if (kind == "contact") {
-    adaptive_case_table(
-        path.filename().string(), io::load_contact_scene(path).cases,
-        [](const io::ContactCase& c, int k, bool every, double tol, double) {
-          return run_contact(c, k, every, tol);  // contacts take seconds at most
-        },
-        o, totals);
-  } else {
-    adaptive_case_table(
-        path.filename().string(), io::load_crystal_scene(path).cases,
-        [](const io::CrystalCase& c, int k, bool every, double tol, double seconds) {
-          return run_crystal(c, k, every, tol, seconds);
-        },
-        o, totals);
-  }
+  with_scene(path, [&](const auto& scene) {
+    adaptive_case_table(path.filename().string(), scene.cases, o, totals);
+  });
 }
 
 void report_scene_cases(const fs::path& path, const Options& o, Totals& totals);
@@ -541,20 +551,9 @@ void report_scene(const fs::path& path, const Options& o, Totals& totals) {
 }
 
 void report_scene_cases(const fs::path& path, const Options& o, Totals& totals) {
-  const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
-  if (kind == "contact") {
-    const auto scene = io::load_contact_scene(path);
-    case_table(
-        path.filename().string(), scene.title, scene.cases,
-        [](const io::ContactCase& c, int k, bool every) { return run_contact(c, k, every, 0.0); },
-        o, false, totals);
-  } else {
-    const auto scene = io::load_crystal_scene(path);
-    case_table(
-        path.filename().string(), scene.title, scene.cases,
-        [](const io::CrystalCase& c, int k, bool every) { return run_crystal(c, k, every, 0.0); },
-        o, true, totals);
-  }
+  with_scene(path, [&](const auto& scene) {
+    case_table(path.filename().string(), scene.title, scene.cases, o, totals);
+  });
 }
 
 // ------------------------------------------------------------------------------------------
@@ -580,10 +579,10 @@ const AdaptivePick kAdaptivePicks[] = {
     {"crystal_fcc_schmid_stiff.yaml", "tau0=0.754,L[2][2]=1.0e4,increments=1000"},
 };
 
-template <class Case, class Run>
-void adaptive_rows(const std::string& file, const Case& c, Run&& run, const Options& o) {
-  const CaseRun ref = run(c, o.reference, false, 0.0);
-  const CaseRun fixed = run(c, 1, false, 0.0);
+template <class Case>
+void adaptive_rows(const std::string& file, const Case& c, const Options& o) {
+  const CaseRun ref = run_case(c, o.reference, 0.0);
+  const CaseRun fixed = run_case(c, 1, 0.0);
   auto row = [&](const std::string& setting, const CaseRun& r) {
     const double steps = std::max<double>(1.0, static_cast<double>(r.steps));
     const double newton =
@@ -596,7 +595,7 @@ void adaptive_rows(const std::string& file, const Case& c, Run&& run, const Opti
               << " | " << fmt("%.3f", r.wall) << " |\n";
   };
   row("fixed (scene)", fixed);
-  for (double tol : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}) row("tol " + sci(tol), run(c, 1, false, tol));
+  for (double tol : {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}) row("tol " + sci(tol), run_case(c, 1, tol));
 }
 
 void report_adaptive(const fs::path& dir, const Options& o) {
@@ -611,24 +610,12 @@ void report_adaptive(const fs::path& dir, const Options& o) {
   for (const AdaptivePick& pick : kAdaptivePicks) {
     const fs::path path = dir / pick.file;
     if (!fs::exists(path)) continue;
-    const auto kind = io::scene_kind(io::YamlDocument::from_file(path), {"contact", "crystal"});
-    auto find_and_run = [&](const auto& scene, auto&& run) {
+    with_scene(path, [&](const auto& scene) {
       for (const auto& c : scene.cases)
-        if (c.name == pick.case_name) return adaptive_rows(pick.file, c, run, o);
+        if (c.name == pick.case_name) return adaptive_rows(pick.file, c, o);
       std::cout << "| " << pick.file << " | " << pick.case_name
                 << " | - | no such case | | | | | |\n";
-    };
-    if (kind == "contact") {
-      find_and_run(io::load_contact_scene(path),
-                   [](const io::ContactCase& c, int k, bool every, double tol) {
-                     return run_contact(c, k, every, tol);
-                   });
-    } else {
-      find_and_run(io::load_crystal_scene(path),
-                   [](const io::CrystalCase& c, int k, bool every, double tol) {
-                     return run_crystal(c, k, every, tol);
-                   });
-    }
+    });
   }
 }
 

@@ -181,7 +181,6 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // from segment to segment.
   void start_segment(const std::vector<FreeComponent>& fc, const LoadSegment* previous,
                      const AggregateCheckpoint* resume) {
-    macro_.segment_time = resume != nullptr ? resume->position.segment_time : 0.0;
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
@@ -587,7 +586,6 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     macro_.stress = symmetric_from_mandel(sum);
     macro_.velocity_gradient = l;
     macro_.time += dt;
-    macro_.segment_time += dt;
   }
 
   // GrainFields
