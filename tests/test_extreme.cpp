@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <omp.h>
+#include "copper_phase.hpp"
 #include "grain_recorder.hpp"
 #include "paper_law.hpp"
 
@@ -784,6 +785,43 @@ TEST(ExtremeKernel, StiffFccGrainConvergesWithASystemHeldAtZero) {
   // of r at stresses ~1 MPa and slips ~1e-8).
   EXPECT_LT(flow_rule_violation(ph, s0, s1, dt), 1e-11);
   EXPECT_LE(rep.iterations, 10);
+}
+
+// Regression (finding 6 of docs/extreme_cases.md). The first mixed-control step of
+// MixedControl.StiffGrainsWithStrainStepsOf1e2ThroughALoadToHoldSwitch: a virgin copper grain at
+// C44/tau0 = 1e5 and a strain step of 1e-2 (the lateral rates are the mixed control's first
+// guess). Systems 0, 4, 10 and 11 slip in the trial's direction early in the iteration; the
+// others' slip then turns their shear. The Newton step takes such a slip to zero, but at zero
+// the system's direction follows its shear and its row there is large, so the line search
+// halved those slips instead, 54 times, and the step "converged" with them at 1e-18 in their
+// stale directions, loaded up to r = 1.9 the other way. Now such systems are released to zero
+// slip (their direction from their shear) and the iteration goes on from there.
+TEST(ExtremeKernel, StiffFccGrainLeavesNoSystemInAStaleSlipDirection) {
+  const auto built = cr::build_phase<12>(subslip::testing::copper_phase(0.754));
+  const cr::Phase<12>& ph = built.phase;
+  cr::Mat3 g, L;
+  g << 0.23570226039551567, 0.70710678118654746, 0.66666666666666674, 0.23570226039551578,
+      -0.70710678118654768, 0.66666666666666674, 0.94280904158206336, 5.5511151231257827e-17,
+      -0.33333333333333337;
+  L << -0.00069142663533895026, 4.5712949764366877e-05, 0.00026102042023441274,
+      4.5712949764366877e-05, -0.00030802695000898926, 3.1975338350615075e-05,
+      0.00026102042023441274, 3.1975338350615075e-05, 0.001;
+  const double dt = 10.0;
+  cr::GrainState<12> s0;
+  s0.reset(12, g, built.initial_mu);
+  cr::GrainState<12> s1 = s0;
+  const auto rep = cr::implicit_grain_step(ph, s0, L, dt, cr::GrainStepOptions{}, s1, nullptr);
+  ASSERT_TRUE(rep.ok) << rep.why << " (system " << rep.system << ", " << rep.iterations << ")";
+  // Every system slips along its end shear or not at all, and its flow rule holds: a system left
+  // in a stale direction has a slip against its shear and a residual of order its r.
+  const cr::SlipTypes<12>::VecN tau = ph.schmid.transpose() * s1.stress;
+  for (int a = 0; a < 12; ++a) {
+    const double dgamma = s1.slip(a) - s0.slip(a);
+    EXPECT_GE(dgamma * tau(a), 0.0)
+        << "system " << a << ": slip " << dgamma << ", shear " << tau(a);
+  }
+  EXPECT_LT(flow_rule_violation(ph, s0, s1, dt), 1e-11);
+  measured() << "stiff FCC first step: " << rep.iterations << " Newton iterations\n";
 }
 
 // Regression. With the power overstress the flow residual behaves like

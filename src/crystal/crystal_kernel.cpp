@@ -104,6 +104,10 @@ struct Iterate {
 // scalar root first (see ImplicitSolver::needs_scalar_start).
 constexpr double kSteepStartRatio = 1e-3;
 
+// How often one grain solve may release systems from stale slip directions (see
+// ImplicitSolver::stale_direction).
+constexpr int kMaxDirectionReleases = 10;
+
 template <int N>
 class ImplicitSolver {
  public:
@@ -371,6 +375,41 @@ class ImplicitSolver {
     return it.admissible;
   }
 
+  // An admissible start from (x, sign): the Jacobi sweep freezes the other systems' slip and
+  // normal traction; when that does not reach the admissible set (pressure-sensitive planes, or
+  // a large trial with too little slip), every offending system is moved below r_hat first and
+  // swept again.
+  bool admissible_start(VecN& x, VecN& sign, Iterate<N>& it, double tolerance) const {
+    return make_admissible(x, sign, it, tolerance) ||
+           (make_admissible(x, sign, it) && make_admissible(x, sign, it, tolerance));
+  }
+
+  // A system on the x = 0 branch (inactive row) whose slip is still positive in a direction its
+  // shear has turned against. The Newton step takes such a slip to zero, but at zero its
+  // direction follows the shear and its row there (slip the other way) is large, so the line
+  // search halves the slip instead, iteration after iteration, until c x is within tolerance:
+  // the iterate "converges" with the system loaded in the wrong direction (finding 6 of
+  // docs/extreme_cases.md: r up to 1.9 against a stale direction in FCC at G/tau0 = 1e5).
+  bool stale_direction(const Iterate<N>& it, int a) const {
+    return !it.active(a) && it.x(a) > 0.0 && it.sign(a) * it.tau(a) < 0.0;
+  }
+
+  // Sets the slips of stale-direction systems to zero, so that their direction is that of their
+  // shear, and makes that iterate the current one when it is an admissible start. False when
+  // there is none or no admissible start from it.
+  bool release_stale_directions(Iterate<N>& it, Iterate<N>& scratch, double tolerance) const {
+    VecN x = it.x, sign = it.sign;
+    bool any = false;
+    for (int a = 0; a < n_; ++a) {
+      if (!stale_direction(it, a)) continue;
+      x(a) = 0.0;
+      any = true;
+    }
+    if (!any || !admissible_start(x, sign, scratch, tolerance)) return false;
+    std::swap(it, scratch);
+    return true;
+  }
+
   // A converged system on the x = 0 branch (inactive row) has a slip within tolerance/c of zero,
   // not zero. Left in, such a slip against the start shear selects the reversal start (r_s from
   // 0) for a system whose shear never changed sign: r_s jumps from r to 0, and the next step must
@@ -378,8 +417,8 @@ class ImplicitSolver {
   // refused down to dt = 2e-14 s). Those slips are set to zero where the iterate stays converged
   // (every row within `allowed`) with them at zero and their directions re-derived from their
   // shear, and those systems stay idle. (Where not, a system's shear has turned against its stale
-  // direction and it would slip the other way: that iterate is kept as it is; see
-  // docs/extreme_cases.md, finding 6.)
+  // direction and it would slip the other way: release_stale_directions handles those during the
+  // iteration; one left when its releases ran out is kept as it is.)
   void drop_leftover_slip(Iterate<N>& it, Iterate<N>& scratch, const VecN& allowed) const {
     VecN x = it.x;
     std::array<bool, T::MaxN> dropped{};
@@ -604,18 +643,20 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, sign(a), std::abs(previous)) : 0.0;
   }
   Iterate<N> it, trial;
-  // The Jacobi sweep freezes the other systems' slip and normal traction; when that does not
-  // reach the admissible set (pressure-sensitive planes under a large trial), move every
-  // offending system below r_hat first and sweep again.
-  if (!solver.make_admissible(x, sign, it, opt.tolerance) &&
-      !(solver.make_admissible(x, sign, it) &&
-        solver.make_admissible(x, sign, it, opt.tolerance))) {
+  if (!solver.admissible_start(x, sign, it, opt.tolerance)) {
     rep.why = "no admissible start (r >= r_hat or slip plane open)", rep.system = it.bad_system;
     return rep;
   }
 
   bool converged = false;
+  // Stale slip directions are released a bounded number of times: where the systems' directions
+  // cycle (slip one way turns another system's shear, and back), the iteration ends as before,
+  // with the stale slips shrunk to within tolerance.
+  int releases = 0;
   for (rep.iterations = 0; rep.iterations < opt.max_iterations && !converged; ++rep.iterations) {
+    if (releases < kMaxDirectionReleases &&
+        solver.release_stale_directions(it, trial, opt.tolerance))
+      ++releases;
     const typename T::MatNN j = solver.jacobian(it);
     // Converged when every row is within tolerance or within what double precision resolves
     // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
