@@ -104,14 +104,18 @@ struct Iterate {
 // scalar root first (see ImplicitSolver::needs_scalar_start).
 constexpr double kSteepStartRatio = 1e-3;
 
-// A grain solve still iterating after kReleaseAfterIterations Newton iterations releases its
-// systems from stale slip directions (see ImplicitSolver::stale_direction), at most
-// kMaxDirectionReleases times. Ordinary solves converge in fewer iterations (2.7 per solve for
-// FCC, 4.5 for BCC 48 in the benchmark), and mid-iteration stale directions are common and
-// transient there: releasing from the first iteration sent systems of the nearly coplanar BCC
-// families back and forth between directions (BCC 48 benchmark 2.5x slower). The stale slips
-// that end up within tolerance are those the line search halves for tens of iterations.
+// When a grain solve releases its systems from stale slip directions (see
+// ImplicitSolver::stale_direction): after kReleaseAfterIterations Newton iterations, once every
+// other row has converged, or in any case after kReleaseAnywayAfterIterations; at most
+// kMaxDirectionReleases times. Ordinary solves converge in fewer than 8 iterations (2.6 per solve
+// for FCC, 4.2 for BCC 48 in the benchmark) and meet stale directions only transiently. Releasing
+// at every iteration sent systems of the nearly coplanar BCC families back and forth between
+// directions, and releasing far from a solution (the 31.8 s hold step of crystal_law_edges.yaml
+// from an overshooting warm start) reversed systems against a shear that the other systems'
+// overshoot had turned, and the axial stress collapsed from -30.6 to -3 MPa. Stale slips that
+// the line search halves for tens of iterations are released either way.
 constexpr int kReleaseAfterIterations = 8;
+constexpr int kReleaseAnywayAfterIterations = 30;
 constexpr int kMaxDirectionReleases = 10;
 
 template <int N>
@@ -401,6 +405,16 @@ class ImplicitSolver {
     return !it.active(a) && it.x(a) > 0.0 && it.sign(a) * it.tau(a) < 0.0;
   }
 
+  // Whether to release the stale directions of an iterate (see kReleaseAfterIterations): once
+  // every other row is within `allowed`, or in any case after kReleaseAnywayAfterIterations.
+  bool should_release(const Iterate<N>& it, const VecN& allowed, int iterations) const {
+    if (iterations < kReleaseAfterIterations) return false;
+    if (iterations >= kReleaseAnywayAfterIterations) return true;
+    for (int a = 0; a < n_; ++a)
+      if (!stale_direction(it, a) && std::abs(it.merit_rows(a)) > allowed(a)) return false;
+    return true;
+  }
+
   // Sets the slips of stale-direction systems to zero, so that their direction is that of their
   // shear, and makes that iterate the current one when it is an admissible start. False when
   // there is none or no admissible start from it.
@@ -661,9 +675,6 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   // with the stale slips shrunk to within tolerance.
   int releases = 0;
   for (rep.iterations = 0; rep.iterations < opt.max_iterations && !converged; ++rep.iterations) {
-    if (rep.iterations >= kReleaseAfterIterations && releases < kMaxDirectionReleases &&
-        solver.release_stale_directions(it, trial, opt.tolerance))
-      ++releases;
     const typename T::MatNN j = solver.jacobian(it);
     // Converged when every row is within tolerance or within what double precision resolves
     // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
@@ -671,8 +682,14 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     const VecN resolution =
         (4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x))
             .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
-    if ((it.merit_rows.cwiseAbs() - resolution.cwiseMax(opt.tolerance)).maxCoeff() <= 0.0) {
-      solver.drop_leftover_slip(it, trial, resolution.cwiseMax(opt.tolerance));
+    const VecN allowed = resolution.cwiseMax(opt.tolerance);
+    if (releases < kMaxDirectionReleases && solver.should_release(it, allowed, rep.iterations) &&
+        solver.release_stale_directions(it, trial, opt.tolerance)) {
+      ++releases;
+      continue;
+    }
+    if ((it.merit_rows.cwiseAbs() - allowed).maxCoeff() <= 0.0) {
+      solver.drop_leftover_slip(it, trial, allowed);
       converged = true;
       break;
     }
