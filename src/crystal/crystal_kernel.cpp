@@ -107,13 +107,14 @@ constexpr double kSteepStartRatio = 1e-3;
 // When a grain solve releases its systems from stale slip directions (see
 // ImplicitSolver::stale_direction): after kReleaseAfterIterations Newton iterations, once every
 // other row has converged, or in any case after kReleaseAnywayAfterIterations; at most
-// kMaxDirectionReleases times. Ordinary solves converge in fewer than 8 iterations (2.6 per solve
-// for FCC, 4.2 for BCC 48 in the benchmark) and meet stale directions only transiently. Releasing
-// at every iteration sent systems of the nearly coplanar BCC families back and forth between
-// directions, and releasing far from a solution (the 31.8 s hold step of crystal_law_edges.yaml
-// from an overshooting warm start) reversed systems against a shear that the other systems'
-// overshoot had turned, and the axial stress collapsed from -30.6 to -3 MPa. Stale slips that
-// the line search halves for tens of iterations are released either way.
+// kMaxDirectionReleases times (where directions cycle, slip one way turning another system's
+// shear and back, the iteration then ends as before). Ordinary solves converge in fewer than 8
+// iterations (2.6 per solve for FCC, 4.2 for BCC 48 in the benchmark) and meet stale directions
+// only transiently. Releasing at every iteration sent systems of the nearly coplanar BCC families
+// back and forth between directions, and releasing far from a solution (the 31.8 s hold step of
+// crystal_law_edges.yaml from an overshooting warm start) reversed systems against a shear that the
+// other systems' overshoot had turned, and the axial stress collapsed from -30.6 to -3 MPa. Stale
+// slips that the line search halves for tens of iterations are released either way.
 constexpr int kReleaseAfterIterations = 8;
 constexpr int kReleaseAnywayAfterIterations = 30;
 constexpr int kMaxDirectionReleases = 10;
@@ -397,18 +398,38 @@ class ImplicitSolver {
   // A system on the x = 0 branch (inactive row) whose slip is still positive in a direction its
   // shear has turned against. The Newton step takes such a slip to zero, but at zero its
   // direction follows the shear and its row there (slip the other way) is large, so the line
-  // search halves the slip instead, iteration after iteration, until c x is within tolerance
-  // (54 iterations in the regression test):
-  // the iterate "converges" with the system loaded in the wrong direction (finding 6 of
-  // docs/extreme_cases.md: r up to 1.9 against a stale direction in FCC at G/tau0 = 1e5).
+  // search halves the slip instead, iteration after iteration (54 times in the regression test),
+  // until c x is within tolerance: the iterate "converges" with the system loaded in the wrong
+  // direction (finding 6 of docs/extreme_cases.md: r = 1.9 > r_hat in FCC at G/tau0 = 1e5).
   bool stale_direction(const Iterate<N>& it, int a) const {
     return !it.active(a) && it.x(a) > 0.0 && it.sign(a) * it.tau(a) < 0.0;
   }
 
-  // Whether to release the stale directions of an iterate (see kReleaseAfterIterations): once
-  // every other row is within `allowed`, or in any case after kReleaseAnywayAfterIterations.
-  bool should_release(const Iterate<N>& it, const VecN& allowed, int iterations) const {
-    if (iterations < kReleaseAfterIterations) return false;
+  // The unknowns of `it` with the slips of the systems `which(a)` selects set to zero; `zeroed`
+  // marks the systems that had slip. Their directions are re-derived from their shear when the
+  // result is evaluated.
+  using SystemFlags = std::array<bool, T::MaxN>;
+  template <class Which>
+  VecN with_slips_zeroed(const Iterate<N>& it, Which&& which, SystemFlags& zeroed) const {
+    VecN x = it.x;
+    zeroed.fill(false);
+    for (int a = 0; a < n_; ++a) {
+      if (x(a) == 0.0 || !which(a)) continue;
+      x(a) = 0.0;
+      zeroed[static_cast<size_t>(a)] = true;
+    }
+    return x;
+  }
+  static bool any_of(const SystemFlags& flags) {
+    return std::find(flags.begin(), flags.end(), true) != flags.end();
+  }
+
+  // Whether to release the stale directions of an iterate (see kReleaseAfterIterations): at most
+  // kMaxDirectionReleases times, and once every other row is within `allowed` or in any case
+  // after kReleaseAnywayAfterIterations.
+  bool should_release(const Iterate<N>& it, const VecN& allowed, int iterations,
+                      int releases) const {
+    if (iterations < kReleaseAfterIterations || releases >= kMaxDirectionReleases) return false;
     if (iterations >= kReleaseAnywayAfterIterations) return true;
     for (int a = 0; a < n_; ++a)
       if (!stale_direction(it, a) && std::abs(it.merit_rows(a)) > allowed(a)) return false;
@@ -419,14 +440,11 @@ class ImplicitSolver {
   // shear, and makes that iterate the current one when it is an admissible start. False when
   // there is none or no admissible start from it.
   bool release_stale_directions(Iterate<N>& it, Iterate<N>& scratch, double tolerance) const {
-    VecN x = it.x, sign = it.sign;
-    bool any = false;
-    for (int a = 0; a < n_; ++a) {
-      if (!stale_direction(it, a)) continue;
-      x(a) = 0.0;
-      any = true;
-    }
-    if (!any || !admissible_start(x, sign, scratch, tolerance)) return false;
+    SystemFlags released;
+    VecN x = with_slips_zeroed(
+        it, [&](int a) { return stale_direction(it, a); }, released);
+    VecN sign = it.sign;
+    if (!any_of(released) || !admissible_start(x, sign, scratch, tolerance)) return false;
     std::swap(it, scratch);
     return true;
   }
@@ -441,15 +459,10 @@ class ImplicitSolver {
   // direction and it would slip the other way: release_stale_directions handles those during the
   // iteration; one left when its releases ran out is kept as it is.)
   void drop_leftover_slip(Iterate<N>& it, Iterate<N>& scratch, const VecN& allowed) const {
-    VecN x = it.x;
-    std::array<bool, T::MaxN> dropped{};
-    bool leftover = false;
-    for (int a = 0; a < n_; ++a) {
-      if (it.active(a) || x(a) == 0.0) continue;
-      x(a) = 0.0;
-      dropped[static_cast<size_t>(a)] = leftover = true;
-    }
-    if (!leftover) return;
+    SystemFlags dropped;
+    const VecN x = with_slips_zeroed(
+        it, [&](int a) { return !it.active(a); }, dropped);
+    if (!any_of(dropped)) return;
     evaluate(x, it.sign, scratch);
     if (!scratch.admissible || (scratch.merit_rows.cwiseAbs() - allowed).maxCoeff() > 0.0) return;
     for (int a = 0; a < n_; ++a)
@@ -670,10 +683,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   }
 
   bool converged = false;
-  // Stale slip directions are released a bounded number of times: where the systems' directions
-  // cycle (slip one way turns another system's shear, and back), the iteration ends as before,
-  // with the stale slips shrunk to within tolerance.
-  int releases = 0;
+  int releases = 0;  // of stale slip directions (see kReleaseAfterIterations)
   for (rep.iterations = 0; rep.iterations < opt.max_iterations && !converged; ++rep.iterations) {
     const typename T::MatNN j = solver.jacobian(it);
     // Converged when every row is within tolerance or within what double precision resolves
@@ -683,7 +693,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
         (4.0 * std::numeric_limits<double>::epsilon() * j.diagonal().cwiseAbs().cwiseProduct(it.x))
             .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
     const VecN allowed = resolution.cwiseMax(opt.tolerance);
-    if (releases < kMaxDirectionReleases && solver.should_release(it, allowed, rep.iterations) &&
+    if (solver.should_release(it, allowed, rep.iterations, releases) &&
         solver.release_stale_directions(it, trial, opt.tolerance)) {
       ++releases;
       continue;
