@@ -173,6 +173,24 @@ TEST(AccuracyInterpolation, ExactForPolynomialPiecesWithKinks) {
   EXPECT_LT(PathInterpolant(path).estimated_error(), 1e-12);
 }
 
+// A 1e150-graded segment (crystal_parser_edges.yaml) has nodes 1e-17, 2e-8 and 50 s apart: a
+// cubic through them extrapolated the slope of the packed nodes across the last bracket
+// (measured 2e12 for values of 0.1). Between two nodes of a monotone path the interpolant must
+// stay between their values.
+TEST(AccuracyInterpolation, PackedNodesDoNotBlowUpTheNextBracket) {
+  const auto y = [](double t) { return 0.1 * t / (t + 1e-9); };  // yields at ~1e-9 s
+  Trajectory path;
+  path.add(0.0, 0.0, -1);
+  for (double t : {1e-150, 1e-120, 1e-90, 1e-60, 1e-36, 1e-27, 1e-17, 2e-8, 50.0})
+    path.add(t, y(t), 0);
+  const PathInterpolant interp(path);
+  for (double x : {1e-7, 1e-3, 1.0, 33.3, 49.9}) {
+    const double v = interp.at(x, 0);
+    EXPECT_GE(v, y(2e-8)) << "x = " << x;
+    EXPECT_LE(v, y(50.0)) << "x = " << x;
+  }
+}
+
 // The estimate (interpolation on every second node, at the dropped nodes) bounds the actual
 // error of the full interpolant on smooth data, and falls as h^4.
 TEST(AccuracyInterpolation, EstimatedErrorBoundsTheActualError) {

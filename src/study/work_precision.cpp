@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 
 #include "subslip/integrators/cvode_peer.hpp"
 
@@ -57,10 +58,35 @@ long total_increments(const std::vector<Segment>& segments) {
   return n;
 }
 
+// An outer node takes part in the interpolation of a bracket only when its spacing is at least
+// this fraction of the bracket's. Nodes packed far closer than the bracket (a 1e150-graded
+// segment has nodes at 9e-18, 2e-8 and 50 s) turn the cubic into an extrapolation of their local
+// slope across the whole bracket: measured, 2e12 between values of 0.1 (a crystal parser-edge
+// case of crystal_parser_edges.yaml in `subslip accuracy`). Adaptive steps grow at most 4 times.
+constexpr double kSmallestOuterSpacing = 1.0 / 8.0;
+
+// The nodes [first, last] for the bracket [t_j, t_j+1]: widened by a node on the left and one on
+// the right, again, to at most four (so shifted inward at the ends of the nodes), never by a node
+// whose spacing is below kSmallestOuterSpacing of the bracket's.
+std::pair<std::size_t, std::size_t> interpolation_nodes(const std::vector<double>& t,
+                                                        std::size_t j) {
+  const double least = kSmallestOuterSpacing * (t[j + 1] - t[j]);
+  std::size_t first = j, last = j + 1;
+  const auto left_ok = [&] { return first > 0 && t[first] - t[first - 1] >= least; };
+  const auto right_ok = [&] { return last + 1 < t.size() && t[last + 1] - t[last] >= least; };
+  while (last - first < 3) {
+    const bool left = left_ok(), right = right_ok();
+    if (!left && !right) break;
+    if (left) --first;
+    if (right && last - first < 3) ++last;
+  }
+  return {first, last};
+}
+
 // Local cubic interpolation on nodes (t strictly increasing), clamped to their span: the cubic
 // through the four nodes around x (j-1 .. j+2 for x in [t_j, t_j+1], shifted inward at the ends
-// of the nodes; fewer nodes, lower degree). Exact for cubics; the error falls as h^4 where the
-// path is smooth.
+// of the nodes; fewer nodes, lower degree, also where outer nodes are packed much closer than
+// the bracket). Exact for cubics; the error falls as h^4 where the path is smooth.
 double local_cubic_at(const std::vector<double>& t, const std::vector<double>& y, double x) {
   const std::size_t n = t.size();
   if (n == 1 || x <= t.front()) return y.front();
@@ -68,12 +94,11 @@ double local_cubic_at(const std::vector<double>& t, const std::vector<double>& y
   const auto upper = std::upper_bound(t.begin(), t.end(), x);
   const std::size_t j = static_cast<std::size_t>(upper - t.begin()) - 1;
   if (x == t[j]) return y[j];
-  const std::size_t m = std::min<std::size_t>(4, n);
-  const std::size_t first = std::min(j > 0 ? j - 1 : 0, n - m);
+  const auto [first, last] = interpolation_nodes(t, j);
   double sum = 0.0;
-  for (std::size_t a = first; a < first + m; ++a) {
+  for (std::size_t a = first; a <= last; ++a) {
     double weight = 1.0;
-    for (std::size_t b = first; b < first + m; ++b) {
+    for (std::size_t b = first; b <= last; ++b) {
       if (b != a) weight *= (x - t[b]) / (t[a] - t[b]);
     }
     sum += weight * y[a];
