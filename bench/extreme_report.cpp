@@ -486,8 +486,8 @@ struct AdaptiveTotals {
 
 template <class Case>
 struct Ladder {
-  std::array<double, 3> tolerances{1e-2, 1e-3, 1e-4};
-  double reference_tolerance = 1e-6;
+  std::array<double, 3> tolerances;
+  double reference_tolerance;
   CaseRun reference;
   std::vector<CaseRun> runs;
   std::array<double, 3> err{std::nan(""), std::nan(""), std::nan("")};
@@ -503,6 +503,10 @@ struct Ladder {
     if (failure.empty())
       for (size_t k = 0; k < 3; ++k)
         err[k] = max_error_interpolated(runs[k].series, reference.series);
+  }
+  // "1e-2 / 1e-3 / 1e-4"
+  std::string tolerance_list() const {
+    return sci(tolerances[0]) + " / " + sci(tolerances[1]) + " / " + sci(tolerances[2]);
   }
   bool one_run() const {
     return failure.empty() && runs[0].steps == runs[1].steps && runs[1].steps == runs[2].steps &&
@@ -530,6 +534,7 @@ void adaptive_case_table(const std::string& file, const std::vector<Case>& cases
     ++totals.cases;
     const auto t0 = std::chrono::steady_clock::now();
     Ladder<Case> ladder(c, {1e-2, 1e-3, 1e-4}, o.adaptive_reference, o.adaptive_seconds);
+    const std::string first_list = ladder.tolerance_list();
     const bool moved = ladder.one_run();
     if (moved) {
       ++totals.moved_down;
@@ -548,9 +553,8 @@ void adaptive_case_table(const std::string& file, const std::vector<Case>& cases
       const bool falling = ladder.falling();
       verdict = falling ? "yes" : "**no**";
       if (moved)
-        verdict +=
-            " (the runs at 1e-2 .. 1e-4 were one run; judged at 1e-4 / 1e-5 / 1e-6 against " +
-            sci(ladder.reference_tolerance) + ")";
+        verdict += " (the runs at " + first_list + " were one run; judged at " +
+                   ladder.tolerance_list() + " against " + sci(ladder.reference_tolerance) + ")";
       if (!falling) ++totals.not_converging;
     } else if (failure == ladder.reference.failure && failure.rfind(kTimeLimitPrefix, 0) == 0) {
       ++totals.not_judged;
