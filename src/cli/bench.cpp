@@ -3,43 +3,16 @@
 #include <omp.h>
 
 #include <cstdio>
-#include <stdexcept>
 
-#include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/study/bench_phase.hpp"
 
 namespace subslip::cli {
 
 namespace {
 
 using namespace subslip::crystal;
-
-// Room-temperature constants [MPa]: copper (Simmons & Wang), alpha iron, alpha titanium.
-PhaseDescription bench_phase(const std::string& lattice) {
-  PhaseDescription d;
-  SlipGroupSettings g;
-  g.tau0 = 10.0;
-  g.law.friction = {1.0, 3.0, 5.0, 0.0};  // hardening from tau0 toward 3 tau0 by slip
-  g.law.subloading = {law::SubloadingFunction::cot, 200.0};
-  g.law.overstress = {law::OverstressForm::exponential, 1.0e-3, 16.0, 1.6};
-  if (lattice == "fcc") {
-    d.families = {SlipFamily::fcc_111_110};
-    d.stiffness = cubic_stiffness(168400, 121400, 75400);
-  } else if (lattice == "bcc48") {
-    d.families = {SlipFamily::bcc_110_111, SlipFamily::bcc_112_111, SlipFamily::bcc_123_111};
-    d.stiffness = cubic_stiffness(231400, 134700, 116400);
-  } else if (lattice == "hcp") {
-    d.families = {SlipFamily::hcp_basal_a, SlipFamily::hcp_prismatic_a, SlipFamily::hcp_pyramidal_a,
-                  SlipFamily::hcp_pyramidal_ca};
-    d.c_over_a = 1.587;
-    d.stiffness = hexagonal_stiffness(162400, 92000, 69000, 180700, 46700);
-  } else {
-    throw std::invalid_argument("bench: unknown lattice '" + lattice + "' (fcc, bcc48, hcp)");
-  }
-  d.family_settings.assign(d.families.size(), g);
-  return d;
-}
 
 // Uniaxial tension along z at 1e-3 /s, lateral stresses free (mixed control), strain step 1e-4.
 LoadSegment tension(int steps) {
@@ -61,7 +34,7 @@ void add_bench_command(CLI::App& app, BenchArgs& a) {
   cmd->add_option("--steps", a.steps, "increments of 1e-4 strain")->check(CLI::PositiveNumber);
   cmd->add_option("--threads", a.threads, "thread counts to run")->check(CLI::PositiveNumber);
   cmd->add_option("--lattice", a.lattices, "fcc, bcc48, hcp")
-      ->check(CLI::IsMember({"fcc", "bcc48", "hcp"}));
+      ->check(CLI::IsMember(study::bench_lattices()));
 }
 
 int run_bench(const BenchArgs& a) {
@@ -72,7 +45,7 @@ int run_bench(const BenchArgs& a) {
   for (const auto& lattice : a.lattices) {
     for (int threads : a.threads) {
       omp_set_num_threads(threads);
-      auto aggregate = build_taylor_aggregate(bench_phase(lattice), grains);
+      auto aggregate = build_taylor_aggregate(study::bench_phase(lattice), grains);
       const AggregateStats st = aggregate->run({tension(a.steps)}, AggregateOptions{},
                                                [](const MacroState&, const GrainFields&) {});
       std::printf("%-6s %5d %7d %7d %14.4g %13.3f %12.3f %9ld %10zu %8.2f\n", lattice.c_str(),

@@ -5,13 +5,15 @@
 #include <string>
 #include <vector>
 
+#include "subslip/study/bench_phase.hpp"
+
 namespace subslip::cli {
 
 struct BenchArgs {
   int grains = 20000;
   int steps = 50;
   std::vector<int> threads{1, 2};
-  std::vector<std::string> lattices{"fcc", "bcc48", "hcp"};
+  std::vector<std::string> lattices = study::bench_lattices();
 };
 
 void add_bench_command(CLI::App& app, BenchArgs& args);
