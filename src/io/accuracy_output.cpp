@@ -1,7 +1,5 @@
 #include "subslip/io/accuracy_output.hpp"
 
-#include <hdf5.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -233,25 +231,8 @@ void write_markdown(const fs::path& path, const AccuracyReport& report) {
 // A [n] dataset of variable-length UTF-8 strings with `unit` and `description` attributes.
 void write_strings(const h5::Group& group, const std::string& name,
                    const std::vector<std::string>& values, const std::string& description) {
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, H5T_VARIABLE);
-  H5Tset_cset(type, H5T_CSET_UTF8);
-  const hsize_t n = values.size();
-  const hid_t space = H5Screate_simple(1, &n, nullptr);
-  const hid_t set =
-      H5Dcreate2(group.id(), name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  std::vector<const char*> pointers;
-  for (const auto& v : values) pointers.push_back(v.c_str());
-  const herr_t status = set < 0 || values.empty()
-                            ? (set < 0 ? -1 : 0)
-                            : H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, pointers.data());
-  if (set >= 0) H5Dclose(set);
-  H5Sclose(space);
-  H5Tclose(type);
-  if (set < 0 || status < 0) throw h5::Error("HDF5: write string dataset " + name);
-  const h5::Dataset dataset = group.open_dataset(name);
+  const h5::Dataset dataset = group.write_strings(name, values, description);
   dataset.set_attribute("unit", "label");
-  dataset.set_attribute("description", description);
 }
 
 void write_column(const h5::Group& group, const std::string& name,
