@@ -303,7 +303,8 @@ TEST(BadInputCli, ExistingResultIsNotTouchedEvenWithForce) {
 
 // Fuzz finding (scene_fuzzer): a NUL byte in a key of a swept case. what() is a C string, so
 // the message was cut at the NUL, and re-prefixing it for the sweep case read past its end
-// (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart.
+// (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart; a
+// NUL byte is now refused before the YAML is parsed (not a text file), so \x01 stands in.
 TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
   std::string text = subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, direction: [1, 0], distance: 0.1}
@@ -311,17 +312,23 @@ TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
 sweep:
   "loading[0].slide.speed": [1, 2]
 )";
-  text.replace(text.find("kappa: 0.2"), 10,
-               std::string("kappa:\0"
-                           "0.2",
-                           10));
+  std::string nul = text;
+  nul.replace(nul.find("kappa: 0.2"), 10, std::string("kappa:\0 0.2", 10));
   try {
-    parse_contact_scene(YamlDocument::from_string(text, "nul.yaml"));
+    parse_contact_scene(YamlDocument::from_string(nul, "nul.yaml"));
     FAIL() << "the key with a NUL byte was accepted";
   } catch (const InputError& e) {
+    EXPECT_EQ(e.line, 4);
+    EXPECT_NE(e.message.find("a NUL byte at column"), std::string::npos) << e.what();
+  }
+  text.replace(text.find("kappa: 0.2"), 10, "kappa:\x01 0.2");
+  try {
+    parse_contact_scene(YamlDocument::from_string(text, "ctrl.yaml"));
+    FAIL() << "the key with a control byte was accepted";
+  } catch (const InputError& e) {
     const std::string what = e.what();
-    EXPECT_EQ(what.find('\0'), std::string::npos);
-    EXPECT_NE(what.find("unknown key 'kappa:\\x00"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\x01'), std::string::npos);
+    EXPECT_NE(what.find("unknown key 'kappa:\\x01"), std::string::npos) << what;
     EXPECT_NE(what.find("(in sweep case 'speed=1')"), std::string::npos) << what;
     EXPECT_EQ(what, InputError::format(e.file, e.line, e.key, e.message));
   }

@@ -88,7 +88,9 @@ void expect_readable_incomplete(const fs::path& file, const std::string& reason)
   ASSERT_EQ(progress.size(), 1u);
   EXPECT_EQ(progress.state(0), io::h5::CaseState::running);
   const auto rows = static_cast<std::size_t>(progress.rows(0));
-  ASSERT_GT(rows, 3u);  // beyond the layout's reservation: the rows of a growth that worked
+  // At least the initial state; how many more were counted before the failure depends on the
+  // write pacer, which commits by time (WritePacer), so on the machine's load.
+  ASSERT_GE(rows, 1u);
   const io::h5::Group c = root.open_group("cases").open_group("base");
   const auto time = c.open_dataset("time").read_doubles();
   ASSERT_GE(time.size(), rows);

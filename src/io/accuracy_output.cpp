@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
+#include <system_error>
 
 #include "subslip/io/h5_writer.hpp"
 
@@ -340,7 +342,7 @@ void write_case(const h5::Group& cases, const AccuracyReport& report, const Accu
   }
 }
 
-void write_hdf5(const fs::path& path, const AccuracyReport& report) {
+void write_hdf5_file(const fs::path& path, const AccuracyReport& report) {
   h5::File file = h5::File::create(path, true);
   h5::ResultHeader header;
   header.scene_kind = report.scene_kind;
@@ -361,6 +363,18 @@ void write_hdf5(const fs::path& path, const AccuracyReport& report) {
   for (const auto& c : report.cases) write_case(cases, report, c);
   h5::mark_completed(file);
   file.close();
+}
+
+// A failed write (a full disk) names the file and the reason, and leaves no broken file.
+void write_hdf5(const fs::path& path, const AccuracyReport& report) {
+  try {
+    write_hdf5_file(path, report);
+  } catch (const h5::Error& e) {
+    std::error_code ec;
+    fs::remove(path, ec);
+    throw std::runtime_error(path.string() + ": cannot " + e.action +
+                             (e.reason.empty() ? "" : ": " + e.reason) + "; the file was removed");
+  }
 }
 
 }  // namespace
