@@ -131,6 +131,13 @@ TEST(WriteFailure, FileSizeLimitWhileGrowingKeepsRowsAndRestarts) {
   EXPECT_NE(r.log.find("--restart out.h5"), std::string::npos) << r.log;
   EXPECT_FALSE(fs::exists(dir / "out.h5.partial"));
   expect_readable_incomplete(dir / "out.h5", "File too large");
+  // `subslip post` shows why the run stopped.
+  const pid_t post = subslip::testing::spawn_subslip(dir, {"post", "out.h5"}, dir / "post.txt");
+  ASSERT_EQ(subslip::testing::wait_child(post), 0);
+  const std::string summary = read_text(dir / "post.txt");
+  EXPECT_NE(summary.find("write error: the run stopped: out.h5: cannot grow dataset /cases/base/"),
+            std::string::npos)
+      << summary;
   const Outcome again = run_limited(dir, {"--restart", "out.h5"}, 0);
   ASSERT_EQ(again.code, 0) << again.log;
   subslip::testing::expect_same_datasets(dir / "full.h5", dir / "out.h5");
