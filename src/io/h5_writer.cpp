@@ -1,8 +1,8 @@
 #include "subslip/io/h5_writer.hpp"
 
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
