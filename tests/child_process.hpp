@@ -29,10 +29,12 @@ namespace subslip::testing {
 namespace fs = std::filesystem;
 
 // Starts `SUBSLIP_BINARY args...` in `dir` with stdout and stderr to `log`; returns its pid.
+// `in_child` runs in the child before exec (resource limits, signal dispositions).
 inline pid_t spawn_subslip(const fs::path& dir, const std::vector<std::string>& args,
-                           const fs::path& log) {
+                           const fs::path& log, const std::function<void()>& in_child = {}) {
   const pid_t pid = ::fork();
   if (pid != 0) return pid;
+  if (in_child) in_child();
   if (::chdir(dir.c_str()) != 0) ::_exit(127);
   const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (fd >= 0) {

@@ -70,6 +70,7 @@ const BadInput kTable[] = {
     // YAML itself
     {"scenes/malformed.yaml", "", 14, "YAML syntax error"},
     {"scenes/empty.yaml", "", 0, "expected a mapping"},
+    {"bad/scenes/two_documents.yaml", "", 17, "the file holds 2 YAML documents"},
     {"scenes/duplicate_key.yaml", "contact.alpha_t", 12, "duplicate key"},
     // unknown or misspelt keys and names: the nearest valid one, or the list when none is near
     {"scenes/unknown_key.yaml", "law.overstress.eta", 7, "unknown key 'eta'; did you mean 'eta_v'?"},
@@ -87,6 +88,8 @@ const BadInput kTable[] = {
     {"bad/scenes/mapping_expected.yaml", "law.friction", 6, "expected a mapping"},
     {"bad/scenes/number_expected.yaml", "contact.alpha_n", 10, "expected a number, got a sequence"},
     {"bad/scenes/integer_expected.yaml", "loading[0].increments", 15, "expected an integer"},
+    {"bad/scenes/integer_too_large.yaml", "loading[0].increments", 15,
+     "1000000000000 is above the largest value this key takes, 2147483647"},
     {"scenes/short_direction.yaml", "loading[0].slide.direction", 13, "expected 2 numbers"},
     {"crystal_scenes/bad_matrix_shape.yaml", "loading[0].L", 15, "3 rows of 3 entries"},
     {"scenes/nan_value.yaml", "law.friction.kappa", 5, "finite"},
@@ -134,7 +137,9 @@ const BadInput kTable[] = {
     {"bad/crystal_scenes/weight_sum_overflow.yaml", "orientations.euler_deg", 14, "sum to more"},
     {"bad/crystal_scenes/too_many_grains.yaml", "orientations.random.count", 14,
      "must be in [1, 10000000]"},
-    {"crystal_scenes/bad_orientation_file.yaml", "Phi", 3, "(orientation file given at",
+    {"crystal_scenes/bad_orientation_file.yaml", "Phi", 3,
+     "(orientation file given at " SUBSLIP_SOURCE_DIR
+     "/tests/data/crystal_scenes/bad_orientation_file.yaml:13: orientations.file)",
      "crystal_scenes/bad_orientations.txt"},
     // sweeps
     {"scenes/bad_sweep_path.yaml", "sweep[\"loading[0].slide.sped\"]", 17, "did you mean 'speed'?"},
@@ -298,7 +303,8 @@ TEST(BadInputCli, ExistingResultIsNotTouchedEvenWithForce) {
 
 // Fuzz finding (scene_fuzzer): a NUL byte in a key of a swept case. what() is a C string, so
 // the message was cut at the NUL, and re-prefixing it for the sweep case read past its end
-// (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart.
+// (std::out_of_range). Control bytes are now escaped, and the bare message is kept apart; a
+// NUL byte is now refused before the YAML is parsed (not a text file), so \x01 stands in.
 TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
   std::string text = subslip::testing::contact_scene_start() + R"(loading:
   - slide: {speed: 1, direction: [1, 0], distance: 0.1}
@@ -306,17 +312,23 @@ TEST(InputErrors, ControlBytesInAKeyAreEscapedAndSweepCasesStillNamed) {
 sweep:
   "loading[0].slide.speed": [1, 2]
 )";
-  text.replace(text.find("kappa: 0.2"), 10,
-               std::string("kappa:\0"
-                           "0.2",
-                           10));
+  std::string nul = text;
+  nul.replace(nul.find("kappa: 0.2"), 10, std::string("kappa:\0 0.2", 10));
   try {
-    parse_contact_scene(YamlDocument::from_string(text, "nul.yaml"));
+    parse_contact_scene(YamlDocument::from_string(nul, "nul.yaml"));
     FAIL() << "the key with a NUL byte was accepted";
   } catch (const InputError& e) {
+    EXPECT_EQ(e.line, 4);
+    EXPECT_NE(e.message.find("a NUL byte at column"), std::string::npos) << e.what();
+  }
+  text.replace(text.find("kappa: 0.2"), 10, "kappa:\x01 0.2");
+  try {
+    parse_contact_scene(YamlDocument::from_string(text, "ctrl.yaml"));
+    FAIL() << "the key with a control byte was accepted";
+  } catch (const InputError& e) {
     const std::string what = e.what();
-    EXPECT_EQ(what.find('\0'), std::string::npos);
-    EXPECT_NE(what.find("unknown key 'kappa:\\x00"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\x01'), std::string::npos);
+    EXPECT_NE(what.find("unknown key 'kappa:\\x01"), std::string::npos) << what;
     EXPECT_NE(what.find("(in sweep case 'speed=1')"), std::string::npos) << what;
     EXPECT_EQ(what, InputError::format(e.file, e.line, e.key, e.message));
   }

@@ -169,3 +169,121 @@ TEST(Cli, NumericalFailureExitsWith3AndKeepsAnIncompleteFile) {
   EXPECT_NE(h5::failure_message(file.root().open_group("cases/base")), "");
   fs::remove_all(dir);
 }
+
+namespace {
+
+// A small crystal scene reading `orientations.txt` (beside it).
+const std::string kCrystalScene = R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.01}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations: {file: orientations.txt}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 1
+    increments: 5
+)";
+
+}  // namespace
+
+// -o naming the scene or an orientation file is refused, with --force too, and the file stays.
+TEST(Cli, OutputOverAnInputFileIsRefusedEvenWithForce) {
+  const fs::path dir = scratch_dir();
+  write(dir / "crystal.yaml", kCrystalScene);
+  write(dir / "orientations.txt",
+        "# subslip-orientations convention=bunge-euler-deg\n10 20 30\n40 50 60\n");
+  for (const std::string target : {"crystal.yaml", "./orientations.txt"}) {
+    SCOPED_TRACE(target);
+    const std::string before = slurp(dir / target);
+    const Outcome r = run(dir, "run crystal.yaml -q --force -o " + target);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_TRUE(contains(r.err, "subslip: error: " + target + ": is the input file")) << r.err;
+    EXPECT_EQ(slurp(dir / target), before);
+  }
+  fs::remove_all(dir);
+}
+
+// Euler angles that all lie within 2 pi under a degree header: a warning naming the file.
+TEST(Cli, EulerAnglesThatLookLikeRadiansAreWarnedAbout) {
+  const fs::path dir = scratch_dir();
+  write(dir / "crystal.yaml", kCrystalScene);
+  write(dir / "orientations.txt",
+        "# subslip-orientations convention=bunge-euler-deg\n0.5 1.2 3.1\n2.0 0.3 6.2\n");
+  const Outcome radians = run(dir, "run crystal.yaml -o a.h5");
+  EXPECT_EQ(radians.code, 0) << radians.err;
+  EXPECT_TRUE(contains(radians.err,
+                       "warning: crystal.yaml: orientations.file: orientations.txt: "
+                       "every Euler angle of the 2 orientations is within 2 pi"))
+      << radians.err;
+  write(dir / "orientations.txt",
+        "# subslip-orientations convention=bunge-euler-deg\n30 1.2 3.1\n2.0 0.3 6.2\n");
+  const Outcome degrees = run(dir, "run crystal.yaml -o b.h5");
+  EXPECT_EQ(degrees.code, 0) << degrees.err;
+  EXPECT_FALSE(contains(degrees.err, "2 pi")) << degrees.err;
+  fs::remove_all(dir);
+}
+
+// A value out of range: the usual error line, with readable bounds.
+TEST(Cli, RangeErrorsAreOneErrorLineWithReadableBounds) {
+  const fs::path dir = scratch_dir();
+  const Outcome r = run(dir, "orientations --random 0");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err.rfind("subslip: error: --random: must be > 0, got 0", 0), 0u) << r.err;
+  EXPECT_LT(r.err.size(), 120u) << r.err;
+  const Outcome spread = run(dir, "orientations --component cube --spread 200");
+  EXPECT_EQ(spread.code, 2);
+  EXPECT_TRUE(contains(spread.err, "must be in [0, 180], got 200")) << spread.err;
+  fs::remove_all(dir);
+}
+
+// A binary file given as a scene: one short line, not the file's bytes.
+TEST(Cli, BinaryFileAsSceneIsOneShortLine) {
+  const fs::path dir = scratch_dir();
+  std::string bytes = "scene: contact\n";
+  for (int i = 0; i < 4096; ++i) bytes.push_back(static_cast<char>((i * 37 + 11) % 256));
+  write(dir / "binary.yaml", bytes);
+  const Outcome r = run(dir, "run binary.yaml -o out.h5");
+  EXPECT_EQ(r.code, 2);
+  // 0x9F, the 5th byte of line 2, cannot start a UTF-8 character.
+  EXPECT_EQ(r.err.rfind("subslip: error: binary.yaml:2: byte 0x9F at column 5 is not UTF-8", 0), 0u)
+      << r.err;
+  EXPECT_LT(r.err.size(), 250u) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out.h5"));
+  fs::remove_all(dir);
+}
+
+// A result larger than any disk (1e4 grains, every field, 2e9 increments: ~11 PB) is refused
+// before the file is created, naming the key and line; 1e12 increments name the key's limit.
+TEST(Cli, ResultTooLargeForTheDiskIsRefusedBeforeAnyWork) {
+  const fs::path dir = scratch_dir();
+  std::string scene = kCrystalScene;
+  scene.replace(scene.find("{file: orientations.txt}"), 24, "{random: {count: 10000}}");
+  scene.replace(scene.find("increments: 5"), 13, "increments: 2000000000");
+  scene += "output: {grains: [stress, orientation, slip, slip_rate, crss, r, r_s]}\n";
+  write(dir / "big.yaml", scene);
+  const Outcome r = run(dir, "run big.yaml -o out/big.h5");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err.rfind("subslip: error: big.yaml:16: loading[0].increments: the result would "
+                        "take about 11.2 PB",
+                        0),
+            0u)
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "output_every")) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  scene.replace(scene.find("increments: 2000000000"), 22, "increments: 1000000000000");
+  write(dir / "big.yaml", scene);
+  const Outcome limit = run(dir, "run big.yaml -o out/big.h5");
+  EXPECT_EQ(limit.code, 2);
+  EXPECT_TRUE(contains(limit.err,
+                       "big.yaml:16: loading[0].increments: 1000000000000 is above "
+                       "the largest value this key takes, 2147483647"))
+      << limit.err;
+  fs::remove_all(dir);
+}

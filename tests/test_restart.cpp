@@ -293,13 +293,19 @@ TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
   int checked = 0;
   for (int trial = 0; trial < 6; ++trial) {
     const fs::path path = dir / ("k" + std::to_string(trial) + ".h5");
+    // The kill moments count from the store's layout (the child says when over a pipe): on a
+    // loaded machine (sanitizers, parallel builds) 50 ms after the fork can come before it.
+    int ready[2];
+    ASSERT_EQ(::pipe(ready), 0);
     const pid_t child = ::fork();
     ASSERT_GE(child, 0);
     if (child == 0) {
+      ::close(ready[0]);
       h5::File file = h5::File::create(path, false);
       h5::write_result_header(file, {"crystal", "k.yaml", "scene: crystal\n", "kill", {}});
       CheckpointStore::create(file.root(), grains * per_grain);
       file.flush();
+      if (::write(ready[1], "r", 1) != 1) ::_exit(1);
       CheckpointStore store(file.root());
       crystal::MacroState last;
       for (long k = 1;; ++k) {
@@ -308,6 +314,10 @@ TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
                     last);
       }
     }
+    ::close(ready[1]);
+    char byte = 0;
+    ASSERT_EQ(::read(ready[0], &byte, 1), 1);  // the store is laid out and flushed
+    ::close(ready[0]);
     std::uniform_real_distribution<double> when(0.05, 0.4);
     std::this_thread::sleep_for(std::chrono::duration<double>(when(rng)));
     ::kill(child, SIGKILL);

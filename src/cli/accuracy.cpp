@@ -1,4 +1,5 @@
 #include "accuracy.hpp"
+#include "validators.hpp"
 
 #include <omp.h>
 #include <sys/wait.h>
@@ -201,53 +202,53 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
   cmd->add_option("--fe", a.forward_euler,
                   "Forward Euler increment factors (relative to the scene); default: 1, 4, 16, "
                   "... until --max-run-seconds")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::positive());
   cmd->add_flag("--fe-uniform", a.fe_uniform,
                 "Forward Euler with uniform increments (as many as the graded ones): where "
                 "stability bounds its step everywhere, grading only wastes steps");
   cmd->add_option("--implicit", a.implicit, "Implicit (fixed-step) increment factors")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positive())
       ->capture_default_str();
   cmd->add_option("--adaptive", a.adaptive, "Adaptive implicit tolerances")
-      ->check(CLI::Range(1e-300, 1.0))
+      ->check(cli::above_and_at_most(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--cvode", a.cvode, "CVODE relative tolerances")
-      ->check(CLI::Range(1e-300, 1.0))
+      ->check(cli::above_and_at_most(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--cvode-atol", a.cvode_atol,
                   "CVODE absolute tolerance, relative to each component's scale (never looser "
                   "than the rtol)")
-      ->check(CLI::Range(1e-300, 1.0))
+      ->check(cli::above_and_at_most(0.0, 1.0))
       ->capture_default_str();
   auto* factor = cmd->add_option("--reference-factor", a.reference_factor,
                                  "Increment factor of the implicit reference, extrapolated with "
                                  "half of it (default: 16 x the largest --implicit factor)")
-                     ->check(CLI::PositiveNumber);
+                     ->check(cli::positive());
   cmd->add_option("--reference-tolerance", a.reference_tolerance,
                   "Instead: an adaptive implicit reference at this tolerance")
-      ->check(CLI::Range(1e-300, 1.0))
+      ->check(cli::above_and_at_most(0.0, 1.0))
       ->excludes(factor);
   cmd->add_option("--cvode-check-rtol", a.cvode_check_rtol,
                   "rtol of the CVODE run that cross-checks the reference")
-      ->check(CLI::Range(1e-300, 1.0))
+      ->check(cli::above_and_at_most(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--cvode-check-seconds", a.cvode_check_seconds,
                   "Stop the CVODE cross-check of the reference after this long")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positive())
       ->capture_default_str();
   cmd->add_option("--repeat", a.repeat, "Timed runs per point (median)")
-      ->check(CLI::Range(1, 1000))
+      ->check(cli::between(1, 1000))
       ->capture_default_str();
   cmd->add_option("--repeat-budget", a.repeat_budget,
                   "Seconds of repeated runs per point: slow points get fewer repeats")
-      ->check(CLI::NonNegativeNumber)
+      ->check(cli::non_negative())
       ->capture_default_str();
   cmd->add_option("--max-run-seconds", a.max_run_seconds,
                   "Skip ladder points expected to run longer than this, and stop runs that do")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positive())
       ->capture_default_str();
   cmd->add_option("-j,--threads", a.threads, "OpenMP threads for the grains of a crystal")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positive())
       ->capture_default_str();
   cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_accuracy.py");
 }

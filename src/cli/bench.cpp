@@ -1,4 +1,5 @@
 #include "bench.hpp"
+#include "validators.hpp"
 
 #include <omp.h>
 
@@ -30,9 +31,9 @@ LoadSegment tension(int steps) {
 void add_bench_command(CLI::App& app, BenchArgs& a) {
   CLI::App* cmd = app.add_subcommand(
       "bench", "Grain-steps per second of the crystal kernel (uniaxial tension, strain step 1e-4)");
-  cmd->add_option("--grains", a.grains, "random grains per aggregate")->check(CLI::PositiveNumber);
-  cmd->add_option("--steps", a.steps, "increments of 1e-4 strain")->check(CLI::PositiveNumber);
-  cmd->add_option("--threads", a.threads, "thread counts to run")->check(CLI::PositiveNumber);
+  cmd->add_option("--grains", a.grains, "random grains per aggregate")->check(cli::positive());
+  cmd->add_option("--steps", a.steps, "increments of 1e-4 strain")->check(cli::positive());
+  cmd->add_option("--threads", a.threads, "thread counts to run")->check(cli::positive());
   cmd->add_option("--lattice", a.lattices, "fcc, bcc48, hcp")
       ->check(CLI::IsMember(study::bench_lattices()));
 }

@@ -13,6 +13,7 @@
 #include "bench.hpp"
 #include "post.hpp"
 #include "progress.hpp"
+#include "validators.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -21,6 +22,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -51,6 +53,7 @@ struct RunArgs {
   std::string output;  // empty: results/<scene stem>.h5
   bool force = false;
   bool quiet = false;
+  bool verbose = false;  // HDF5's error stack with an HDF5 error
   int threads = 0;
   double flush_interval = 0.0;
   std::string restart;        // --restart FILE: continue the run that wrote FILE
@@ -63,6 +66,19 @@ fs::path output_path(const RunArgs& a) {
   return fs::path("results") / (fs::path(a.scene).stem().string() + ".h5");
 }
 
+// The valid rows of every case in a result file (0 when it cannot be read).
+long long rows_in(const fs::path& file) {
+  try {
+    const io::h5::File f = io::h5::File::open_read(file);
+    const auto progress = io::h5::CaseProgress::open(f.root());
+    long long rows = 0;
+    for (std::size_t k = 0; k < progress.size(); ++k) rows += progress.rows(k);
+    return rows;
+  } catch (const io::h5::Error&) {
+    return 0;
+  }
+}
+
 // Where a run writes: a new file, created under a temporary name and renamed once its header
 // is complete (so the result path never names a half-written header), or, with --restart, the
 // file of the interrupted run.
@@ -72,19 +88,90 @@ struct RunOutput {
   io::h5::File file;
   bool restart() const { return partial.empty(); }
   void header_written() { fs::rename(partial, path); }
+
+  // Runs `run` (which writes into `file`), then closes the file. A failed write (a full disk,
+  // a file-size limit) becomes one error naming the file, what was being written and the
+  // system's reason; the file records it and keeps the rows written before, or is removed
+  // when it holds none (it would only take space on a disk that is already full).
+  template <class Run>
+  auto write(Run&& run) -> decltype(run()) {
+    try {
+      auto result = run();
+      file.close();
+      return result;
+    } catch (const io::h5::Error& e) {
+      throw std::runtime_error(write_failure(e));
+    }
+  }
+
+ private:
+  std::string write_failure(const io::h5::Error& e) {
+    const std::string what =
+        path.string() + ": cannot " + e.action + (e.reason.empty() ? "" : ": " + e.reason);
+    const bool recorded = io::h5::mark_write_failed(file, "the run stopped: " + what);
+    file.close_quietly();
+    std::error_code ec;
+    if (!restart() && fs::exists(partial, ec)) {
+      fs::remove(partial, ec);
+      return what + "; the result's layout was not complete, so " + partial.string() +
+             " was removed";
+    }
+    const long long rows = rows_in(path);
+    if (!restart() && rows == 0) {
+      fs::remove(path, ec);
+      return what + "; no output step had been written, so the file was removed";
+    }
+    return what + "; the rows written before (" + std::to_string(rows) +
+           ") stay readable and the file is marked incomplete (completed = 0" +
+           (recorded ? ", write_error" : "") + "); free space and continue with --restart " +
+           path.string();
+  }
 };
 
-RunOutput open_output(const RunArgs& a, const std::vector<std::string>& case_names,
-                      const io::RestartInfo* restart) {
+// Before any work: the result (and checkpoints) must fit in the free space of the output's file
+// system and the largest case in memory. A restart's file is laid out already: memory only.
+void check_run_fits(const RunArgs& a, const io::YamlDocument& document, const io::RunSize& size) {
+  const fs::path out = output_path(a);
+  io::Capacity capacity = io::capacity_for(out);
+  if (!a.restart.empty()) capacity.disk_bytes = std::numeric_limits<double>::infinity();
+  io::check_run_fits(document, size, capacity, out);
+}
+
+// A result path naming one of the run's input files would replace it (with --force) by its own
+// result: refused, --force or not.
+void refuse_output_over_inputs(const fs::path& out, const std::vector<fs::path>& inputs) {
+  for (const auto& in : inputs) {
+    std::error_code ec;  // (a path that does not exist is no input file)
+    if (fs::equivalent(out, in, ec)) {
+      throw io::h5::OutputPathError(out.string() + ": is the input file " + in.string() +
+                                    " of this run; choose another output path (-o)");
+    }
+  }
+}
+
+// The checks of the output, then the file: `size` is what the run will write and need.
+RunOutput open_output(const RunArgs& a, const io::YamlDocument& document,
+                      const std::vector<std::string>& case_names, const io::RestartInfo* restart,
+                      const std::vector<fs::path>& inputs, const io::RunSize& size) {
   const fs::path out = output_path(a);
   if (restart != nullptr) {
     io::check_restart_cases(out, *restart, case_names);
+    check_run_fits(a, document, size);
     return {out, {}, io::h5::File::open_write(out)};
   }
+  refuse_output_over_inputs(out, inputs);
+  check_run_fits(a, document, size);  // before check_output_path creates directories
   io::h5::check_output_path(out, a.force);
   fs::path partial = out;
   partial += ".partial";
-  return {out, partial, io::h5::File::create(partial, true)};
+  try {
+    return {out, partial, io::h5::File::create(partial, true)};
+  } catch (const io::h5::Error& e) {
+    std::error_code ec;
+    fs::remove(partial, ec);
+    throw std::runtime_error(out.string() + ": cannot " + e.action +
+                             (e.reason.empty() ? "" : ": " + e.reason));
+  }
 }
 
 template <class Case>
@@ -163,7 +250,8 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document,
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
   const io::ContactScene scene = io::parse_contact_scene(document);
-  RunOutput output = open_output(a, names_of(scene.cases), restart);
+  RunOutput output = open_output(a, document, names_of(scene.cases), restart, {a.scene},
+                                 io::estimate_contact_run(scene));
   print_warnings(a, io::contact_scene_warnings(scene));
   if (!a.quiet) {
     std::printf("subslip: %s: %zu case%s%s%s\n", scene_label(a, scene.file).c_str(),
@@ -182,8 +270,8 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document,
   options.on_header_written = [&] { output.header_written(); };
   options.on_case_done = [&](std::size_t k, const io::ContactCase& c,
                              const io::ContactCaseResult&) { progress.update(k, c.name, 1.0); };
-  const auto results = io::run_contact_scene(scene, output.file, options);
-  output.file.close();
+  const auto results =
+      output.write([&] { return io::run_contact_scene(scene, output.file, options); });
   progress.clear();
   if (!a.quiet) {
     print_contact_table(scene, results);
@@ -263,14 +351,23 @@ std::vector<double> crystal_work(const io::CrystalScene& scene) {
   return work;
 }
 
+// The scene file and the orientation files it reads.
+std::vector<fs::path> input_files(const RunArgs& a, const io::CrystalScene& scene) {
+  std::vector<fs::path> files{a.scene};
+  for (const auto& c : scene.cases)
+    if (c.orientation_source.kind == "file") files.emplace_back(c.orientation_source.description);
+  return files;
+}
+
 int run_crystal(const RunArgs& a, const io::YamlDocument& document,
                 const io::RestartInfo* restart) {
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
   const io::CrystalScene scene = io::parse_crystal_scene(document);
-  RunOutput output = open_output(a, names_of(scene.cases), restart);
   const std::optional<long> checkpoint_every =
       a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
+  RunOutput output = open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
+                                 io::estimate_crystal_run(scene, checkpoint_every));
   bool checkpoints = true;
   for (const auto& c : scene.cases)
     checkpoints = checkpoints && io::checkpoint_policy(c, checkpoint_every).enabled();
@@ -297,8 +394,8 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
     if (resumed) progress.set_done_before(k, fraction);
     progress.update(k, scene.cases[k].name, fraction);
   };
-  const auto results = io::run_crystal_scene(scene, output.file, options);
-  output.file.close();
+  const auto results =
+      output.write([&] { return io::run_crystal_scene(scene, output.file, options); });
   progress.clear();
   if (!a.quiet) {
     const double wall =
@@ -315,6 +412,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
 // With --restart the scene is the one stored in the file (/scene); a scene file named as well
 // must have the same text.
 int run_scene(const RunArgs& a) {
+  io::h5::print_error_stacks(a.verbose);
   std::optional<io::YamlDocument> given;
   if (!a.scene.empty()) given.emplace(io::YamlDocument::from_file(a.scene));
   std::optional<io::RestartInfo> restart;
@@ -346,14 +444,16 @@ void add_run_command(CLI::App& app, RunArgs& a) {
   run->add_option("-o,--output", a.output, "Result file (default: results/<scene stem>.h5)");
   run->add_flag("-f,--force", a.force, "Overwrite an existing result file");
   run->add_flag("-q,--quiet", a.quiet, "Print nothing but errors");
+  run->add_flag("-v,--verbose", a.verbose,
+                "When writing the result file fails, print HDF5's error stack as well");
   run->add_option("-j,--threads", a.threads,
                   "Threads: for sweep cases (contact) or for the grains of a case (crystal); "
                   "default: OpenMP's")
-      ->check(CLI::NonNegativeNumber);
+      ->check(cli::non_negative());
   run->add_option("--flush-interval", a.flush_interval,
                   "Write rows to the result file at most every SECONDS; 0 = after every output "
                   "step, unless writing costs over ~5 % of the computation (then every few ms)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(cli::non_negative())
       ->capture_default_str();
   run->add_option("--restart", a.restart,
                   "Continue the killed run that wrote FILE (scene read from its /scene): "
@@ -362,7 +462,7 @@ void add_run_command(CLI::App& app, RunArgs& a) {
   run->add_option("--checkpoint-every", a.checkpoint_every,
                   "Crystal runs: write a checkpoint every N increments (0: never); default: "
                   "output.checkpoint_every of the scene, else about once a minute")
-      ->check(CLI::NonNegativeNumber);
+      ->check(cli::non_negative());
 }
 
 // ---- subslip orientations
@@ -381,15 +481,15 @@ void add_orientations_command(CLI::App& app, OrientationArgs& a) {
   CLI::App* cmd = app.add_subcommand(
       "orientations", "Write an orientation file (docs/orientations.md): random or a component");
   auto* random = cmd->add_option("--random", a.random, "N uniformly random orientations")
-                     ->check(CLI::PositiveNumber);
+                     ->check(cli::positive());
   auto* component = cmd->add_option("--component", a.component,
                                     "A texture component: cube, goss, brass, copper or s");
   random->excludes(component);
   cmd->add_option("--count", a.count, "Orientations of the component")
-      ->check(CLI::PositiveNumber)
+      ->check(cli::positive())
       ->needs(component);
   cmd->add_option("--spread", a.spread, "RMS misorientation to the ideal component [deg]")
-      ->check(CLI::Range(0.0, 180.0))
+      ->check(cli::between(0.0, 180.0))
       ->needs(component);
   cmd->add_option("--seed", a.seed, "Random seed")->capture_default_str();
   cmd->add_option("-o,--output", a.output, "Output file (default: standard output)");
@@ -451,8 +551,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;  // usage errors are input errors
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    // Usage errors are input errors, reported like every other error (one line, exit 2).
+    std::fprintf(stderr, "subslip: error: %s (subslip --help lists the options)\n", e.what());
+    return 2;
   }
   try {
     if (app.got_subcommand("run")) return run_scene(run_args);

@@ -362,9 +362,11 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
     if (!a.ok || !(error <= opt.tolerance)) {
       a.ok ? ++stats.rejected : ++stats.cutbacks;
       if (!clock.refuse(!a.ok, error)) {
-        throw StepFailure(
-            failure_message(s, clock.refusals(), h,
-                            a.ok ? "local error estimate stays above the tolerance" : a.why));
+        throw StepFailure(failure_message(s, clock.refusals(), h,
+                                          !a.ok ? a.why
+                                          : clock.at_noise_floor()
+                                              ? clock.noise_floor_message()
+                                              : "local error estimate stays above the tolerance"));
       }
       continue;
     }

@@ -258,6 +258,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         solved ? ++stats_.rejected : ++stats_.cutbacks;
         if (solved) why = describe_error(error);
         if (!clock.refuse(!solved, error.value)) {
+          if (clock.at_noise_floor()) why = clock.noise_floor_message() + " (" + why + ")";
           std::ostringstream msg;
           msg << "crystal step failed at time " << macro_.time << " after " << clock.refusals()
               << " refused attempts (dt = " << h << "): " << why;

@@ -1,12 +1,12 @@
 #include "subslip/io/accuracy_output.hpp"
 
-#include <hdf5.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
+#include <system_error>
 
 #include "subslip/io/h5_writer.hpp"
 
@@ -233,25 +233,8 @@ void write_markdown(const fs::path& path, const AccuracyReport& report) {
 // A [n] dataset of variable-length UTF-8 strings with `unit` and `description` attributes.
 void write_strings(const h5::Group& group, const std::string& name,
                    const std::vector<std::string>& values, const std::string& description) {
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, H5T_VARIABLE);
-  H5Tset_cset(type, H5T_CSET_UTF8);
-  const hsize_t n = values.size();
-  const hid_t space = H5Screate_simple(1, &n, nullptr);
-  const hid_t set =
-      H5Dcreate2(group.id(), name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  std::vector<const char*> pointers;
-  for (const auto& v : values) pointers.push_back(v.c_str());
-  const herr_t status = set < 0 || values.empty()
-                            ? (set < 0 ? -1 : 0)
-                            : H5Dwrite(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, pointers.data());
-  if (set >= 0) H5Dclose(set);
-  H5Sclose(space);
-  H5Tclose(type);
-  if (set < 0 || status < 0) throw h5::Error("HDF5: write string dataset " + name);
-  const h5::Dataset dataset = group.open_dataset(name);
+  const h5::Dataset dataset = group.write_strings(name, values, description);
   dataset.set_attribute("unit", "label");
-  dataset.set_attribute("description", description);
 }
 
 void write_column(const h5::Group& group, const std::string& name,
@@ -359,7 +342,7 @@ void write_case(const h5::Group& cases, const AccuracyReport& report, const Accu
   }
 }
 
-void write_hdf5(const fs::path& path, const AccuracyReport& report) {
+void write_hdf5_file(const fs::path& path, const AccuracyReport& report) {
   h5::File file = h5::File::create(path, true);
   h5::ResultHeader header;
   header.scene_kind = report.scene_kind;
@@ -380,6 +363,18 @@ void write_hdf5(const fs::path& path, const AccuracyReport& report) {
   for (const auto& c : report.cases) write_case(cases, report, c);
   h5::mark_completed(file);
   file.close();
+}
+
+// A failed write (a full disk) names the file and the reason, and leaves no broken file.
+void write_hdf5(const fs::path& path, const AccuracyReport& report) {
+  try {
+    write_hdf5_file(path, report);
+  } catch (const h5::Error& e) {
+    std::error_code ec;
+    fs::remove(path, ec);
+    throw std::runtime_error(path.string() + ": cannot " + e.action +
+                             (e.reason.empty() ? "" : ": " + e.reason) + "; the file was removed");
+  }
 }
 
 }  // namespace

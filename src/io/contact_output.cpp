@@ -426,6 +426,32 @@ void ContactCaseWriter::mark_failed(const ContactSummary& summary, const std::st
 
 // ---------------------------------------------------------------- the run
 
+RunSize estimate_contact_run(const ContactScene& scene) {
+  constexpr double kCaseOverheadBytes = 32e3;  // attributes, headers, B-trees of a case group
+  RunSize size;
+  double largest_case = -1.0;
+  for (const auto& c : scene.cases) {
+    double values = 0.0;
+    for (ContactField f : c.fields)
+      values += static_cast<double>(std::max<std::size_t>(field_spec(f, scene.units).columns, 1));
+    const double rows = static_cast<double>(output_count(c.segments));
+    const double bytes = 8.0 * rows * values + kCaseOverheadBytes;
+    size.result_bytes += bytes;
+    if (bytes <= largest_case) continue;
+    largest_case = bytes;
+    size.rows = output_count(c.segments);
+    std::size_t most = 0;
+    for (std::size_t k = 0; k < c.segments.size(); ++k) {
+      const std::size_t n = output_count({c.segments[k]}) - 1;
+      if (n > most) {
+        most = n;
+        size.rows_segment = k;
+      }
+    }
+  }
+  return size;
+}
+
 std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
                                                  const ContactRunOptions& options) {
   const h5::Group root = file.root();

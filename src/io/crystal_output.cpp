@@ -732,6 +732,68 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
 
 }  // namespace
 
+namespace {
+
+// Bytes a case's group takes besides its series (attributes, grain statics' headers, B-trees).
+constexpr double kCaseOverheadBytes = 64e3;
+// Copies of a grain's checkpoint values (x 8 bytes) a running case holds (committed and trial
+// states, the checkpoint): measured 2026-11-23, peak RSS grows by 2.0 kB per FCC grain
+// (2e4 -> 2e5 grains), against 4 x 504 + 128 bytes = 2.1 kB estimated.
+constexpr double kStateCopies = 4.0;
+
+// The output rows of each of the case's segments.
+std::vector<std::size_t> segment_rows(const CrystalCase& c) {
+  std::vector<std::size_t> rows;
+  for (const auto& s : c.segments) {
+    const std::vector<crystal::LoadSegment> one{s};
+    rows.push_back(crystal_output_count(one) - 1);
+  }
+  return rows;
+}
+
+}  // namespace
+
+RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> checkpoint_every) {
+  RunSize size;
+  double largest_case = -1.0;
+  for (const auto& c : scene.cases) {
+    const std::size_t slip_count = crystal::described_systems(c.phase).size();
+    const double rows = static_cast<double>(crystal_output_count(c.segments));
+    const double grains = static_cast<double>(c.orientations.size());
+    double macro_values = 0.0, grain_values = 0.0;
+    for (MacroField f : c.output.macro)
+      macro_values +=
+          static_cast<double>(std::max<std::size_t>(macro_spec(f, scene.units).width, 1));
+    for (GrainField f : c.output.grains)
+      grain_values += static_cast<double>(grain_spec(f, scene.units, slip_count).width);
+    // Grain series reserve whole chunks of up to kGrainChunkBytes each.
+    const double chunk_slack = static_cast<double>(c.output.grains.size() * kGrainChunkBytes);
+    const double bytes = 8.0 * rows * (macro_values + grains * grain_values) + chunk_slack +
+                         8.0 * grains * 16.0 + kCaseOverheadBytes;
+    size.result_bytes += bytes;
+    const double per_grain =
+        8.0 * crystal::checkpoint_values_per_grain(static_cast<int>(slip_count));
+    const double memory = grains * (kStateCopies * per_grain + 8.0 * 16.0) +
+                          static_cast<double>(c.output.grains.size() * kGrainBlockBytes);
+    if (memory > size.memory_bytes) {
+      size.memory_bytes = memory;
+      size.grains = c.orientations.size();
+    }
+    if (bytes > largest_case) {
+      largest_case = bytes;
+      size.rows = static_cast<std::size_t>(rows);
+      const auto per_segment = segment_rows(c);
+      size.rows_segment = static_cast<std::size_t>(
+          std::max_element(per_segment.begin(), per_segment.end()) - per_segment.begin());
+    }
+  }
+  // Two slots, each of the largest case's grain values.
+  size.checkpoint_bytes =
+      2.0 * 8.0 * static_cast<double>(checkpoint_capacity(scene, checkpoint_every));
+  size.result_bytes += size.checkpoint_bytes;
+  return size;
+}
+
 CheckpointPolicy checkpoint_policy(const CrystalCase& c, std::optional<long> command_line) {
   CheckpointPolicy p;
   if (command_line) {

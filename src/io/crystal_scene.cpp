@@ -261,18 +261,19 @@ std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node
   const std::filesystem::path path = resolve_relative(node.as_string(), node.file());
   source = {"file", path.string()};
   try {
-    return read_orientation_file(path.string());
+    return read_orientation_file(path.string(), &source.largest_euler_deg);
   } catch (const InputError& e) {
     if (e.line == 0) node.fail(e.what());
     throw InputError(e.file, e.line, e.key,
-                     e.message + " (orientation file given at " +
-                         InputError::format(node.file(), node.line(), node.path(), "") + ")");
+                     e.message + " (orientation file given at " + node.file() + ":" +
+                         std::to_string(node.line()) + ": " + node.path() + ")");
   }
 }
 
 std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
   if (node.size() == 0) node.fail("needs at least one orientation");
   std::vector<crystal::Orientation> out;
+  double largest = 0.0;
   for (const CheckedNode& element : node.elements()) {
     const auto v = element.as_doubles();
     if (v.size() != 3 && v.size() != 4)
@@ -282,10 +283,11 @@ std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, Orientat
     if (std::abs(v[0]) > 360.0 || std::abs(v[2]) > 360.0)
       element.fail("phi1 and phi2 must be in [-360, 360] degrees");
     if (v.size() == 4 && !(v[3] > 0.0)) element.fail("the weight must be > 0");
+    largest = std::max({largest, std::abs(v[0]), std::abs(v[1]), std::abs(v[2])});
     const crystal::Vec3 euler = crystal::degrees_to_radians(crystal::Vec3(v[0], v[1], v[2]));
     out.push_back(crystal::Orientation::from_euler(euler, v.size() == 4 ? v[3] : 1.0));
   }
-  source = {"euler_deg", std::to_string(out.size()) + " inline Bunge Euler angle sets"};
+  source = {"euler_deg", std::to_string(out.size()) + " inline Bunge Euler angle sets", largest};
   return out;
 }
 

@@ -2,16 +2,21 @@
 
 #include <fcntl.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <limits>
 #include <type_traits>
+#include <vector>
 
 namespace subslip::io::h5 {
 
@@ -19,37 +24,83 @@ static_assert(std::is_same_v<hid_t, Id>, "h5::Id must be hid_t (HDF5 >= 1.10)");
 
 namespace {
 
-// HDF5 prints its error stack to stderr by default; we report errors as exceptions instead.
+// HDF5 prints its error stack to stderr by default; we report errors as exceptions instead
+// (the stack goes to stderr only when asked for: print_error_stacks).
+//
+// No clean-up at exit either: HDF5 1.10 frees a file whose close failed (a full disk) but keeps
+// its identifier, and its own atexit clean-up then closes it again and crashes (SIGSEGV after
+// main returned). Every file is closed explicitly (File::close), so nothing is left to it.
 void quiet_hdf5() {
   static const bool once = [] {
+    H5dont_atexit();  // must come before any other call initialises the library
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
     return true;
   }();
   (void)once;
 }
 
-// The innermost (first) description on HDF5's error stack, if any.
-std::string hdf5_reason() {
-  std::string reason;
+std::atomic<bool> g_print_stacks{false};
+
+// The descriptions on HDF5's error stack, from the API call down to the innermost failure.
+std::vector<std::string> error_descriptions() {
+  std::vector<std::string> out;
   H5Ewalk2(
       H5E_DEFAULT, H5E_WALK_DOWNWARD,
       [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
-        auto* out = static_cast<std::string*>(data);
-        if (out->empty() && e->desc != nullptr) *out = e->desc;
+        if (e->desc != nullptr) static_cast<std::vector<std::string>*>(data)->emplace_back(e->desc);
         return 0;
       },
-      &reason);
+      &out);
+  return out;
+}
+
+// HDF5's file drivers put the system's errno into the text of the entry that failed
+// ("..., errno = 28, error message = 'No space left on device', ..."): that is the reason a
+// user can act on, so it is preferred to HDF5's own words.
+std::string system_reason(const std::vector<std::string>& descriptions) {
+  static constexpr std::string_view kErrno = "errno = ";
+  for (auto it = descriptions.rbegin(); it != descriptions.rend(); ++it) {
+    const std::size_t at = it->find(kErrno);
+    if (at == std::string::npos) continue;
+    const int code = std::atoi(it->c_str() + at + kErrno.size());
+    if (code > 0) return std::strerror(code);
+  }
+  return {};
+}
+
+// The outermost description (what the API call could not do) and the system's reason, if any.
+std::string hdf5_reason() {
+  if (g_print_stacks) H5Eprint2(H5E_DEFAULT, stderr);
+  const std::vector<std::string> descriptions = error_descriptions();
   H5Eclear2(H5E_DEFAULT);
-  return reason;
+  const std::string system = system_reason(descriptions);
+  if (!system.empty()) return system;
+  return descriptions.empty() ? std::string() : descriptions.front();
 }
 
 [[noreturn]] void fail(const std::string& what) {
-  const std::string reason = hdf5_reason();
-  throw Error("HDF5: " + what + (reason.empty() ? "" : " (" + reason + ")"));
+  throw Error(what, hdf5_reason());
 }
 
 void check(herr_t status, const std::string& what) {
   if (status < 0) fail(what);
+}
+
+// The path of an object in its file ("/cases/base/r_s"), for messages; "" when unknown.
+std::string object_path(hid_t id) {
+  char name[512] = {};
+  const ssize_t n = H5Iget_name(id, name, sizeof name);
+  if (n <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    return {};
+  }
+  return name;
+}
+
+// "'r_s' in /cases/base": a member of the group or object `loc`.
+std::string member(hid_t loc, const std::string& name) {
+  const std::string parent = object_path(loc);
+  return "'" + name + "'" + (parent.empty() ? "" : " in " + parent);
 }
 
 Handle own(hid_t id, Handle::Closer close, const std::string& what) {
@@ -92,29 +143,32 @@ void track_creation_order(hid_t plist) {
 bool rewritable_in_place(hid_t attr, hid_t file_type, hid_t space) {
   Handle stored_type = own(H5Aget_type(attr), H5Tclose, "attribute type");
   Handle stored_space = own(H5Aget_space(attr), H5Sclose, "attribute space");
-  return H5Tequal(stored_type.get(), file_type) > 0 && H5Tis_variable_str(file_type) == 0 &&
-         H5Sextent_equal(stored_space.get(), space) > 0;
+  const htri_t same_type = H5Tequal(stored_type.get(), file_type);
+  const htri_t variable = H5Tis_variable_str(file_type);
+  const htri_t same_extent = H5Sextent_equal(stored_space.get(), space);
+  if (same_type < 0 || variable < 0 || same_extent < 0) fail("compare attribute types");
+  return same_type > 0 && variable == 0 && same_extent > 0;
 }
 
 // Writes an attribute: in place when it exists with the same type and shape (the only kind of
 // attribute write a running case makes: see the header's crash-safety note), else created anew.
 void replace_attribute(hid_t object, const std::string& name, hid_t file_type, hid_t space,
                        hid_t memory_type, const void* data) {
+  const std::string where = "attribute " + member(object, name);
   const htri_t exists = H5Aexists(object, name.c_str());
-  if (exists < 0) fail("check attribute '" + name + "'");
+  if (exists < 0) fail("check " + where);
   if (exists > 0) {
-    Handle attr =
-        own(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose, "open attribute '" + name + "'");
+    Handle attr = own(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose, "open " + where);
     if (rewritable_in_place(attr.get(), file_type, space)) {
-      check(H5Awrite(attr.get(), memory_type, data), "write attribute '" + name + "'");
+      check(H5Awrite(attr.get(), memory_type, data), "write " + where);
       return;
     }
     attr.reset();
-    check(H5Adelete(object, name.c_str()), "delete attribute '" + name + "'");
+    check(H5Adelete(object, name.c_str()), "delete " + where);
   }
   Handle attr = own(H5Acreate2(object, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT),
-                    H5Aclose, "create attribute '" + name + "'");
-  check(H5Awrite(attr.get(), memory_type, data), "write attribute '" + name + "'");
+                    H5Aclose, "create " + where);
+  check(H5Awrite(attr.get(), memory_type, data), "write " + where);
 }
 
 // A fixed-length UTF-8 string type of `bytes` bytes, padded with NULs.
@@ -160,6 +214,7 @@ std::vector<std::string> read_strings(hid_t stored_type, std::size_t count, Read
     return out;
   }
   const std::size_t size = H5Tget_size(stored_type);
+  if (size == 0) fail("string size");
   Handle memory = own(H5Tcopy(stored_type), H5Tclose, "copy string type");
   std::vector<char> raw(size * count + 1, '\0');
   check(read(memory.get(), raw.data()), "read strings");
@@ -173,6 +228,8 @@ std::vector<std::string> read_strings(hid_t stored_type, std::size_t count, Read
 
 ValueClass value_class_of(hid_t type) {
   switch (H5Tget_class(type)) {
+    case H5T_NO_CLASS:
+      fail("type class");
     case H5T_FLOAT:
       return ValueClass::floating;
     case H5T_INTEGER:
@@ -233,6 +290,10 @@ void check_output_path(const std::filesystem::path& path, bool overwrite) {
   }
   ::close(fd);
   fs::remove(probe, ec);
+}
+
+void print_error_stacks(bool on) {
+  g_print_stacks = on;
 }
 
 std::string iso8601_utc_now() {
@@ -310,10 +371,11 @@ void Object::write_reserved_string(std::string_view name, std::string_view value
   if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
     throw Error("HDF5: attribute '" + std::string(name) + "' is not a reserved string");
   const std::size_t bytes = H5Tget_size(type.get());
+  if (bytes == 0) fail("size of attribute " + member(id(), std::string(name)));
   std::string text = utf8_prefix(value, bytes);
   text.resize(bytes, '\0');
   check(H5Awrite(attr.get(), type.get(), text.data()),
-        "write attribute '" + std::string(name) + "'");
+        "write attribute " + member(id(), std::string(name)));
 }
 
 bool Object::has_attribute(std::string_view name) const {
@@ -393,7 +455,7 @@ std::vector<std::size_t> Dataset::shape() const {
   const int rank = H5Sget_simple_extent_ndims(space.get());
   if (rank < 0) fail("dataset rank");
   std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
-  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  if (H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) fail("dataset extent");
   return {dims.begin(), dims.end()};
 }
 
@@ -428,7 +490,9 @@ std::string Dataset::read_string() const {
 
 std::vector<std::size_t> Dataset::chunk_shape() const {
   Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
-  if (H5Pget_layout(plist.get()) != H5D_CHUNKED) return {};
+  const H5D_layout_t layout = H5Pget_layout(plist.get());
+  if (layout < 0) fail("dataset layout");
+  if (layout != H5D_CHUNKED) return {};
   hsize_t dims[H5S_MAX_RANK];
   const int rank = H5Pget_chunk(plist.get(), H5S_MAX_RANK, dims);
   if (rank < 0) fail("chunk shape");
@@ -440,7 +504,7 @@ void Dataset::write(std::span<const double> values) const {
   if (static_cast<std::size_t>(element_count(space.get())) != values.size())
     throw Error("HDF5: values do not fit the dataset");
   check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-        "write dataset");
+        "write dataset " + object_path(id()));
 }
 
 void Dataset::write(std::span<const long long> values) const {
@@ -448,7 +512,7 @@ void Dataset::write(std::span<const long long> values) const {
   if (static_cast<std::size_t>(element_count(space.get())) != values.size())
     throw Error("HDF5: values do not fit the dataset");
   check(H5Dwrite(id(), H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-        "write dataset");
+        "write dataset " + object_path(id()));
 }
 
 void Dataset::write_prefix(std::span<const double> values) const {
@@ -463,12 +527,13 @@ void Dataset::write_prefix(std::span<const double> values) const {
   Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
   check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
                  values.data()),
-        "write dataset");
+        "write dataset " + object_path(id()));
 }
 
 std::vector<std::string> Dataset::filters() const {
   Handle plist = own(H5Dget_create_plist(id()), H5Pclose, "dataset creation properties");
   const int n = H5Pget_nfilters(plist.get());
+  if (n < 0) fail("dataset filters");
   std::vector<std::string> out;
   for (int i = 0; i < n; ++i) {
     unsigned flags = 0, config = 0;
@@ -476,6 +541,7 @@ std::vector<std::string> Dataset::filters() const {
     char name[64] = {};
     const H5Z_filter_t f = H5Pget_filter2(plist.get(), static_cast<unsigned>(i), &flags, &n_values,
                                           nullptr, sizeof name, name, &config);
+    if (f < 0) fail("dataset filter");
     if (f == H5Z_FILTER_SHUFFLE)
       out.emplace_back("shuffle");
     else if (f == H5Z_FILTER_DEFLATE)
@@ -516,6 +582,8 @@ Series::Series(Dataset dataset, Type type, std::size_t block_rows, std::size_t r
   row_shape_.assign(shape.begin() + 1, shape.end());
   width_ = product(row_shape_);
   capacity_ = shape.front();
+  const auto chunk = dataset_.chunk_shape();
+  chunk_rows_ = chunk.empty() ? 1 : std::max<std::size_t>(chunk.front(), 1);
   committed_ = std::min(rows, capacity_);
   if (type_ == Type::float64) {
     block_.resize(block_rows_ * width_);
@@ -551,15 +619,72 @@ void Series::append_int(int value) {
 void Series::set_extent(std::size_t rows) {
   std::vector<hsize_t> extent{rows};
   extent.insert(extent.end(), row_shape_.begin(), row_shape_.end());
-  check(H5Dset_extent(dataset_.id(), extent.data()), "resize dataset");
+  check(H5Dset_extent(dataset_.id(), extent.data()),
+        "grow dataset " + object_path(dataset_.id()) + " to " + std::to_string(rows) + " rows");
   capacity_ = rows;
 }
 
+namespace {
+
+// Room for the metadata a growth adds (chunk index nodes, object header messages) beyond the
+// chunks themselves (HDF5 allocates metadata in blocks of 2 kB); what is claimed and not used is
+// given back after the flush.
+constexpr std::uint64_t kGrowthMetadataBytes = 64 << 10;
+
+// HDF5 cannot take back a structural change that fails half-way: a full disk in the middle of
+// growing a dataset leaves metadata it can never write, and every later flush (even of a
+// message saying so) and the close fail. So the space a growth takes is first claimed from the
+// file system, past the end of the file: if that fails, nothing has changed in the file, and the
+// error names the system's reason. HDF5 gives back what it does not use when it next flushes
+// (it truncates the file to its allocated end).
+// The end of the file as HDF5 knows it (what it allocated or wrote), and its descriptor.
+struct FileEnd {
+  hsize_t size = 0;
+  int fd = -1;
+};
+FileEnd file_end(hid_t object, const std::string& what) {
+  Handle file = own(H5Iget_file_id(object), H5Fclose, what + ": file of the dataset");
+  FileEnd end;
+  check(H5Fget_filesize(file.get(), &end.size), what + ": file size");
+  void* handle = nullptr;
+  check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), what + ": file descriptor");
+  end.fd = *static_cast<int*>(handle);  // the sec2 driver (the default) holds an fd
+  return end;
+}
+
+void claim_file_space(hid_t object, std::uint64_t bytes, const std::string& what) {
+  const FileEnd end = file_end(object, what);
+  const int error =
+      ::posix_fallocate(end.fd, static_cast<off_t>(end.size), static_cast<off_t>(bytes));
+  // (EINVAL / EOPNOTSUPP: a file system that cannot say in advance; the growth is tried.)
+  if (error != 0 && error != EINVAL && error != EOPNOTSUPP) throw Error(what, std::strerror(error));
+}
+
+// Gives back what a growth claimed and HDF5 did not use: the file ends where HDF5's data do.
+void release_unused_space(hid_t object, const std::string& what) {
+  const FileEnd end = file_end(object, what);
+  struct stat st {};
+  if (::fstat(end.fd, &st) == 0 && static_cast<hsize_t>(st.st_size) > end.size &&
+      ::ftruncate(end.fd, static_cast<off_t>(end.size)) != 0)
+    throw Error(what + ": give back unused space", std::strerror(errno));
+}
+
+}  // namespace
+
 void Series::reserve(std::size_t rows) {
   if (rows <= capacity_) return;
-  set_extent(std::max(rows, 2 * capacity_));
+  const std::size_t extent = std::max(rows, 2 * capacity_);
+  const std::size_t chunks =
+      (extent + chunk_rows_ - 1) / chunk_rows_ - (capacity_ + chunk_rows_ - 1) / chunk_rows_;
+  const std::size_t value_bytes = type_ == Type::float64 ? sizeof(double) : sizeof(int);
+  claim_file_space(
+      dataset_.id(), chunks * chunk_rows_ * width_ * value_bytes + kGrowthMetadataBytes,
+      "grow dataset " + object_path(dataset_.id()) + " to " + std::to_string(extent) + " rows");
+  set_extent(extent);
   // The new extent (and its chunks) must be in the file before rows that use it are counted.
-  check(H5Fflush(dataset_.id(), H5F_SCOPE_LOCAL), "flush file");
+  check(H5Fflush(dataset_.id(), H5F_SCOPE_LOCAL),
+        "flush file after growing dataset " + object_path(dataset_.id()));
+  release_unused_space(dataset_.id(), "grow dataset " + object_path(dataset_.id()));
 }
 
 void Series::commit() {
@@ -580,7 +705,8 @@ void Series::commit() {
                                             : static_cast<const void*>(int_block_.data());
   check(
       H5Dwrite(dataset_.id(), memory_type, memory_space.get(), file_space.get(), H5P_DEFAULT, data),
-      "append rows");
+      "write rows " + std::to_string(committed_) + ".." +
+          std::to_string(committed_ + pending_ - 1) + " of dataset " + object_path(dataset_.id()));
   committed_ += pending_;
   pending_ = 0;
 }
@@ -601,7 +727,7 @@ Group Group::create_group(std::string_view name) const {
   Handle gcpl = make_property_list(H5P_GROUP_CREATE);
   track_creation_order(gcpl.get());
   return Group(own(H5Gcreate2(id(), n.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose,
-                   "create group '" + n + "'"));
+                   "create group " + member(id(), n)));
 }
 
 Group Group::open_group(std::string_view name) const {
@@ -623,7 +749,9 @@ bool Group::has(std::string_view name) const {
 bool Group::is_group(std::string_view name) const {
   const std::string n(name);
   Handle object = own(H5Oopen(id(), n.c_str(), H5P_DEFAULT), H5Oclose, "open member '" + n + "'");
-  return H5Iget_type(object.get()) == H5I_GROUP;
+  const H5I_type_t type = H5Iget_type(object.get());
+  if (type == H5I_BADID) fail("type of member '" + n + "'");
+  return type == H5I_GROUP;
 }
 
 std::vector<std::string> Group::members() const {
@@ -646,10 +774,30 @@ Dataset Group::write_text(std::string_view name, std::string_view text,
   Handle space = scalar_space();
   Dataset ds(own(
       H5Dcreate2(id(), n.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-      H5Dclose, "create dataset '" + n + "'"));
+      H5Dclose, "create dataset " + member(id(), n)));
   const std::string copy(text);
   const char* data = copy.c_str();
-  check(H5Dwrite(ds.id(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &data), "write '" + n + "'");
+  check(H5Dwrite(ds.id(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, &data),
+        "write dataset " + member(id(), n));
+  ds.set_attribute("description", description);
+  return ds;
+}
+
+Dataset Group::write_strings(std::string_view name, const std::vector<std::string>& values,
+                             std::string_view description) const {
+  const std::string n(name);
+  Handle type = string_type();
+  const hsize_t count[1] = {values.size()};
+  Handle space = simple_space(count);
+  Dataset ds(own(
+      H5Dcreate2(id(), n.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+      H5Dclose, "create dataset " + member(id(), n)));
+  std::vector<const char*> pointers;
+  for (const auto& v : values) pointers.push_back(v.c_str());
+  if (!values.empty()) {
+    check(H5Dwrite(ds.id(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, pointers.data()),
+          "write dataset " + member(id(), n));
+  }
   ds.set_attribute("description", description);
   return ds;
 }
@@ -685,7 +833,7 @@ Series Group::create_series(const SeriesSpec& spec) const {
   Handle dapl = uncached_access();
   Dataset ds(own(
       H5Dcreate2(id(), spec.name.c_str(), stored, space.get(), H5P_DEFAULT, dcpl.get(), dapl.get()),
-      H5Dclose, "create dataset '" + spec.name + "'"));
+      H5Dclose, "create dataset " + member(id(), spec.name)));
   ds.set_attribute("unit", spec.unit);
   ds.set_attribute("description", spec.description);
   return Series(std::move(ds), spec.type, spec.block_rows);
@@ -715,7 +863,7 @@ Dataset Group::create_fixed(std::string_view name, std::span<const std::size_t> 
   }
   Dataset ds(own(H5Dcreate2(id(), n.c_str(), real ? H5T_IEEE_F64LE : H5T_STD_I64LE, space.get(),
                             H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
-                 H5Dclose, "create dataset '" + n + "'"));
+                 H5Dclose, "create dataset " + member(id(), n)));
   ds.set_attribute("description", description);
   return ds;
 }
@@ -734,10 +882,10 @@ Dataset Group::write_array(std::string_view name, std::span<const std::size_t> s
   Handle space = simple_space(dims);
   Dataset ds(own(H5Dcreate2(id(), n.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
                             H5P_DEFAULT),
-                 H5Dclose, "create dataset '" + n + "'"));
+                 H5Dclose, "create dataset " + member(id(), n)));
   if (!values.empty()) {
     check(H5Dwrite(ds.id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-          "write '" + n + "'");
+          "write dataset " + member(id(), n));
   }
   ds.set_attribute("unit", unit);
   ds.set_attribute("description", description);
@@ -787,8 +935,8 @@ Group File::root() const {
   return Group(own(H5Gopen2(handle_.get(), "/", H5P_DEFAULT), H5Gclose, "open root group"));
 }
 
-void File::flush() {
-  check(H5Fflush(handle_.get(), H5F_SCOPE_LOCAL), "flush file");
+void File::flush(std::string_view what) {
+  check(H5Fflush(handle_.get(), H5F_SCOPE_LOCAL), "write " + std::string(what) + " to the file");
 }
 
 // ---------------------------------------------------------------- WritePacer
@@ -843,7 +991,7 @@ void CaseProgress::write_element(const Dataset& d, std::size_t index, long long 
   Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
   check(
       H5Dwrite(d.id(), H5T_NATIVE_LLONG, memory_space.get(), file_space.get(), H5P_DEFAULT, &value),
-      "write progress");
+      "write " + object_path(d.id()));
 }
 
 void CaseProgress::set_rows(std::size_t index, std::size_t rows) {
@@ -860,8 +1008,12 @@ std::string failure_message(const Group& case_group) {
   return case_group.has_attribute("failed") ? case_group.attribute_string("failed") : "";
 }
 
+// A file's metadata reaches the disk in the flush at the latest; the close is checked as well,
+// since a close that fails (a full disk) leaves a file that may not open.
 void File::close() {
-  handle_.reset();
+  if (!handle_.valid()) return;
+  flush();
+  check(H5Fclose(handle_.release()), "close file " + path_.string());
 }
 
 // ---------------------------------------------------------------- result header
@@ -877,14 +1029,15 @@ void write_result_header(File& file, const ResultHeader& header) {
   root.set_attribute("created", iso8601_utc_now());
   root.set_attribute("completed", 0);
   root.set_attribute("layout_complete", 0);
+  root.reserve_string_attribute("write_error", kFailureMessageBytes);
   root.write_text("scene", header.scene_text, "the scene file, verbatim");
   const Group units = root.create_group("units");
   for (const auto& [name, unit] : header.units) units.set_attribute(name, unit);
-  file.flush();
+  file.flush("the result's header");
 }
 
 void mark_layout_complete(File& file) {
-  file.flush();  // everything the layout created is in the file before it says so
+  file.flush("the result's layout");  // everything it created is in the file before it says so
   file.root().set_attribute("layout_complete", 1);
   file.flush();
 }
@@ -895,8 +1048,21 @@ void mark_completed(File& file) {
 }
 
 void mark_running(File& file) {
-  file.root().set_attribute("completed", 0);
+  const Group root = file.root();
+  root.set_attribute("completed", 0);
+  if (root.has_attribute("write_error")) root.write_reserved_string("write_error", "");
   file.flush();
+}
+
+bool mark_write_failed(File& file, std::string_view message) noexcept {
+  try {
+    const Group root = file.root();
+    if (root.has_attribute("write_error")) root.write_reserved_string("write_error", message);
+    file.flush();
+    return true;
+  } catch (...) {
+    return false;  // the disk refuses this too: the message on the terminal is what is left
+  }
 }
 
 }  // namespace subslip::io::h5

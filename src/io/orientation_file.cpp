@@ -7,10 +7,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
+
+#include "subslip/io/text_encoding.hpp"
 
 namespace subslip::io {
 
@@ -206,7 +209,7 @@ class OrientationReader {
   }
 
   crystal::Quaternion quaternion_from_euler_degrees(const std::vector<double>& degrees,
-                                                    const std::vector<std::string>& fields) const {
+                                                    const std::vector<std::string>& fields) {
     for (int i : {0, 2}) {
       if (degrees[i] < -360.0 || degrees[i] > 360.0) {
         fail(kEulerColumns[i], concat(fields[i], " deg is outside [-360, 360]"));
@@ -216,6 +219,7 @@ class OrientationReader {
       fail("Phi", concat(fields[1], " deg is outside [0, 180]"));
     }
     const Eigen::Vector3d euler(degrees[0], degrees[1], degrees[2]);
+    largest_euler_deg_ = std::max(largest_euler_deg_, euler.cwiseAbs().maxCoeff());
     return crystal::euler_to_quaternion(crystal::degrees_to_radians(euler));
   }
 
@@ -236,6 +240,9 @@ class OrientationReader {
   int first_data_line_ = 0;
   int first_column_count_ = 0;
   std::vector<crystal::Orientation> orientations_;
+
+ public:
+  double largest_euler_deg_ = -1.0;  // the largest |angle| read; -1: not Euler angles
 };
 
 std::string format_line(const crystal::Orientation& orientation,
@@ -264,21 +271,52 @@ std::string_view to_string(OrientationConvention convention) {
   return convention == OrientationConvention::bunge_euler_deg ? "bunge-euler-deg" : "quaternion";
 }
 
-std::vector<crystal::Orientation> read_orientations(std::istream& in,
-                                                    const std::string& file_name) {
-  return OrientationReader(file_name).read(in);
+namespace {
+
+// A byte-order mark at the start of `in` (editors on Windows write one): a UTF-8 one is
+// skipped; with a UTF-16/32 one the whole file is converted (text_encoding.hpp) into `converted`,
+// which is then the stream to read. Other files are read as they come, a line at a time.
+std::istream& without_byte_order_mark(std::istream& in, const std::string& file_name,
+                                      std::istringstream& converted) {
+  const int first = in.peek();
+  if (first != 0xEF && first != 0xFF && first != 0xFE && first != 0x00) return in;
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  const std::string text = bytes.str();
+  const bool marked = text.starts_with("\xEF\xBB\xBF") || text.starts_with("\xFF\xFE") ||
+                      text.starts_with("\xFE\xFF") ||
+                      text.starts_with(std::string_view("\0\0\xFE\xFF", 4));
+  converted.str(marked ? decode_text(text, file_name) : text);
+  return converted;
 }
 
-std::vector<crystal::Orientation> read_orientation_file(const std::string& path) {
+}  // namespace
+
+std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
+                                                    double* largest_euler_deg) {
+  OrientationReader reader(file_name);
+  std::istringstream converted;
+  auto orientations = reader.read(without_byte_order_mark(in, file_name, converted));
+  if (largest_euler_deg != nullptr) *largest_euler_deg = reader.largest_euler_deg_;
+  return orientations;
+}
+
+bool euler_angles_look_like_radians(double largest_euler_deg, std::size_t count) {
+  // One orientation, or all at zero (cube), could be meant in degrees.
+  return count >= 2 && largest_euler_deg > 0.0 && largest_euler_deg <= 2.0 * std::numbers::pi;
+}
+
+std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
+                                                        double* largest_euler_deg) {
   std::error_code error;
   if (!std::filesystem::is_regular_file(path, error)) {
     throw InputError(
         path, 0, "file",
         std::filesystem::exists(path, error) ? "not a regular file" : "no such orientation file");
   }
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
-  return read_orientations(in, path);
+  return read_orientations(in, path, largest_euler_deg);
 }
 
 std::string format_orientations(const std::vector<crystal::Orientation>& orientations,

@@ -241,6 +241,9 @@ void print_file_header(std::ostream& out, const ResultFile& r) {
       << (completed ? "yes"
                     : "NO (the run was interrupted, failed or is still running; see the cases)")
       << "\n";
+  // Why a failed write stopped the run (a full disk); the attribute is empty otherwise.
+  const std::string write_error = text("write_error");
+  if (!write_error.empty() && write_error != "-") out << "write error: " << write_error << "\n";
   std::vector<std::string> units;
   if (root.has("units")) {
     const h5::Group u = root.open_group("units");

@@ -9,6 +9,7 @@
 
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/io/orientation_file.hpp"
 
 namespace subslip::io {
 
@@ -111,8 +112,22 @@ std::string settings_key(const crystal::PhaseDescription& d, std::size_t k) {
   return std::string("phase.law (") + std::string(crystal::to_string(d.families[k])) + ")";
 }
 
+// Euler angles given in degrees that all lie within 2 pi were most likely written in radians:
+// read as degrees, every grain is within 6 degrees of the cube orientation.
+void check_euler_units(Collector& w, const CrystalCase& c) {
+  const OrientationSource& s = c.orientation_source;
+  if (!euler_angles_look_like_radians(s.largest_euler_deg, c.orientations.size())) return;
+  const std::string where =
+      s.kind == "file" ? "orientations.file: " + s.description : std::string("orientations");
+  w.add(c.name, where + format(": every Euler angle of the %.0f orientations is within 2 pi "
+                               "(largest %.4g), yet they are read as degrees: were they written "
+                               "in radians? (convert them: degrees = radians x 180 / pi)",
+                               static_cast<double>(c.orientations.size()), s.largest_euler_deg));
+}
+
 void check_crystal_case(Collector& w, const CrystalCase& c, bool checkpoints,
                         const WarningLimits& limits) {
+  check_euler_units(w, c);
   const auto& d = c.phase;
   const auto settings = distinct_settings(d);
   for (std::size_t k = 0; k < settings.size(); ++k)

@@ -12,6 +12,10 @@
 #include <set>
 #include <sstream>
 
+#include <yaml-cpp/depthguard.h>
+
+#include "subslip/io/text_encoding.hpp"
+
 namespace subslip::io {
 
 namespace {
@@ -26,6 +30,17 @@ std::string format_number(double x) {
 
 std::string in_quotes(std::string_view s) {
   return "'" + std::string(s) + "'";
+}
+
+// A value quoted in a message: long ones (a binary or mangled file read as one scalar) are cut
+// at a character boundary, so that the message stays one readable line.
+std::string quoted_value(std::string_view s, char quote = '\'') {
+  constexpr std::size_t kShown = 60;
+  const std::string q(1, quote);
+  if (s.size() <= kShown + 20) return q + std::string(s) + q;
+  std::size_t n = kShown;
+  while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80) --n;
+  return q + std::string(s.substr(0, n)) + "..." + q + " (" + std::to_string(s.size()) + " bytes)";
 }
 
 std::string join(std::span<const std::string_view> names, std::string_view separator) {
@@ -109,6 +124,24 @@ bool has_unit_suffix(std::string_view text) {
   const std::string_view unit = trim(s.substr(space));
   return !unit.empty() && (std::isalpha(static_cast<unsigned char>(unit.front())) ||
                            unit.front() == '/' || unit.front() == '%');
+}
+
+// The line of the '---' that starts the second document of `text`, whose first document's
+// content starts on line `first` (1-based; 0: unknown); 0 when there is no such line.
+int second_document_line(std::string_view text, int first) {
+  int line = 0;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    ++line;
+    const std::size_t end = std::min(text.find('\n', start), text.size());
+    const std::string_view content = text.substr(start, end - start);
+    const bool marker =
+        content.starts_with("---") &&
+        (content.size() == 3 || std::isspace(static_cast<unsigned char>(content[3])));
+    if (marker && line > first) return line;
+    start = end + 1;
+  }
+  return 0;
 }
 
 }  // namespace
@@ -222,11 +255,25 @@ YamlDocument YamlDocument::from_file(const std::filesystem::path& path) {
   return from_string(text.str(), path.string());
 }
 
-YamlDocument YamlDocument::from_string(std::string text, std::string file_name) {
+YamlDocument YamlDocument::from_string(std::string bytes, std::string file_name) {
   auto file = std::make_shared<const std::string>(std::move(file_name));
+  std::string text = decode_text(std::move(bytes), *file);  // UTF-8 from here on
   try {
-    YAML::Node root = YAML::Load(text);
+    std::vector<YAML::Node> documents = YAML::LoadAll(text);
+    // A second document (after a '---' line) would be ignored without a word: refused.
+    if (documents.size() > 1) {
+      throw InputError(*file, second_document_line(text, line_of(documents[0])), "",
+                       "the file holds " + std::to_string(documents.size()) +
+                           " YAML documents (a '---' line starts another one); a scene is one "
+                           "document: remove the '---' line or split the file");
+    }
+    YAML::Node root = documents.empty() ? YAML::Node() : documents.front();
     return YamlDocument(file, std::move(text), std::move(root));
+  } catch (const YAML::DeepRecursion& e) {
+    // (yaml-cpp gives this one the message "bad file".)
+    throw InputError(*file, e.mark.is_null() ? 0 : e.mark.line + 1, "",
+                     "YAML nested too deeply: hundreds of mappings or sequences inside one "
+                     "another, beyond the parser's limit (a scene needs a few)");
   } catch (const YAML::Exception& e) {
     // e.msg is the bare message; e.what() repeats the position in yaml-cpp's own words.
     const int line = e.mark.is_null() ? 0 : e.mark.line + 1;
@@ -280,8 +327,8 @@ std::string CheckedNode::kind_name() const {
   if (is_null()) return "nothing (an empty value)";
   if (is_map()) return "a mapping";
   if (is_sequence()) return "a sequence";
-  if (is_quoted(node_)) return "the quoted string \"" + node_.Scalar() + "\"";
-  return in_quotes(node_.Scalar());
+  if (is_quoted(node_)) return "the quoted string " + quoted_value(node_.Scalar(), '"');
+  return quoted_value(node_.Scalar());
 }
 
 void CheckedNode::expect_map() const {
@@ -436,9 +483,17 @@ int CheckedNode::as_int(const Range& range) const {
   expect_scalar("an integer");
   const auto value = is_quoted(node_) ? std::nullopt : parse_double(node_.Scalar());
   // 1e4 is accepted as an integer: only the value matters, not its spelling.
-  const bool integral = value && std::isfinite(*value) && std::trunc(*value) == *value &&
-                        std::abs(*value) <= std::numeric_limits<int>::max();
+  const bool integral = value && std::isfinite(*value) && std::trunc(*value) == *value;
   if (!integral) fail("expected an integer, got " + kind_name());
+  // An integer all the same, but beyond what this key is stored in: say so, with the limit.
+  constexpr double kLargest = std::numeric_limits<int>::max();
+  if (*value > kLargest) {
+    fail(node_.Scalar() + " is above the largest value this key takes, " + format_number(kLargest));
+  }
+  if (*value < -kLargest) {
+    fail(node_.Scalar() + " is below the smallest value this key takes, " +
+         format_number(-kLargest));
+  }
   if (!range.contains(*value)) fail("must be " + range.describe() + ", got " + node_.Scalar());
   return static_cast<int>(*value);
 }

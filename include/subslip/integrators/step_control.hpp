@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
 
 namespace subslip::integrators {
 
@@ -34,6 +36,12 @@ enum class ExplicitStability { refuse_unstable_steps, unchecked };
 
 // Consecutive refused attempts (rejected or failed) of one step before a driver gives up.
 inline constexpr int kMaxRefusedAttempts = 200;
+
+// The noise floor of the error estimate. A true local error falls as dt^2, so after the step
+// shrank by kFloorShrink over rejected attempts it should be 1e-6 of what it was; an estimate
+// that has not even halved is round-off in the rates it compares (near r_hat, or at rates
+// resolved no better than the Newton tolerance), and no shorter step will meet the tolerance.
+inline constexpr double kFloorShrink = 1e3;
 
 // The clock of one segment [0, duration] walked with adaptive steps: which step to try next,
 // and how an accepted, rejected (error too large) or failed (no solution) attempt moves it. The
@@ -68,11 +76,32 @@ class AdaptiveSegment {
   // A refused attempt shortens the step: by the error estimate when it was too large, by half
   // when the step failed outright. False when the driver should give up: too many refusals in
   // a row, or a step too short to advance the time.
+  // Also false at the estimate's noise floor (see kFloorShrink; then at_noise_floor()).
   bool refuse(bool failed, double error) {
     const double h = step();
+    if (failed) {
+      floor_start_ = {};  // a failed attempt has no estimate: start again after it
+    } else if (refusals_ == 0 || floor_start_.error == 0.0) {
+      floor_start_ = {h, error};
+    }
     dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, kAfterRejected);
     ++refusals_;
-    return refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+    noise_floor_ = !failed && floor_start_.error > 0.0 && h <= floor_start_.step / kFloorShrink &&
+                   error >= 0.5 * floor_start_.error;
+    if (noise_floor_) floor_end_ = {h, error};
+    return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+  }
+  bool at_noise_floor() const { return noise_floor_; }
+  // Why a driver stops at the noise floor, for its failure message.
+  std::string noise_floor_message() const {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "the local error estimate no longer falls as the step shrinks (%.3g at dt = "
+                  "%.3g, %.3g at dt = %.3g): the tolerance %.3g is below what double precision "
+                  "resolves here; use a tolerance above %.3g",
+                  floor_start_.error, floor_start_.step, floor_end_.error, floor_end_.step,
+                  tolerance_, std::max(floor_start_.error, floor_end_.error));
+    return buf;
   }
 
  private:
@@ -82,6 +111,12 @@ class AdaptiveSegment {
   double t_ = 0.0;
   long accepted_ = 0;
   int refusals_ = 0;
+  struct Attempt {
+    double step = 0.0;
+    double error = 0.0;
+  };
+  Attempt floor_start_, floor_end_;  // the first rejected attempt in a row, and the last
+  bool noise_floor_ = false;
 };
 
 }  // namespace subslip::integrators

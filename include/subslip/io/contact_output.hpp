@@ -20,6 +20,7 @@
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/run_size.hpp"
 
 namespace subslip::io {
 
@@ -112,6 +113,9 @@ struct ContactRunOptions {
 // numerically (contact::StepFailure) keeps the rows it reached, writes its `failed` attribute and
 // gets a result with `failure` set; the other cases still run, and the file then stays completed =
 // 0. Other errors (HDF5) are thrown.
+// The result size of the scene's layout (adaptive cases: their planned rows).
+RunSize estimate_contact_run(const ContactScene& scene);
+
 std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
                                                  const ContactRunOptions& options = {});
 

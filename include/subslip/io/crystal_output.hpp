@@ -25,6 +25,7 @@
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/run_size.hpp"
 
 namespace subslip::io {
 
@@ -140,6 +141,10 @@ struct CrystalRunOptions {
 // (crystal::CrystalStepFailure) keeps the rows it reached, writes its `failed` attribute and gets a
 // result with `failure` set; the other cases still run and the file stays completed = 0.
 // Other errors (HDF5) are thrown.
+// The result size (checkpoints with `checkpoint_every`, as run_crystal_scene would write them)
+// and the memory of the largest case, from the layout the run would write.
+RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> checkpoint_every);
+
 std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,
                                                  const CrystalRunOptions& options = {});
 

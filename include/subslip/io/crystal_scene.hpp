@@ -42,8 +42,9 @@ struct CrystalOutputSelection {
 
 // How the orientations were given, for the case attributes.
 struct OrientationSource {
-  std::string kind;         // file | euler_deg | random | component
-  std::string description;  // the file path as resolved, or the request
+  std::string kind;                 // file | euler_deg | random | component
+  std::string description;          // the file path as resolved, or the request
+  double largest_euler_deg = -1.0;  // the largest |Euler angle| given; -1: not Euler angles
 };
 
 // One case of a crystal scene (the whole scene when it has no sweep).

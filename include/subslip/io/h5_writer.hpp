@@ -21,6 +21,12 @@
 // adaptive run taking more output steps than its scene plans): its extent is doubled and
 // flushed, and a kill inside that flush can damage that series of the running case.
 //
+// Write failures (a full disk, a file-size limit). Every HDF5 call is checked and becomes an
+// Error naming the object and the system's reason (errno, which HDF5's file driver records).
+// After the layout only a growth needs new space; it claims that space from the file system
+// first (posix_fallocate), so that a full disk stops it before HDF5 changes anything: the file
+// stays consistent, its valid rows readable, and a message can still be written in place.
+//
 // The header does not include hdf5.h: identifiers are carried as std::int64_t (hid_t in
 // HDF5 >= 1.10), so users of this layer need neither HDF5's include path nor its macros.
 #pragma once
@@ -38,10 +44,22 @@
 
 namespace subslip::io::h5 {
 
-// A failed HDF5 call (message: what was attempted, and HDF5's innermost reason).
+// A failed HDF5 call. what(): "HDF5: ACTION: REASON"; `action` says what was attempted and on
+// which object ("write rows 0..255 of dataset /cases/base/time"), `reason` is the operating
+// system's (errno: "No space left on device") when HDF5 recorded one, else HDF5's own words.
 struct Error : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  explicit Error(const std::string& message) : std::runtime_error(message), action(message) {}
+  Error(std::string what_failed, std::string why)
+      : std::runtime_error("HDF5: " + what_failed + (why.empty() ? "" : ": " + why)),
+        action(std::move(what_failed)),
+        reason(std::move(why)) {}
+  std::string action;
+  std::string reason;
 };
+
+// HDF5's own error stack is not printed (errors become Error); with `on`, every failed call
+// prints it to stderr before it is turned into an Error (subslip run --verbose).
+void print_error_stacks(bool on);
 
 // An output path that cannot be used (exists, not writable, ...); message starts with the path.
 struct OutputPathError : std::runtime_error {
@@ -71,7 +89,8 @@ class Handle {
   ~Handle() { reset(); }
   Id get() const { return id_; }
   bool valid() const { return id_ >= 0; }
-  void reset();
+  void reset();  // closes; a failure to close is ignored (File::close checks its own)
+  Id release() { return std::exchange(id_, -1); }  // the caller closes
 
  private:
   Id id_ = -1;
@@ -187,6 +206,7 @@ class Series {
   std::size_t committed_ = 0;
   std::size_t pending_ = 0;
   std::size_t capacity_ = 0;    // the dataset's extent
+  std::size_t chunk_rows_ = 1;  // rows per chunk (a growth allocates whole chunks)
   std::vector<double> block_;   // float64: block_rows x width
   std::vector<int> int_block_;  // int32: block_rows
 };
@@ -220,6 +240,9 @@ class Group : public Object {
   // A scalar UTF-8 string dataset (with a `description` attribute).
   Dataset write_text(std::string_view name, std::string_view text,
                      std::string_view description) const;
+  // A [n] dataset of UTF-8 strings (with a `description` attribute).
+  Dataset write_strings(std::string_view name, const std::vector<std::string>& values,
+                        std::string_view description) const;
   Series create_series(const SeriesSpec& spec) const;
   // A series that already exists (a restart), holding `rows` valid rows.
   Series open_series(std::string_view name, Type type, std::size_t rows,
@@ -249,8 +272,11 @@ class File {
   const std::filesystem::path& path() const { return path_; }
   // H5Fflush: every metadata change so far reaches the file (rows of a series and fixed
   // arrays need no flush: they are written in place when committed).
-  void flush();
+  void flush(std::string_view what = "the metadata");  // `what`: for the error message
+  // Flushes and closes; throws Error when either fails (the file may then lack metadata).
   void close();
+  // Closes without checking (after a failed write, whose Error is the one to report).
+  void close_quietly() noexcept { handle_.reset(); }
 
  private:
   File(Handle h, std::filesystem::path path);
@@ -323,7 +349,8 @@ struct ResultHeader {
 };
 
 // Root attributes format = "subslip", format_version, program_version, scene_kind,
-// scene_file, title, created (ISO-8601 UTC), completed = 0, layout_complete = 0; dataset
+// scene_file, title, created (ISO-8601 UTC), completed = 0, layout_complete = 0, write_error
+// (reserved, empty: see mark_write_failed); dataset
 // /scene; group /units with one string attribute per unit. Flushes.
 void write_result_header(File& file, const ResultHeader& header);
 // Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes
@@ -331,7 +358,11 @@ void write_result_header(File& file, const ResultHeader& header);
 void mark_layout_complete(File& file);
 // Sets completed = 1 and flushes.
 void mark_completed(File& file);
-// Sets completed = 0 and flushes (a restart, before it changes anything).
+// After a failed write: records `message` in the root's reserved `write_error` attribute (in
+// place, so that it has a chance on a full disk) and flushes; never throws. False when that
+// did not work either.
+bool mark_write_failed(File& file, std::string_view message) noexcept;
+// Sets completed = 0, empties write_error and flushes (a restart, before it changes anything).
 void mark_running(File& file);
 
 // 2: the whole layout is written before the run (summary attributes as placeholders, `failed`

@@ -39,9 +39,16 @@ enum class OrientationConvention { bunge_euler_deg, quaternion };
 std::string_view to_string(OrientationConvention convention);  // "bunge-euler-deg", "quaternion"
 
 // Reads a whole file. Weights are returned as written (not normalised to sum 1).
-std::vector<crystal::Orientation> read_orientation_file(const std::string& path);
+// `largest_euler_deg` (optional): set to the largest |Euler angle| read, -1 for quaternions.
+std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
+                                                        double* largest_euler_deg = nullptr);
 // The same from a stream; `file_name` is what error messages call it.
-std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name);
+std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
+                                                    double* largest_euler_deg = nullptr);
+
+// Whether `count` Euler angle sets, said to be degrees, whose largest |angle| is
+// `largest_euler_deg`, were most likely written in radians (all within 2 pi, not all zero).
+bool euler_angles_look_like_radians(double largest_euler_deg, std::size_t count);
 
 struct OrientationFileFormat {
   OrientationConvention convention = OrientationConvention::bunge_euler_deg;

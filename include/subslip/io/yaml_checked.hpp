@@ -66,7 +66,8 @@ class CheckedNode;
 class YamlDocument {
  public:
   static YamlDocument from_file(const std::filesystem::path& path);
-  // `file_name` is what error messages show.
+  // `file_name` is what error messages show. The text is decoded first (text_encoding.hpp):
+  // a byte-order mark is dropped, UTF-16/32 converted; text() is UTF-8.
   static YamlDocument from_string(std::string text, std::string file_name);
 
   const std::string& file() const { return *file_; }
