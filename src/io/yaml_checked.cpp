@@ -126,20 +126,27 @@ bool has_unit_suffix(std::string_view text) {
                            unit.front() == '/' || unit.front() == '%');
 }
 
-// The line of the '---' that starts the second document of `text`, whose first document's
-// content starts on line `first` (1-based; 0: unknown); 0 when there is no such line.
+// The line that starts a second document in `text`, whose first document's content starts on
+// line `first` (1-based): a '---' line after it, or content after a '...' line; 0 when there is
+// none. (A document marker at column 0 cannot be inside a scalar of a mapping.) Found in the
+// text because yaml-cpp's LoadAll loops for ever on some broken inputs (",s", a fuzz finding).
 int second_document_line(std::string_view text, int first) {
+  auto is_marker = [](std::string_view line, std::string_view marker) {
+    return line.starts_with(marker) &&
+           (line.size() == 3 || std::isspace(static_cast<unsigned char>(line[3])));
+  };
   int line = 0;
-  std::size_t start = 0;
-  while (start <= text.size()) {
+  bool ended = false;  // after a '...' line
+  for (std::size_t start = 0; start <= text.size();) {
     ++line;
     const std::size_t end = std::min(text.find('\n', start), text.size());
-    const std::string_view content = text.substr(start, end - start);
-    const bool marker =
-        content.starts_with("---") &&
-        (content.size() == 3 || std::isspace(static_cast<unsigned char>(content[3])));
-    if (marker && line > first) return line;
+    const std::string_view raw = text.substr(start, end - start);
     start = end + 1;
+    if (line <= first) continue;
+    if (is_marker(raw, "---")) return line;
+    const std::string_view content = trim(raw);
+    if (ended && !content.empty() && !content.starts_with('#')) return line;
+    ended = ended || is_marker(raw, "...");
   }
   return 0;
 }
@@ -259,15 +266,14 @@ YamlDocument YamlDocument::from_string(std::string bytes, std::string file_name)
   auto file = std::make_shared<const std::string>(std::move(file_name));
   std::string text = decode_text(std::move(bytes), *file);  // UTF-8 from here on
   try {
-    std::vector<YAML::Node> documents = YAML::LoadAll(text);
+    YAML::Node root = YAML::Load(text);
     // A second document (after a '---' line) would be ignored without a word: refused.
-    if (documents.size() > 1) {
-      throw InputError(*file, second_document_line(text, line_of(documents[0])), "",
-                       "the file holds " + std::to_string(documents.size()) +
-                           " YAML documents (a '---' line starts another one); a scene is one "
-                           "document: remove the '---' line or split the file");
+    const int second = line_of(root) > 0 ? second_document_line(text, line_of(root)) : 0;
+    if (second > 0) {
+      throw InputError(*file, second, "",
+                       "a second YAML document starts here (a scene is one document): remove "
+                       "the '---' line or split the file");
     }
-    YAML::Node root = documents.empty() ? YAML::Node() : documents.front();
     return YamlDocument(file, std::move(text), std::move(root));
   } catch (const YAML::DeepRecursion& e) {
     // (yaml-cpp gives this one the message "bad file".)
