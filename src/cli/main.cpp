@@ -186,8 +186,10 @@ void print_warnings(const RunArgs& a, const std::vector<std::string>& warnings) 
   for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
+// The progress goes to stderr (stdout keeps the results, redirected or not): a bar when stderr
+// is a terminal.
 cli::ProgressMode progress_mode(const RunArgs& a) {
-  return cli::progress_mode(a.quiet, ::isatty(STDOUT_FILENO) == 1);
+  return cli::progress_mode(a.quiet, ::isatty(STDERR_FILENO) == 1);
 }
 
 std::string scene_label(const RunArgs& a, const std::string& scene_file) {
@@ -262,7 +264,7 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document,
   std::vector<double> work;
   for (const auto& c : scene.cases)
     work.push_back(static_cast<double>(io::output_count(c.segments)));
-  cli::ProgressReporter progress(progress_mode(a), stdout, work);
+  cli::ProgressReporter progress(progress_mode(a), stderr, work);
   io::ContactRunOptions options;
   options.threads = a.threads;
   options.flush_interval = std::chrono::duration<double>(a.flush_interval);
@@ -380,7 +382,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
     print_crystal_intro(a, scene);
     print_crystal_header(scene, width);
   }
-  cli::ProgressReporter progress(progress_mode(a), stdout, crystal_work(scene));
+  cli::ProgressReporter progress(progress_mode(a), stderr, crystal_work(scene));
   io::CrystalRunOptions options;
   options.flush_interval = std::chrono::duration<double>(a.flush_interval);
   options.restart = output.restart();

@@ -1,9 +1,16 @@
 #include "progress.hpp"
 
+#include <sys/ioctl.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <iterator>
 #include <numeric>
+#include <utility>
+
+#include "subslip/io/text_layout.hpp"
 
 namespace subslip::cli {
 
@@ -17,6 +24,46 @@ std::string printf_string(const char* format, double a, double b = 0.0) {
 
 std::string plural(long n, const char* word) {
   return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
+}
+
+// What a progress line shows: the case name cut to `name_columns` (0: none), a bar of at most
+// `bar_cells` (0: none), and which times.
+struct LineLayout {
+  int name_columns;
+  int bar_cells;
+  bool elapsed;
+  bool left;
+};
+
+// A narrower bar shows too little to be worth its room.
+constexpr int kMinBarCells = 10;
+// The widest duration up to 1000 days ("59 min 59 s").
+constexpr int kDurationColumns = 11;
+
+// From the fullest line to the barest; progress_line takes the first that fits. The fraction
+// done and the time left are what a glance at the line is for: they go last, after the elapsed
+// time and the bar.
+constexpr LineLayout kLayouts[] = {
+    {24, ProgressReporter::kBarWidth, true, true},
+    {12, ProgressReporter::kBarWidth, true, true},
+    {12, ProgressReporter::kBarWidth, false, true},
+    {12, 0, false, true},
+    {0, 0, false, true},
+    {0, 0, false, false},
+};
+
+std::string compose(const ProgressView& v, const LineLayout& layout, int bar_cells) {
+  std::string line = "case " + std::to_string(v.case_number) + "/" + std::to_string(v.cases);
+  if (layout.name_columns > 0 && !v.case_name.empty()) {
+    line += ' ';  // appended: GCC 12 warns falsely on "literal" + std::string&&
+    line += io::text::fit_middle(io::text::printable(v.case_name), layout.name_columns);
+  }
+  line += "  ";
+  if (bar_cells > 0) line += format_bar(v.fraction, bar_cells) + "  ";
+  line += printf_string("%5.1f %%", 100.0 * std::clamp(v.fraction, 0.0, 1.0));
+  if (layout.elapsed) line += "  elapsed " + format_duration(v.elapsed);
+  if (layout.left) line += "  left " + format_duration(v.eta);
+  return line;
 }
 
 }  // namespace
@@ -50,20 +97,57 @@ double eta_seconds(double elapsed, double fraction, double start_fraction) {
   return std::max(0.0, elapsed * (1.0 - fraction) / done);
 }
 
-std::string progress_line(const ProgressView& v, int bar_width) {
-  std::string line = "case " + std::to_string(v.case_number) + "/" + std::to_string(v.cases);
-  if (!v.case_name.empty()) line += " " + v.case_name;
-  line += "  ";
-  if (bar_width > 0) line += format_bar(v.fraction, bar_width) + "  ";
-  line += printf_string("%5.1f %%", 100.0 * std::clamp(v.fraction, 0.0, 1.0));
-  line += "  elapsed " + format_duration(v.elapsed);
-  line += "  left " + format_duration(v.eta);
-  return line;
+std::string progress_text(const ProgressView& v) {
+  const LineLayout whole{static_cast<int>(v.case_name.size()), 0, true, true};
+  return compose(v, whole, 0);
 }
 
-ProgressMode progress_mode(bool quiet, bool output_is_terminal) {
+namespace {
+
+// The columns the times of `layout` may still grow by: the bar is sized as if they were as wide
+// as they get, so that it keeps its width while "9.8 s" becomes "1 min 02 s".
+int time_growth(const ProgressView& v, const LineLayout& layout) {
+  const auto growth = [](double seconds) {
+    return std::max(0, kDurationColumns - io::text::display_width(format_duration(seconds)));
+  };
+  return (layout.elapsed ? growth(v.elapsed) : 0) + (layout.left ? growth(v.eta) : 0);
+}
+
+}  // namespace
+
+std::string progress_line(const ProgressView& v, int width) {
+  for (const LineLayout& layout : kLayouts) {
+    const std::string without_bar = compose(v, layout, 0);
+    const int rest = io::text::display_width(without_bar);
+    if (layout.bar_cells == 0) {
+      if (rest <= width) return without_bar;
+      continue;
+    }
+    const int room = width - rest - time_growth(v, layout) - 4;  // brackets, two spaces
+    const int cells = std::min(layout.bar_cells, room);
+    if (cells >= kMinBarCells) return compose(v, layout, cells);
+  }
+  return io::text::fit_end(compose(v, kLayouts[std::size(kLayouts) - 1], 0), width);
+}
+
+int columns_from_environment(const char* value) {
+  constexpr int kDefault = 80;
+  if (value == nullptr) return kDefault;
+  char* end = nullptr;
+  const long columns = std::strtol(value, &end, 10);
+  if (end == value || *end != '\0' || columns <= 0 || columns > 100000) return kDefault;
+  return static_cast<int>(columns);
+}
+
+int terminal_columns(int fd) {
+  winsize size{};
+  if (fd >= 0 && ::ioctl(fd, TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
+  return columns_from_environment(std::getenv("COLUMNS"));
+}
+
+ProgressMode progress_mode(bool quiet, bool terminal) {
   if (quiet) return ProgressMode::none;
-  return output_is_terminal ? ProgressMode::bar : ProgressMode::lines;
+  return terminal ? ProgressMode::bar : ProgressMode::lines;
 }
 
 ProgressReporter::Clock ProgressReporter::steady_clock() {
@@ -74,8 +158,13 @@ ProgressReporter::Clock ProgressReporter::steady_clock() {
 }
 
 ProgressReporter::ProgressReporter(ProgressMode mode, std::FILE* out, std::vector<double> case_work,
-                                   Clock clock)
-    : mode_(mode), out_(out), clock_(std::move(clock)), start_(clock_()) {
+                                   Clock clock, Columns columns)
+    : mode_(mode),
+      out_(out),
+      clock_(std::move(clock)),
+      columns_(std::move(columns)),
+      start_(clock_()) {
+  if (!columns_) columns_ = [out] { return terminal_columns(::fileno(out)); };
   double total = std::accumulate(case_work.begin(), case_work.end(), 0.0);
   if (!(total > 0.0)) {  // no weights: every case counts the same
     case_work.assign(case_work.size(), 1.0);
@@ -122,45 +211,50 @@ void ProgressReporter::update(std::size_t index, const std::string& case_name,
 
 void ProgressReporter::draw(const ProgressView& v) {
   if (mode_ == ProgressMode::bar) {
-    const std::string line = progress_line(v, kBarWidth);
-    // Pad over a longer previous line; no newline, the next draw returns to the line start.
-    const std::size_t pad = drawn_width_ > line.size() ? drawn_width_ - line.size() : 0;
-    std::fprintf(out_, "\r%s%s", line.c_str(), std::string(pad, ' ').c_str());
-    drawn_width_ = line.size();
+    // One column short of the terminal: a character in the last column leaves the cursor
+    // waiting to wrap, which some terminals do at once, and the next "\r" would then return to
+    // a new line. "\x1b[K" clears what a longer previous line left to the right.
+    const int width = std::max(1, columns_() - 1);
+    std::fprintf(out_, "\r%s\x1b[K", progress_line(v, width).c_str());
     bar_shown_ = true;
   } else {
-    std::fprintf(out_, "progress: %s\n", progress_line(v, 0).c_str());
+    std::fprintf(out_, "progress: %s\n", progress_text(v).c_str());
   }
   std::fflush(out_);
 }
 
 void ProgressReporter::clear() {
   if (!bar_shown_) return;
-  std::fprintf(out_, "\r%s\r", std::string(drawn_width_, ' ').c_str());
+  std::fprintf(out_, "\r\x1b[K");
   std::fflush(out_);
   bar_shown_ = false;
-  drawn_width_ = 0;
   last_draw_ = -1e300;  // redraw at the next update
 }
 
 std::string summary_text(const RunTotals& t, double session_seconds, const std::string& output) {
-  std::string s = "done in " + format_duration(session_seconds) + ": " +
-                  plural(static_cast<long>(t.cases), "case");
-  if (t.failed > 0) s += " (" + std::to_string(t.failed) + " failed)";
-  s += ", " + plural(t.increments, "increment");
+  std::vector<std::string> phrases{"done in " + format_duration(session_seconds) + ": " +
+                                   plural(static_cast<long>(t.cases), "case")};
+  if (t.failed > 0) phrases.back() += " (" + std::to_string(t.failed) + " failed)";
+  phrases.push_back(plural(t.increments, "increment"));
   if (t.grain_steps > 0) {
-    s += printf_string(", %.3g grain-steps", static_cast<double>(t.grain_steps));
+    std::string steps = printf_string("%.3g grain-steps", static_cast<double>(t.grain_steps));
     if (t.compute_seconds > 0.0)
-      s += printf_string(" (%.3g grain-steps/s)",
-                         static_cast<double>(t.grain_steps) / t.compute_seconds);
+      steps += printf_string(" (%.3g grain-steps/s)",
+                             static_cast<double>(t.grain_steps) / t.compute_seconds);
+    phrases.push_back(steps);
   }
   if (t.solves > 0) {
-    s += printf_string(", %.3g Newton iterations per ",
-                       static_cast<double>(t.newton_iterations) / static_cast<double>(t.solves));
-    s += t.grain_steps > 0 ? "grain solve" : "increment";
+    phrases.push_back(
+        printf_string("%.3g Newton iterations per ",
+                      static_cast<double>(t.newton_iterations) / static_cast<double>(t.solves)) +
+        (t.grain_steps > 0 ? "grain solve" : "increment"));
   }
-  s += ", " + plural(t.cutbacks, "cutback") + ", " + plural(t.rejected, "rejected step");
-  return s + "\nresults: " + output;
+  phrases.push_back(plural(t.cutbacks, "cutback"));
+  phrases.push_back(plural(t.rejected, "rejected step"));
+  std::string s;
+  for (const auto& line : io::text::wrap_phrases(phrases, io::text::kTextColumns, "  "))
+    s += line + "\n";
+  return s + "results: " + output;
 }
 
 }  // namespace subslip::cli

@@ -1,6 +1,7 @@
-// Progress of `subslip run` and its closing summary: a bar with the time left, redrawn in place
-// on a terminal (at most kRedrawsPerSecond times a second), a plain line every kLineSeconds when
-// the output is not a terminal, nothing with --quiet. The drivers only report how far a case
+// Progress of `subslip run` and its closing summary: a bar with the time left on standard error,
+// redrawn in place when that is a terminal (at most kRedrawsPerSecond times a second, one line
+// that always fits the terminal's width), a plain line every kLineSeconds when it is not, nothing
+// with --quiet. Standard output keeps only the results. The drivers only report how far a case
 // is (a fraction); everything about time and text is here.
 #pragma once
 
@@ -33,24 +34,38 @@ struct ProgressView {
   double eta = 0.0;       // seconds left (NaN: unknown)
 };
 
-// "case 2/5 speed=10  [#####.....]  47.0 %  elapsed 1 min 02 s  left 1 min 05 s"; no bar when
-// bar_width is 0.
-std::string progress_line(const ProgressView& v, int bar_width);
+// "case 2/5 speed=10   47.0 %  elapsed 1 min 02 s  left 1 min 05 s": the whole text, no bar (the
+// plain `progress:` lines).
+std::string progress_text(const ProgressView& v);
+
+// "case 2/5 speed=10  [#####.....]   47.0 %  elapsed 1 min 02 s  left 1 min 05 s" in at most
+// `width` display columns: as the width shrinks, the case name is cut (with "..."), the bar
+// narrows from kBarWidth cells, the elapsed time goes, then the bar, the name and the time left;
+// below 17 columns what is left is cut.
+std::string progress_line(const ProgressView& v, int width);
+
+// The columns of the terminal on `fd` (TIOCGWINSZ), else $COLUMNS, else 80.
+int terminal_columns(int fd);
+// $COLUMNS (`value`, may be null) as a width: a positive number, else 80.
+int columns_from_environment(const char* value);
 
 enum class ProgressMode { none, bar, lines };
-ProgressMode progress_mode(bool quiet, bool output_is_terminal);
+// `terminal`: whether the progress's stream (stderr) is a terminal.
+ProgressMode progress_mode(bool quiet, bool terminal);
 
 class ProgressReporter {
  public:
   static constexpr double kRedrawsPerSecond = 5.0;
   static constexpr double kLineSeconds = 10.0;
-  static constexpr int kBarWidth = 30;
+  static constexpr int kBarWidth = 30;    // cells, when the terminal is wide enough
   using Clock = std::function<double()>;  // monotonic seconds
+  using Columns = std::function<int()>;   // the terminal's width now (it may be resized)
 
   // `case_work`: the relative amount of work of each case (grains x increments, increments...),
-  // which weighs the cases in the overall fraction. `out` is where the bar or lines go.
+  // which weighs the cases in the overall fraction. `out` is where the bar or lines go (stderr);
+  // `columns` gives the width of the bar's terminal, by default that of `out`.
   ProgressReporter(ProgressMode mode, std::FILE* out, std::vector<double> case_work,
-                   Clock clock = steady_clock());
+                   Clock clock = steady_clock(), Columns columns = {});
   // Case `index` is `fraction` (0..1) done; draws when due.
   void update(std::size_t index, const std::string& case_name, double case_fraction);
   // Cases already done before this session (a restart): not counted in the speed.
@@ -70,11 +85,11 @@ class ProgressReporter {
   std::vector<double> before_;  // work of the cases before each case, normalised
   std::vector<double> share_;   // each case's share of the work
   Clock clock_;
+  Columns columns_;
   double start_;
   double start_fraction_ = 0.0;
   double last_draw_ = -1e300;
   bool bar_shown_ = false;
-  std::size_t drawn_width_ = 0;
 };
 
 // Totals over the cases of a run, for the closing summary.
@@ -91,7 +106,8 @@ struct RunTotals {
 };
 
 // "done in 12.3 s: 1 case, 250 increments, 2.5e+05 grain-steps (1.9e+04 grain-steps/s), 2.43
-// Newton iterations per grain solve, 1 cutback, 0 rejected steps\nresults: out.h5".
+// Newton iterations per grain solve, 1 cutback, 0 rejected steps\nresults: out.h5", the first
+// part wrapped into lines of at most 80 columns (continued lines indented by two spaces).
 std::string summary_text(const RunTotals& t, double session_seconds, const std::string& output);
 
 }  // namespace subslip::cli
