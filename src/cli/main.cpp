@@ -41,10 +41,12 @@
 #include "subslip/io/restart.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/scene_warnings.hpp"
+#include "subslip/io/text_layout.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
+namespace text = subslip::io::text;
 
 namespace {
 
@@ -196,33 +198,77 @@ std::string scene_label(const RunArgs& a, const std::string& scene_file) {
   return a.restart.empty() ? a.scene : scene_file + " (restart of " + a.restart + ")";
 }
 
-std::string number(double x, const char* format) {
-  if (std::isnan(x)) return "-";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, format, x);
-  return buf;
+// `line` on stdout, wrapped into lines of at most 80 columns (continued lines indented).
+void print_wrapped(const std::string& line, const char* indent = "  ") {
+  for (const auto& l : text::wrap_words(line, text::kTextColumns, indent))
+    std::printf("%s\n", l.c_str());
 }
+
+// "subslip: SCENE: N cases - TITLE", the title on a line of its own when both do not fit.
+void print_scene_intro(const RunArgs& a, const std::string& file, std::size_t cases,
+                       const std::string& title) {
+  const std::string head = "subslip: " + scene_label(a, file) + ": " + std::to_string(cases) +
+                           (cases == 1 ? " case" : " cases");
+  if (title.empty() || text::display_width(head + " - " + title) <= text::kTextColumns) {
+    print_wrapped(title.empty() ? head : head + " - " + title);
+    return;
+  }
+  print_wrapped(head);
+  print_wrapped("  " + title);
+}
+
+// The widest case name, for the name column of a table.
+template <class Case>
+int longest_name(const std::vector<Case>& cases) {
+  int widest = 0;
+  for (const auto& c : cases) widest = std::max(widest, text::display_width(c.name));
+  return widest;
+}
+
+// A failed case: a line under its row (the whole message is in the result file and, for the
+// first failure, in the error that ends the run).
+void print_failure(const std::string& failure) {
+  if (failure.empty()) return;
+  std::printf("%s\n", text::fit_end("  FAILED: " + failure, text::kTextColumns).c_str());
+}
+
+// Compact headers (explained by kContactLegend) so that the table fits 80 columns.
+text::Table contact_table(const io::ContactScene& scene) {
+  text::Table t({{"case", 0, true},
+                 {"peak", 7},
+                 {"slip@peak[" + scene.units.length + "]", 7},
+                 {"bottom", 7},
+                 {"steady", 7},
+                 {"incr", 6},
+                 {"newton", 6},
+                 {"cuts", 5},
+                 {"wall[s]", 7}});
+  t.fit_column(0, longest_name(scene.cases));
+  return t;
+}
+
+constexpr const char* kContactLegend =
+    "(f_t/f_n: peak, bottom = the minimum after it, steady = analytical at the last speed; incr: "
+    "increments; newton: iterations per increment; cuts: cutbacks)";
 
 void print_contact_table(const io::ContactScene& scene,
                          const std::vector<io::ContactCaseResult>& results) {
-  std::size_t width = 4;
-  for (const auto& r : results) width = std::max(width, r.name.size());
-  const int w = static_cast<int>(width);
-  const std::string slip_head = "slip@peak[" + scene.units.length + "]";
-  std::printf("%-*s  %9s  %14s  %9s  %9s  %9s  %9s  %8s  %8s\n", w, "case", "peak",
-              slip_head.c_str(), "bottom", "steady", "increments", "newton", "cutbacks", "wall[s]");
+  const text::Table t = contact_table(scene);
+  std::printf("%s\n", t.header().c_str());
   for (const auto& r : results) {
     const auto& s = r.summary;
-    std::printf("%-*s  %9s  %14s  %9s  %9s  %9ld  %9ld  %8ld  %8s%s\n", w, r.name.c_str(),
-                number(s.peak_ratio, "%.5f").c_str(), number(s.slip_at_peak, "%.4g").c_str(),
-                number(s.bottom_ratio, "%.5f").c_str(),
-                number(s.steady_ratio_analytical, "%.5f").c_str(), s.stats.increments,
-                s.stats.iterations, s.stats.cutbacks, number(s.stats.wall_seconds, "%.3f").c_str(),
-                r.failure.empty() ? "" : "  FAILED");
+    const double increments = static_cast<double>(s.stats.increments);
+    const double newton = static_cast<double>(s.stats.iterations) / std::max(1.0, increments);
+    std::printf("%s\n",
+                t.row({r.name, t.number(1, s.peak_ratio, 5), t.number(2, s.slip_at_peak),
+                       t.number(3, s.bottom_ratio, 5), t.number(4, s.steady_ratio_analytical, 5),
+                       t.number(5, increments, 7), t.number(6, newton, 3),
+                       t.number(7, static_cast<double>(s.stats.cutbacks), 7),
+                       t.number(8, s.stats.wall_seconds, 3)})
+                    .c_str());
+    print_failure(r.failure);
   }
-  std::printf(
-      "(peak, bottom, steady: f_t/f_n; bottom = minimum after the peak; steady = analytical "
-      "steady state at the last sliding speed)\n");
+  print_wrapped(kContactLegend, " ");
 }
 
 // The counters of the run summary that every case has, whatever its driver.
@@ -256,9 +302,7 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document,
                                  io::estimate_contact_run(scene));
   print_warnings(a, io::contact_scene_warnings(scene));
   if (!a.quiet) {
-    std::printf("subslip: %s: %zu case%s%s%s\n", scene_label(a, scene.file).c_str(),
-                scene.cases.size(), scene.cases.size() == 1 ? "" : "s",
-                scene.title.empty() ? "" : " - ", scene.title.c_str());
+    print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
     std::fflush(stdout);
   }
   std::vector<double> work;
@@ -293,41 +337,52 @@ std::string component_label(std::pair<int, int> ij) {
   return std::to_string(ij.first + 1) + std::to_string(ij.second + 1);
 }
 
-void print_crystal_header(const io::CrystalScene& scene, std::size_t width) {
-  const auto axis = io::loading_component(scene.cases.front().segments);
-  const std::string ij = component_label(axis);
-  const std::string strain = "strain_" + ij;
-  const std::string stress = "stress_" + ij + "[" + scene.units.stress + "]";
-  const std::string mises = "vMises[" + scene.units.stress + "]";
-  std::printf("%-*s  %10s  %16s  %14s  %14s  %12s  %8s  %8s\n", static_cast<int>(width), "case",
-              strain.c_str(), stress.c_str(), mises.c_str(), "grain-steps/s", "newton/solve",
-              "cutbacks", "wall[s]");
+// Compact headers (explained by crystal_legend) so that the table fits 80 columns; strain and
+// stress along the loading component.
+text::Table crystal_table(const io::CrystalScene& scene) {
+  const std::string ij = component_label(io::loading_component(scene.cases.front().segments));
+  const std::string stress_unit = "[" + scene.units.stress + "]";
+  text::Table t({{"case", 0, true},
+                 {"strain_" + ij, 9},
+                 {"stress" + stress_unit, 10},
+                 {"mises" + stress_unit, 10},
+                 {"gsteps/s", 8},
+                 {"newton", 6},
+                 {"cuts", 5},
+                 {"wall[s]", 7}});
+  t.fit_column(0, longest_name(scene.cases));
+  return t;
 }
 
-void print_crystal_row(const io::CrystalCaseResult& r, std::size_t width) {
+std::string crystal_legend(const io::CrystalScene& scene) {
+  const std::string ij = component_label(io::loading_component(scene.cases.front().segments));
+  return "(final values, strain and stress along " + ij +
+         "; mises: von Mises; gsteps/s: grain-steps per second; newton: iterations per grain "
+         "solve; cuts: cutbacks)";
+}
+
+void print_crystal_row(const text::Table& t, const io::CrystalCaseResult& r) {
   const auto& s = r.summary;
   const auto [i, j] = s.axis;
-  std::printf("%-*s  %10s  %16s  %14s  %14s  %12s  %8ld  %8s%s\n", static_cast<int>(width),
-              r.name.c_str(), number(s.final_state.strain(i, j), "%.5f").c_str(),
-              number(s.final_state.stress(i, j), "%.4g").c_str(),
-              number(s.final_von_mises_stress, "%.4g").c_str(),
-              number(s.grain_steps_per_second, "%.4g").c_str(),
-              number(s.newton_per_grain_solve, "%.3f").c_str(), s.stats.cutbacks,
-              number(s.stats.wall_seconds, "%.3f").c_str(), r.failure.empty() ? "" : "  FAILED");
+  std::printf(
+      "%s\n",
+      t.row({r.name, t.number(1, s.final_state.strain(i, j)),
+             t.number(2, s.final_state.stress(i, j)), t.number(3, s.final_von_mises_stress),
+             t.number(4, s.grain_steps_per_second, 3), t.number(5, s.newton_per_grain_solve, 3),
+             t.number(6, static_cast<double>(s.stats.cutbacks), 7),
+             t.number(7, s.stats.wall_seconds, 3)})
+          .c_str());
+  print_failure(r.failure);
   std::fflush(stdout);
 }
 
 void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
   const io::CrystalCase& first = scene.cases.front();
-  std::printf("subslip: %s: %zu case%s%s%s\n", scene_label(a, scene.file).c_str(),
-              scene.cases.size(), scene.cases.size() == 1 ? "" : "s",
-              scene.title.empty() ? "" : " - ", scene.title.c_str());
-  std::printf(
-      "  %zu grain%s, %zu slip systems, %d thread%s (strain and stress along the "
-      "loading component; final values)\n",
-      first.orientations.size(), first.orientations.size() == 1 ? "" : "s",
-      crystal::described_systems(first.phase).size(), omp_get_max_threads(),
-      omp_get_max_threads() == 1 ? "" : "s");
+  print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
+  std::printf("  %zu grain%s, %zu slip systems, %d thread%s\n", first.orientations.size(),
+              first.orientations.size() == 1 ? "" : "s",
+              crystal::described_systems(first.phase).size(), omp_get_max_threads(),
+              omp_get_max_threads() == 1 ? "" : "s");
   std::fflush(stdout);
 }
 
@@ -376,11 +431,10 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
   print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
   // Crystal cases run one after the other; the threads go to the grains of a case.
   if (a.threads > 0) omp_set_num_threads(a.threads);
-  std::size_t width = 4;
-  for (const auto& c : scene.cases) width = std::max(width, c.name.size());
+  const text::Table table = crystal_table(scene);
   if (!a.quiet) {
     print_crystal_intro(a, scene);
-    print_crystal_header(scene, width);
+    std::printf("%s\n", table.header().c_str());
   }
   cli::ProgressReporter progress(progress_mode(a), stderr, crystal_work(scene));
   io::CrystalRunOptions options;
@@ -390,7 +444,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
   options.on_header_written = [&] { output.header_written(); };
   options.on_case_done = [&](std::size_t, const io::CrystalCase&, const io::CrystalCaseResult& r) {
     progress.clear();
-    if (!a.quiet) print_crystal_row(r, width);
+    if (!a.quiet) print_crystal_row(table, r);
   };
   options.on_progress = [&](std::size_t k, double fraction, bool resumed) {
     if (resumed) progress.set_done_before(k, fraction);
@@ -400,6 +454,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
       output.write([&] { return io::run_crystal_scene(scene, output.file, options); });
   progress.clear();
   if (!a.quiet) {
+    print_wrapped(crystal_legend(scene), " ");
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
     std::printf("%s\n", cli::summary_text(crystal_totals(results), wall, output.path).c_str());
