@@ -16,6 +16,7 @@
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/text_layout.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/study/work_precision.hpp"
 
@@ -77,8 +78,11 @@ study::StudyOptions study_options(const AccuracyArgs& a) {
     o.ladders.push_back(l);
   }
   if (!a.quiet) {
+    // Indented under the case; long lines (the reference, failures) wrapped to 80 columns.
     o.progress = [](std::string_view line) {
-      std::printf("  %.*s\n", static_cast<int>(line.size()), line.data());
+      const std::string indented = "  " + std::string(line);
+      for (const auto& l : io::text::wrap_words(indented, io::text::kTextColumns, "    "))
+        std::printf("%s\n", l.c_str());
       std::fflush(stdout);
     };
   }
@@ -103,8 +107,10 @@ void check_case_names(const AccuracyArgs& a, const std::vector<Case>& cases) {
 
 void announce(const AccuracyArgs& a, const std::string& name, const study::Problem& p) {
   if (a.quiet) return;
-  std::printf("case %s: %s, %ld increments in the scene\n", name.c_str(), p.quantity().c_str(),
-              p.base_increments());
+  const std::string line = "case " + name + ": " + p.quantity() + ", " +
+                           std::to_string(p.base_increments()) + " increments in the scene";
+  for (const auto& l : io::text::wrap_words(line, io::text::kTextColumns, "  "))
+    std::printf("%s\n", l.c_str());
   std::fflush(stdout);
 }
 

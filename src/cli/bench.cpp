@@ -3,10 +3,13 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <string>
 
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/io/text_layout.hpp"
 #include "subslip/study/bench_phase.hpp"
 
 namespace subslip::cli {
@@ -26,6 +29,28 @@ LoadSegment tension(int steps) {
   return seg;
 }
 
+// Compact headers (explained by kLegend) so that the table fits 80 columns.
+io::text::Table bench_table(const BenchArgs& a) {
+  io::text::Table t({{"phase", 0, true},
+                     {"slips", 5},
+                     {"grains", 6},
+                     {"threads", 7},
+                     {"gsteps/s", 8},
+                     {"newton", 6},
+                     {"solves/step", 6},
+                     {"cuts", 5},
+                     {"B/grain", 7},
+                     {"wall[s]", 7}});
+  int longest = 0;
+  for (const auto& l : a.lattices) longest = std::max(longest, io::text::display_width(l));
+  t.fit_column(0, longest);
+  return t;
+}
+
+constexpr const char* kLegend =
+    "(gsteps/s: grain-steps per second; newton: Newton iterations per grain solve; solves/step: "
+    "grain solves per grain-step; cuts: cutbacks; B/grain: state bytes per grain)";
+
 }  // namespace
 
 void add_bench_command(CLI::App& app, BenchArgs& a) {
@@ -39,9 +64,8 @@ void add_bench_command(CLI::App& app, BenchArgs& a) {
 }
 
 int run_bench(const BenchArgs& a) {
-  std::printf("%-6s %5s %7s %7s %14s %13s %12s %9s %10s %8s\n", "phase", "slips", "grains",
-              "threads", "grain-steps/s", "newton/solve", "solves/step", "cutbacks", "B/grain",
-              "wall[s]");
+  const io::text::Table t = bench_table(a);
+  std::printf("%s\n", t.header().c_str());
   const auto grains = random_orientations(static_cast<size_t>(a.grains), 20000);
   for (const auto& lattice : a.lattices) {
     for (int threads : a.threads) {
@@ -49,14 +73,20 @@ int run_bench(const BenchArgs& a) {
       auto aggregate = build_taylor_aggregate(study::bench_phase(lattice), grains);
       const AggregateStats st = aggregate->run({tension(a.steps)}, AggregateOptions{},
                                                [](const MacroState&, const GrainFields&) {});
-      std::printf("%-6s %5d %7d %7d %14.4g %13.3f %12.3f %9ld %10zu %8.2f\n", lattice.c_str(),
-                  aggregate->slip_count(), a.grains, threads, st.grain_steps / st.wall_seconds,
-                  double(st.newton_iterations) / double(st.grain_solves),
-                  double(st.grain_solves) / double(st.grain_steps), st.cutbacks,
-                  aggregate->state_bytes_per_grain(), st.wall_seconds);
+      const auto count = [](auto n) { return std::to_string(n); };
+      std::printf("%s\n",
+                  t.row({lattice, count(aggregate->slip_count()), count(a.grains), count(threads),
+                         t.number(4, st.grain_steps / st.wall_seconds, 4),
+                         t.number(5, double(st.newton_iterations) / double(st.grain_solves), 3),
+                         t.number(6, double(st.grain_solves) / double(st.grain_steps), 3),
+                         count(st.cutbacks), count(aggregate->state_bytes_per_grain()),
+                         t.number(9, st.wall_seconds, 3)})
+                      .c_str());
       std::fflush(stdout);
     }
   }
+  for (const auto& l : io::text::wrap_words(kLegend, io::text::kTextColumns, " "))
+    std::printf("%s\n", l.c_str());
   return 0;
 }
 

@@ -12,6 +12,7 @@
 
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/text_layout.hpp"
 
 namespace subslip::io::post {
 
@@ -178,6 +179,36 @@ std::string attribute_or(const h5::Object& o, const std::string& name, const std
 
 // ---------------------------------------------------------------- summary
 
+// The least room beside its label a wrapped value keeps; with less it starts on the next line.
+constexpr int kMinValueColumns = 30;
+
+// `prefix` and, on the lines below, `value` wrapped and indented by six.
+void print_below(std::ostream& out, const std::string& prefix, const std::string& value) {
+  const std::string indent(6, ' ');
+  out << prefix.substr(0, prefix.find_last_not_of(' ') + 1) << "\n";
+  if (value.empty()) return;
+  for (const auto& line : text::wrap_words(indent + value, text::kTextColumns, indent))
+    out << line << "\n";
+}
+
+// `prefix` (a label, or the left columns of a table row) and `value`, in lines of at most 80
+// columns: the value wrapped at its spaces, continued lines indented to where it starts, or, when
+// that leaves under kMinValueColumns, below (print_below).
+void print_hanging(std::ostream& out, const std::string& prefix, const std::string& value) {
+  const int start = text::display_width(prefix);
+  const int room = text::kTextColumns - start;
+  if (room < kMinValueColumns && text::display_width(value) > room) {
+    print_below(out, prefix, value);
+    return;
+  }
+  const auto lines = text::wrap_words(value, room, "");
+  std::string first = prefix + lines.front();
+  first.erase(first.find_last_not_of(' ') + 1);
+  out << first << "\n";
+  for (std::size_t k = 1; k < lines.size(); ++k)
+    out << std::string(static_cast<std::size_t>(start), ' ') << lines[k] << "\n";
+}
+
 std::string short_number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
@@ -228,28 +259,30 @@ void print_file_header(std::ostream& out, const ResultFile& r) {
   const auto text = [&](const char* name) { return attribute_or(root, name, "-"); };
   const std::string version =
       root.has_attribute("format_version") ? attribute_text(root, "format_version") : "-";
-  out << "file:        " << r.name << "\n";
-  out << "format:      subslip, format_version " << version << ", written by subslip "
-      << text("program_version") << "\n";
-  out << "scene kind:  " << text("scene_kind") << " (scene file " << text("scene_file") << ")\n";
-  out << "title:       " << text("title") << "\n";
-  out << "created:     " << text("created") << "\n";
+  print_hanging(out, "file:        ", r.name);
+  print_hanging(
+      out, "format:      ",
+      "subslip, format_version " + version + ", written by subslip " + text("program_version"));
+  print_hanging(out,
+                "scene kind:  ", text("scene_kind") + " (scene file " + text("scene_file") + ")");
+  print_hanging(out, "title:       ", text("title"));
+  print_hanging(out, "created:     ", text("created"));
   const bool completed = root.has_attribute("completed") &&
                          root.attribute_class("completed") != h5::ValueClass::string &&
                          root.attribute_double("completed") == 1.0;
-  out << "completed:   "
-      << (completed ? "yes"
-                    : "NO (the run was interrupted, failed or is still running; see the cases)")
-      << "\n";
+  print_hanging(out, "completed:   ",
+                completed ? "yes"
+                          : "NO (the run was interrupted, failed or is still running; see the "
+                            "cases)");
   // Why a failed write stopped the run (a full disk); the attribute is empty otherwise.
   const std::string write_error = text("write_error");
-  if (!write_error.empty() && write_error != "-") out << "write error: " << write_error << "\n";
+  if (!write_error.empty() && write_error != "-") print_hanging(out, "write error: ", write_error);
   std::vector<std::string> units;
   if (root.has("units")) {
     const h5::Group u = root.open_group("units");
     for (const auto& n : u.attribute_names()) units.push_back(n + " " + attribute_text(u, n));
   }
-  out << "units:       " << (units.empty() ? "-" : join(units, ", ")) << "\n";
+  print_hanging(out, "units:       ", units.empty() ? "-" : join(units, ", "));
   if (root.has("scene")) out << "scene:       /scene (the scene YAML; h5dump -d /scene FILE)\n";
 }
 
@@ -265,9 +298,8 @@ void print_case_attributes(std::ostream& out, const h5::Group& g) {
   std::size_t width = 0;
   for (const auto& l : lines) width = std::max(width, l.first.size());
   out << "  attributes:\n";
-  for (const auto& [name, value] : lines) {
-    out << "    " << name << std::string(width - name.size(), ' ') << " = " << value << "\n";
-  }
+  for (const auto& [name, value] : lines)
+    print_hanging(out, "    " + name + std::string(width - name.size(), ' ') + " = ", value);
 }
 
 // The rows of `d` to use: for a time series (chunked, extendible) at most `valid`.
@@ -299,10 +331,23 @@ void print_case_datasets(std::ostream& out, const h5::Group& g, std::optional<st
     rows.push_back(std::move(row));
   }
   out << "  datasets:\n";
+  // Descriptions beside the columns when they fit there, else all below theirs (a table that
+  // changes its layout from row to row reads badly).
+  const std::size_t columns = 4 + w_path + 2 + w_shape + 2 + w_unit + 2;
+  const int room = text::kTextColumns - static_cast<int>(columns);
+  const bool beside =
+      room >= kMinValueColumns || std::all_of(rows.begin(), rows.end(), [&](const Row& r) {
+        return text::display_width(r.description) <= room;
+      });
   for (const auto& r : rows) {
-    out << "    " << r.path << std::string(w_path - r.path.size() + 2, ' ') << r.shape
-        << std::string(w_shape - r.shape.size() + 2, ' ') << r.unit
-        << std::string(w_unit - r.unit.size() + 2, ' ') << r.description << "\n";
+    const std::string prefix = "    " + r.path + std::string(w_path - r.path.size() + 2, ' ') +
+                               r.shape + std::string(w_shape - r.shape.size() + 2, ' ') + r.unit +
+                               std::string(w_unit - r.unit.size() + 2, ' ');
+    if (beside) {
+      print_hanging(out, prefix, r.description);
+    } else {
+      print_below(out, prefix, r.description);
+    }
   }
 }
 
@@ -634,7 +679,8 @@ void print_summary(std::ostream& out, const fs::path& file, const std::string& c
   const auto selected = select_cases(r, case_name);
   print_file_header(out, r);
   const auto& all = r.cases;
-  out << "cases:       " << all.size() << (all.empty() ? "" : ": " + join(all, ", ")) << "\n";
+  print_hanging(out, "cases:       ",
+                std::to_string(all.size()) + (all.empty() ? "" : ": " + join(all, ", ")));
   for (const auto& c : selected) {
     const h5::Group g = r.root.open_group("cases/" + c);
     out << "\ncase " << c;

@@ -136,16 +136,25 @@ std::string format_setting(const Setting& s) {
   return buf;
 }
 
+// The rows of a ladder (describe_point) come under a header naming the integrator, so that a row
+// needs only the setting and fits 80 columns with the two spaces the command line puts before.
+// The header's column widths are the row's.
+std::string ladder_header(Integrator integrator) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "%-17s  %8s  %9s  %9s  %9s  %9s  %4s",
+                std::string(to_string(integrator)).c_str(), "steps", "max error", "at t",
+                "end error", "time[s]", "runs");
+  return buf;
+}
+
 std::string describe_point(const PointResult& p) {
+  const std::string setting = format_setting(p.setting);
+  if (!p.ok) return setting + ": failed: " + p.failure;
   char buf[256];
-  const std::string head =
-      std::string(to_string(p.setting.integrator)) + " " + format_setting(p.setting);
-  if (!p.ok) return head + ": failed: " + p.failure;
-  std::snprintf(buf, sizeof buf,
-                ": %ld steps, max error %.3e (t = %.3g), end error %.3e, %.4g s (%d run%s)",
+  std::snprintf(buf, sizeof buf, "%-17s  %8ld  %9.3e  %9.3g  %9.3e  %9.4g  %4d", setting.c_str(),
                 p.counters.steps, p.error.max_error, p.error.max_error_time, p.error.end_error,
-                p.median_seconds, p.repeats, p.repeats == 1 ? "" : "s");
-  return head + buf;
+                p.median_seconds, p.repeats);
+  return buf;
 }
 
 void say(const StudyOptions& o, const std::string& line) {
@@ -673,6 +682,7 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
       say(options, out.notes.back());
       continue;
     }
+    say(options, ladder_header(ladder.integrator));
     std::vector<double> values = ladder.values;
     std::optional<std::size_t> previous;  // index into out.points
     for (std::size_t k = 0;; ++k) {
