@@ -1,4 +1,5 @@
-// The subslip executable: run, output-path safety, error lines and exit codes.
+// The subslip executable: run, output-path safety, error lines and exit codes; where the
+// progress goes and the width of what is printed.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "terminal_screen.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip::io;
@@ -285,5 +287,145 @@ TEST(Cli, ResultTooLargeForTheDiskIsRefusedBeforeAnyWork) {
                        "big.yaml:16: loading[0].increments: 1000000000000 is above "
                        "the largest value this key takes, 2147483647"))
       << limit.err;
+  fs::remove_all(dir);
+}
+
+// ---------------------------------------------------------------- terminal width and streams
+
+namespace {
+
+using subslip::testing::columns_of;
+using subslip::testing::lines_of;
+
+// Two crystal cases of 200 random grains and 50 increments each (a second or so in all, long
+// enough for the bar to be redrawn), whose names ("kappa=20.0,u_tilde=200,eta_v=1.0e-3") are
+// too long for the name column of an 80-column table and differ only at their ends.
+const std::string kCrystalSweep = R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.01}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations: {random: {count: 200, seed: 7}}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 20
+    increments: 50
+sweep:
+  "phase.law.friction.kappa": [20.0]
+  "phase.law.subloading.u_tilde": [200]
+  "phase.law.overstress.eta_v": [1.0e-3, 2.0e-3]
+)";
+
+// The progress line's own words, which must never reach stdout.
+void expect_no_progress(const std::string& out) {
+  EXPECT_EQ(out.find('\r'), std::string::npos) << out;
+  EXPECT_EQ(out.find('\x1b'), std::string::npos) << out;
+  EXPECT_FALSE(contains(out, "case 1/2")) << out;
+  EXPECT_FALSE(contains(out, "elapsed")) << out;
+  EXPECT_FALSE(contains(out, " left ")) << out;
+  EXPECT_FALSE(contains(out, "progress:")) << out;
+}
+
+void expect_lines_fit_80(const std::string& out) {
+  ASSERT_FALSE(out.empty());
+  for (const auto& line : lines_of(out)) EXPECT_LE(columns_of(line), 80) << line;
+}
+
+}  // namespace
+
+// With stdout redirected and stderr a terminal, the bar is drawn on stderr and stdout holds only
+// the results; with neither a terminal, stderr gets no bar either.
+TEST(Cli, ProgressGoesToStderrAndStdoutKeepsOnlyTheResults) {
+  const fs::path dir = scratch_dir();
+  write(dir / "sweep.yaml", kCrystalSweep);
+  const auto on_terminal = subslip::testing::run_on_terminal(
+      dir, {"run", "sweep.yaml", "-o", "a.h5"}, 80, dir / "stdout.txt");
+  ASSERT_EQ(on_terminal.code, 0) << on_terminal.terminal;
+  EXPECT_TRUE(contains(on_terminal.terminal, "\rcase 1/2 ")) << on_terminal.terminal;
+  EXPECT_TRUE(contains(on_terminal.terminal, "\x1b[K")) << on_terminal.terminal;
+  const std::string out = slurp(dir / "stdout.txt");
+  expect_no_progress(out);
+  EXPECT_TRUE(contains(out, "done in ")) << out;
+  EXPECT_TRUE(contains(out, "results: a.h5")) << out;
+  EXPECT_FALSE(contains(on_terminal.terminal, "results: a.h5")) << on_terminal.terminal;
+
+  const Outcome files = run(dir, "run sweep.yaml -o b.h5");
+  ASSERT_EQ(files.code, 0) << files.err;
+  expect_no_progress(files.out);
+  EXPECT_EQ(files.err.find('\r'), std::string::npos) << files.err;  // no bar off a terminal
+  EXPECT_TRUE(contains(files.out, "done in ")) << files.out;
+  fs::remove_all(dir);
+}
+
+// On an 80-column terminal the bar never wraps and leaves no line behind: the screen holds what
+// stdout holds when redirected, line for line.
+TEST(Cli, ProgressStaysOneLineOnAnEightyColumnTerminal) {
+  const fs::path dir = scratch_dir();
+  write(dir / "sweep.yaml", kCrystalSweep);
+  const auto tty = subslip::testing::run_on_terminal(dir, {"run", "sweep.yaml", "-o", "a.h5"}, 80);
+  ASSERT_EQ(tty.code, 0) << tty.terminal;
+  ASSERT_TRUE(contains(tty.terminal, "\rcase 1/2 ")) << "the bar was drawn";
+  subslip::testing::Screen screen(80);
+  screen.feed(tty.terminal);
+  EXPECT_EQ(screen.wraps, 0) << tty.terminal;
+  const auto rows = screen.text_rows();
+  for (const auto& row : rows) EXPECT_FALSE(contains(row, "elapsed") || contains(row, " %")) << row;
+  const Outcome redirected = run(dir, "run sweep.yaml -o b.h5");
+  ASSERT_EQ(redirected.code, 0) << redirected.err;
+  EXPECT_EQ(rows.size(), lines_of(redirected.out).size()) << tty.terminal;
+  fs::remove_all(dir);
+}
+
+// The tables of `subslip run` (contact and crystal, long case names cut in the middle), of
+// `subslip bench` and the summary of `subslip post` fit 80 columns, units in the headers.
+TEST(Cli, TablesFitEightyColumns) {
+  const fs::path dir = scratch_dir();
+  write(dir / "tiny.yaml", kScene);
+  const Outcome contact = run(dir, "run tiny.yaml -o c.h5");
+  ASSERT_EQ(contact.code, 0) << contact.err;
+  expect_lines_fit_80(contact.out);
+  EXPECT_TRUE(contains(contact.out, "slip@peak[mm]")) << contact.out;
+  EXPECT_TRUE(contains(contact.out, "\nspeed=1 ")) << contact.out;
+  EXPECT_TRUE(contains(contact.out, "\nspeed=100 ")) << contact.out;
+
+  write(dir / "sweep.yaml", kCrystalSweep);
+  const Outcome crystal = run(dir, "run sweep.yaml -o s.h5");
+  ASSERT_EQ(crystal.code, 0) << crystal.err;
+  expect_lines_fit_80(crystal.out);
+  EXPECT_TRUE(contains(crystal.out, "stress[MPa]")) << crystal.out;
+  EXPECT_TRUE(contains(crystal.out, "wall[s]")) << crystal.out;
+  // The name column cut in the middle keeps the ends that tell the cases apart.
+  EXPECT_TRUE(contains(crystal.out, "\nkappa=2...=1.0e-3 ")) << crystal.out;
+  EXPECT_TRUE(contains(crystal.out, "\nkappa=2...=2.0e-3 ")) << crystal.out;
+
+  const Outcome bench = run(dir, "bench --grains 4 --steps 2 --threads 1");
+  ASSERT_EQ(bench.code, 0) << bench.err;
+  expect_lines_fit_80(bench.out);
+  EXPECT_TRUE(contains(bench.out, "\nbcc48 ")) << bench.out;
+
+  const Outcome post = run(dir, "post s.h5");
+  ASSERT_EQ(post.code, 0) << post.err;
+  expect_lines_fit_80(post.out);
+  EXPECT_TRUE(contains(post.out, "macro/stress")) << post.out;
+  fs::remove_all(dir);
+}
+
+// The point lines of `subslip accuracy` are a table under each integrator; the long lines (the
+// reference, failures) are wrapped.
+TEST(Cli, AccuracyLinesFitEightyColumns) {
+  const fs::path dir = scratch_dir();
+  write(dir / "tiny.yaml", kScene);
+  const Outcome r = run(dir,
+                        "accuracy tiny.yaml --case speed=1 -o acc --no-plot --repeat 1 "
+                        "--max-run-seconds 0.5 --implicit 1 2 --adaptive 1e-3");
+  ASSERT_EQ(r.code, 0) << r.err;
+  expect_lines_fit_80(r.out);
+  EXPECT_TRUE(contains(r.out, "  implicit              steps  max error")) << r.out;
   fs::remove_all(dir);
 }
