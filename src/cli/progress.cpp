@@ -66,6 +66,15 @@ std::string compose(const ProgressView& v, const LineLayout& layout, int bar_cel
   return line;
 }
 
+// The columns the times of `layout` may still grow by: the bar is sized as if they were as wide
+// as they get, so that it keeps its width while "9.8 s" becomes "1 min 02 s".
+int time_growth(const ProgressView& v, const LineLayout& layout) {
+  const auto growth = [](double seconds) {
+    return std::max(0, kDurationColumns - io::text::display_width(format_duration(seconds)));
+  };
+  return (layout.elapsed ? growth(v.elapsed) : 0) + (layout.left ? growth(v.eta) : 0);
+}
+
 }  // namespace
 
 std::string format_duration(double seconds) {
@@ -101,19 +110,6 @@ std::string progress_text(const ProgressView& v) {
   const LineLayout whole{static_cast<int>(v.case_name.size()), 0, true, true};
   return compose(v, whole, 0);
 }
-
-namespace {
-
-// The columns the times of `layout` may still grow by: the bar is sized as if they were as wide
-// as they get, so that it keeps its width while "9.8 s" becomes "1 min 02 s".
-int time_growth(const ProgressView& v, const LineLayout& layout) {
-  const auto growth = [](double seconds) {
-    return std::max(0, kDurationColumns - io::text::display_width(format_duration(seconds)));
-  };
-  return (layout.elapsed ? growth(v.elapsed) : 0) + (layout.left ? growth(v.eta) : 0);
-}
-
-}  // namespace
 
 std::string progress_line(const ProgressView& v, int width) {
   for (const LineLayout& layout : kLayouts) {
