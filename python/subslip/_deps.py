@@ -20,11 +20,17 @@ class MissingDependency(ImportError):
     """A module subslip needs is not importable; the message says what to install."""
 
 
+DEBIAN_PYTHON = "/usr/bin/python3"
+
+
 def install_hint(modules):
     """The sentence naming the Debian packages of `modules` (and the interpreter to use)."""
     packages = " ".join(DEBIAN_PACKAGES.get(m, m) for m in modules)
-    return (f"install it with `apt-get install {packages}` and run /usr/bin/python3 "
-            f"(Debian's packages are not seen by other interpreters; this is {sys.executable})")
+    hint = f"install it with `apt-get install {packages}`"
+    if sys.executable != DEBIAN_PYTHON:
+        hint += (f" and run {DEBIAN_PYTHON} (this is {sys.executable}, which does not see "
+                 "Debian's python3-* packages)")
+    return hint
 
 
 def require(module, purpose="subslip"):

@@ -35,6 +35,30 @@ def quaternion_to_matrix(q):
     return g
 
 
+def matrix_to_quaternion(g):
+    """Quaternions (..., 4) with w >= 0 of orientation matrices g (..., 3, 3): the inverse of
+    quaternion_to_matrix (the largest of w, x, y, z is found first, for accuracy)."""
+    g = np.asarray(g, dtype=float)
+    trace = np.trace(g, axis1=-2, axis2=-1)
+    # 4 w^2, 4 x^2, 4 y^2, 4 z^2 from the diagonal; the off-diagonal sums give the products.
+    squares = np.stack([1.0 + trace, 1.0 + 2.0 * g[..., 0, 0] - trace,
+                        1.0 + 2.0 * g[..., 1, 1] - trace, 1.0 + 2.0 * g[..., 2, 2] - trace], -1)
+    products = {  # 4 * (product of two quaternion components), from quaternion_to_matrix
+        (0, 1): g[..., 1, 2] - g[..., 2, 1], (0, 2): g[..., 2, 0] - g[..., 0, 2],
+        (0, 3): g[..., 0, 1] - g[..., 1, 0], (1, 2): g[..., 0, 1] + g[..., 1, 0],
+        (1, 3): g[..., 0, 2] + g[..., 2, 0], (2, 3): g[..., 1, 2] + g[..., 2, 1]}
+    largest = np.argmax(squares, axis=-1)
+    q = np.empty(g.shape[:-2] + (4,))
+    for k in range(4):
+        pick = largest == k
+        qk = np.sqrt(np.maximum(squares[pick, k], 0.0)) / 2.0  # |component k|
+        q[pick, k] = qk
+        for j in range(4):
+            if j != k:
+                q[pick, j] = products[tuple(sorted((k, j)))][pick] / (4.0 * qk)
+    return q * np.where(q[..., :1] < 0.0, -1.0, 1.0)
+
+
 def cubic_family(hkl):
     """All unit vectors of the cubic form {hkl}, both signs (permutations and sign changes)."""
     vectors = set()
