@@ -8,6 +8,7 @@ over from before a restart and cases a killed run never reached do not show up. 
 /progress (format version 1, trimmed at the end) have every row valid.
 """
 
+import functools
 import os
 
 import numpy as np
@@ -18,6 +19,9 @@ from ._deps import require
 h5py = require("h5py")
 
 CASE_STATES = {0: "not_started", 1: "running", 2: "completed", 3: "failed"}
+# What a crystal scene's `output` block may ask for (docs/scenes.md), for hints.
+OUTPUT_FIELDS = {"macro": ("time", "L", "F", "strain", "stress", "segment"),
+                 "grains": ("stress", "orientation", "slip", "slip_rate", "crss", "r", "r_s")}
 
 
 class NotAResult(ValueError):
@@ -222,9 +226,10 @@ class Case:
     def description(self, path):
         return text_attribute(self.dataset(path), "description")
 
-    @property
+    @functools.cached_property
     def attrs(self):
-        """The case group's attributes (parameters, summary), decoded."""
+        """The case group's attributes (parameters, summary), decoded (read once: the file is
+        open read-only)."""
         if self.group is None:
             return {}
         return {k: decoded(v) for k, v in self.group.attrs.items()}
@@ -277,12 +282,9 @@ class Case:
         return tensors.von_mises_strain(self.series(self._need("macro/strain")))
 
     def grain_weights(self):
-        """Volume fractions (G,) summing to 1 (equal when the file has none)."""
-        if "grains/weight" in self:
-            w = self.raw("grains/weight")
-            return w / np.sum(w)
-        count = self.dataset(self._need("grains/initial_orientation")).shape[0]
-        return np.full(count, 1.0 / count)
+        """Volume fractions (G,) summing to 1 (grains/weight, written with every grain field)."""
+        w = self.raw(self._need("grains/weight"))
+        return w / np.sum(w)
 
     def slip_system_labels(self):
         d = self.dataset(self._need("grains/slip_systems"))
@@ -302,7 +304,7 @@ class Case:
         the sum over output steps of sqrt(2/3 dE:dE), dE = sum_a dgamma_a sym(s_a (x) m_a)
         with dgamma the change of grains/slip between rows (exact while no system reverses
         within an output step). Needs grains/slip and grains/slip_systems."""
-        slip = self.series(self._need("grains/slip", "slip"))
+        slip = self.series(self._need("grains/slip"))
         eps = derived.equivalent_plastic_strain(slip, self.schmid_tensors())
         return eps if per_grain else eps @ self.grain_weights()
 
@@ -335,8 +337,7 @@ class Case:
         fixed = step == 0 or self.attrs.get("kinematics") == "small_strain"
         if fixed and "grains/initial_orientation" in self:
             return self.raw("grains/initial_orientation")
-        raise MissingData(f"case '{self.name}' has no grains/orientation; ask the scene for "
-                          "it: output: {grains: [orientation]}")
+        raise MissingData(self._missing("grains/orientation"))
 
     def pole_figure(self, crystal_vectors, step=-1, projection="equal_area"):
         """(X, Y) of the poles `crystal_vectors` (e.g. texture.cubic_family((1, 0, 0))) of
@@ -361,11 +362,21 @@ class Case:
 
     # ------------------------------------------------------------ helpers
 
-    def _need(self, path, field=None):
+    def _need(self, path):
+        """`path`, or MissingData naming the scene's output setting that writes it."""
         if path not in self:
-            hint = (f"; ask the scene for it: output: {{grains: [{field}]}}" if field else "")
-            raise MissingData(f"case '{self.name}' has no {path}{hint}")
+            raise MissingData(self._missing(path))
         return path
+
+    def _missing(self, path):
+        group, _, field = path.rpartition("/")
+        if field in OUTPUT_FIELDS.get(group, ()):
+            hint = f"; ask the scene for it: output: {{{group}: [{field}]}}"
+        elif group == "grains":  # weight, slip_systems: written with any grain field
+            hint = "; ask the scene for grain fields: output: {grains: [...]}"
+        else:
+            hint = ""
+        return f"case '{self.name}' has no {path}{hint}"
 
     def __repr__(self):
         rows = "all" if self.valid_rows is None else self.valid_rows
