@@ -11,6 +11,7 @@ Projections map the upper hemisphere (z >= 0) onto the unit disk: equal-area (La
 """
 
 import itertools
+import math
 
 import numpy as np
 
@@ -148,6 +149,21 @@ def hexagonal_standard_triangle(v):
     phi = np.mod(np.arctan2(v[:, 1], v[:, 0]), np.pi / 3.0)  # six-fold axis
     phi = np.minimum(phi, np.pi / 3.0 - phi)  # mirror planes every 30 deg
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def standard_triangle_outline(lattice="cubic", projection="equal_area", points=60):
+    """(X, Y) of the closed outline of the standard triangle inverse_pole_figure_points
+    fills, for drawing: cubic [001] -> [101] -> [111] -> [001], hcp [0001] -> [2-1-10] ->
+    [10-10] -> [0001]. The edges are great circles, sampled at `points` points each."""
+    t = np.linspace(0.0, 1.0, points)[:, None]
+    if lattice == "hcp":
+        a1, m1 = np.array([1.0, 0.0, 0.0]), np.array([math.sqrt(0.75), 0.5, 0.0])
+        corners = [np.array([0.0, 0.0, 1.0]), a1, m1]
+    else:
+        corners = [np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 1.0]), np.ones(3)]
+    edges = [(1.0 - t) * a + t * b for a, b in zip(corners, corners[1:] + corners[:1])]
+    v = np.concatenate(edges)
+    return project(v / np.linalg.norm(v, axis=1, keepdims=True), projection)
 
 
 def inverse_pole_figure_points(quaternions, sample_direction=(0.0, 0.0, 1.0), lattice="cubic",

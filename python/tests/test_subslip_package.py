@@ -65,6 +65,17 @@ def equal_area(v):
     return x / math.sqrt(1 + z), y / math.sqrt(1 + z)
 
 
+def inside(point, x, y):
+    """Whether `point` is inside the closed polygon (x, y) (ray casting along +X)."""
+    px, py = point
+    crossings = 0
+    for k in range(len(x)):
+        x0, y0, x1, y1 = x[k - 1], y[k - 1], x[k], y[k]
+        if (y0 > py) != (y1 > py) and px < x0 + (py - y0) * (x1 - x0) / (y1 - y0):
+            crossings += 1
+    return crossings % 2 == 1
+
+
 def cubic_rotations():
     """The 24 proper rotations of the cube: signed permutation matrices of determinant 1."""
     out = []
@@ -169,6 +180,16 @@ class Texture(unittest.TestCase):
             np.testing.assert_allclose(got, reference, atol=1e-12)
         v = texture.cubic_standard_triangle(texture.crystal_directions(q, (1.0, 2.0, 3.0)))
         self.assertTrue(np.all((v[:, 2] >= v[:, 0]) & (v[:, 0] >= v[:, 1]) & (v[:, 1] >= 0)))
+
+    def test_triangle_outline_runs_through_the_corners(self):
+        x, y = texture.standard_triangle_outline("cubic", points=5)
+        corners = [equal_area(v) for v in ((0, 0, 1), (1, 0, 1), (1, 1, 1))]
+        for k, corner in enumerate(corners):
+            np.testing.assert_allclose([x[5 * k], y[5 * k]], corner, atol=1e-15)
+        # A reduced direction falls inside the outline; [011] (y > x) is outside the triangle.
+        reduced = equal_area(texture.cubic_standard_triangle([[3.0, 1.0, 7.0]])[0])
+        self.assertTrue(inside(reduced, x, y))
+        self.assertFalse(inside(equal_area((0.0, 1.0, 1.0)), x, y))
 
     def test_hexagonal_triangle(self):
         # a1 (x) and the {10-10} normal at 30 deg bound the sector; 50 deg folds onto 10 deg.
