@@ -47,11 +47,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 
 from subslip.derived import weighted_mean_abs  # noqa: E402
-from subslip.texture import (cubic_family, hexagonal_family, pole_families,  # noqa: E402,F401
-                             pole_figure_points, quaternion_to_matrix, sample_directions,
-                             upper_hemisphere_projection)
+from subslip.texture import pole_families, pole_figure_points  # noqa: E402
 
-Result = subslip.Result  # the file as the package reads it (scripts/test_subslip_plots.py)
+# The geometry and reading this script draws with, as scripts/test_subslip_plots.py checks them
+# through this module.
+from subslip.texture import (cubic_family, hexagonal_family, quaternion_to_matrix,  # noqa: E402
+                             sample_directions, upper_hemisphere_projection)
+
+Result = subslip.Result
+__all__ = ["main", "Result", "cubic_family", "hexagonal_family", "quaternion_to_matrix",
+           "sample_directions", "upper_hemisphere_projection", "pole_figure_points"]
 FORMATS = ("png", "pdf", "svg")
 
 

@@ -6,8 +6,9 @@
 
 PoleGeometry checks the projection and the rotation convention against hand-derived poles;
 Pictures runs subslip on the small scenes of tests/data/post/, draws them, checks the PNG files
-(and --format pdf / svg, --dpi, legends with units), and checks the poles of a grain whose quaternion subslip wrote against g built by hand from its
-Euler angles with the formula of include/subslip/crystal/rotation.hpp.
+(and --format pdf / svg, --dpi, legends with units), and checks the poles of a grain whose
+quaternion subslip wrote against g built by hand from its Euler angles with the formula of
+include/subslip/crystal/rotation.hpp.
 """
 
 import math
