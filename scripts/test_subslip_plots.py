@@ -5,9 +5,10 @@
     SUBSLIP_BINARY=build/src/subslip /usr/bin/python3 scripts/test_subslip_plots.py Pictures
 
 PoleGeometry checks the projection and the rotation convention against hand-derived poles;
-Pictures runs subslip on the small scenes of tests/data/post/, draws them, checks the PNG files,
-and checks the poles of a grain whose quaternion subslip wrote against g built by hand from its
-Euler angles with the formula of include/subslip/crystal/rotation.hpp.
+Pictures runs subslip on the small scenes of tests/data/post/, draws them, checks the PNG files
+(and --format pdf / svg, --dpi, legends with units), and checks the poles of a grain whose
+quaternion subslip wrote against g built by hand from its Euler angles with the formula of
+include/subslip/crystal/rotation.hpp.
 """
 
 import math
@@ -141,7 +142,7 @@ class ReservedRows(unittest.TestCase):
 
     def test_only_valid_rows_and_started_cases(self):
         result = sp.Result(self.path)
-        self.assertEqual(result.case_names, ["a"])
+        self.assertEqual(result.cases, ["a"])
         ratio = result.case("a").series("ratio")
         self.assertEqual(len(ratio), 6)
         self.assertTrue(np.all(np.isfinite(ratio)))
@@ -214,12 +215,33 @@ class Pictures(unittest.TestCase):
         self.assertEqual(run.returncode, 2)
         self.assertIn("no case 'nope'", run.stderr)
 
+    def test_formats_and_resolution(self):
+        # --format pdf / svg: the same pictures as vector files; --dpi scales a PNG's pixels.
+        for fmt, signature in (("pdf", b"%PDF-"), ("svg", b"<svg")):
+            run, out = self.draw("contact_small", "--format", fmt)
+            self.assertEqual(run.returncode, 0, run.stderr)
+            self.assertEqual(os.listdir(out), [f"traction_ratio.{fmt}"])
+            with open(os.path.join(out, f"traction_ratio.{fmt}"), "rb") as f:
+                self.assertIn(signature, f.read(4096))
+        _, default = self.draw("contact_small")
+        _, half = self.draw("contact_small", "--dpi", "50")
+        width, height = png_size(os.path.join(default, "traction_ratio.png"))
+        self.assertEqual(png_size(os.path.join(half, "traction_ratio.png")),
+                         (width // 2, height // 2))
+
+    def test_legends_name_swept_values_with_units(self):
+        run, out = self.draw("contact_small", "--format", "svg")
+        self.assertEqual(run.returncode, 0, run.stderr)
+        with open(os.path.join(out, "traction_ratio.svg"), encoding="utf-8") as f:
+            svg = f.read()
+        self.assertIn("speed=200 mm/min", svg)
+
     def test_loading_component_is_the_prescribed_one(self):
         # Tension along z with free lateral L11, L22 (which change every step): 33.
         result = sp.Result(self.results["crystal_small"])
-        self.assertEqual(len(result.case_names), 2)
-        for name in result.case_names:
-            self.assertEqual(sp.loading_component(result.case(name)), (2, 2))
+        self.assertEqual(len(result.cases), 2)
+        for name in result.cases:
+            self.assertEqual(result.case(name).loading_component(), (2, 2))
 
     def test_stored_quaternion_gives_the_euler_grains_poles(self):
         # The grain of single_crystal_euler.yaml is at Bunge (90, 30, 0) deg. subslip converted

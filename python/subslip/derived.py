@@ -1,0 +1,93 @@
+"""Quantities derived from a case's arrays: slip activity, equivalent plastic strain, the
+loading component, units of swept values."""
+
+import re
+
+import numpy as np
+
+
+def schmid_tensors(slip_systems):
+    """sym(s (x) m) (N, 3, 3) of grains/slip_systems rows (s in columns 0-2, m in 3-5)."""
+    systems = np.asarray(slip_systems, dtype=float)
+    p = np.einsum("ai,aj->aij", systems[:, :3], systems[:, 3:6])
+    return 0.5 * (p + np.swapaxes(p, -1, -2))
+
+
+def weighted_mean_abs(values, weights):
+    """sum_g w_g |values[:, g, ...]|: (n, G, N) -> (n, N)."""
+    return np.einsum("ng...,g->n...", np.abs(values), np.asarray(weights, dtype=float))
+
+
+def equivalent_plastic_strain(slip, schmid):
+    """Accumulated equivalent plastic strain (n, G) from accumulated signed slip (n, G, N) and
+    the Schmid tensors (N, 3, 3): sum over rows of sqrt(2/3 dE:dE), dE = sum_a dgamma_a P_a.
+    The measure is invariant under rotation, so lattice-frame P_a serve every grain and step.
+    Row 0 (the initial state) is 0."""
+    slip = np.asarray(slip, dtype=float)
+    if len(slip) == 0:
+        return np.zeros(slip.shape[:2])
+    increments = np.diff(slip, axis=0)  # slip between successive output steps
+    d_strain = np.einsum("nga,aij->ngij", increments, schmid)
+    d_eq = np.sqrt(2.0 / 3.0 * np.sum(d_strain * d_strain, axis=(-2, -1)))
+    return np.concatenate([np.zeros((1,) + slip.shape[1:2]), np.cumsum(d_eq, axis=0)])
+
+
+def loading_component(L, segment=None):
+    """(i, j) of the largest prescribed velocity-gradient component, as `subslip run` reports
+    it, from the L series (n, 3, 3). A prescribed L_ij is constant within a segment, while a
+    free (solved) one changes from step to step; the file does not flag which is which, so
+    this tells them apart by that. None without increments."""
+    L = np.asarray(L, dtype=float).reshape(-1, 9)[1:]  # row 0: the initial state
+    if len(L) == 0:
+        return None
+    if segment is not None:
+        allowed = max(len(np.unique(np.asarray(segment)[1:len(L) + 1])) - 1, 0)
+    else:
+        allowed = len(L) // 10
+    best, largest = None, 0.0
+    for c in range(9):
+        changes = np.count_nonzero(np.diff(L[:, c]))
+        size = np.max(np.abs(L[:, c]))
+        if changes <= allowed and size > largest:
+            best, largest = divmod(c, 3), size
+    return best
+
+
+def sweep_label(path):
+    """The part of a sweep path a case name shows: from the last key on ("L[2][2]" of
+    "loading[0].L[2][2]", "speed" of "loading[0].slide.speed")."""
+    return path.rsplit(".", 1)[-1]
+
+
+def sweep_key(path):
+    """The last key of a sweep path, without indices ("L" of "loading[0].L[2][2]")."""
+    return re.sub(r"\[[^\]]*\]", "", sweep_label(path))
+
+
+# Units of scene keys that have no attribute of their name in the case group, in terms of the
+# file's /units (docs/scenes.md, `loading` tables).
+LOADING_UNITS = {
+    "L": "1/{time}", "stress": "{stress}", "traction": "{stress}", "strain": "1",
+    "speed": "{length}/{time}", "velocity": "{length}/{time}", "distance": "{length}",
+    "duration": "{time}", "spread_deg": "deg", "euler_deg": "deg",
+}
+
+
+def sweep_unit(case, path):
+    """The unit of a swept value, or None when unknown (counts, names). The file does not
+    store it: taken from a `sweep:<path>.unit` attribute if a later file has one, else from
+    the case attribute of the same key (`eta_v.unit`), else from the scene's loading keys."""
+    attrs = case.attrs
+    if f"sweep:{path}.unit" in attrs:
+        return attrs[f"sweep:{path}.unit"]
+    key = sweep_key(path)
+    if f"{key}.unit" in attrs:
+        return attrs[f"{key}.unit"]
+    template = LOADING_UNITS.get(key)
+    if template is None:
+        return None
+    units = case.result.units
+    try:
+        return template.format(**units)
+    except KeyError:  # e.g. a crystal file has no length unit
+        return None

@@ -1,0 +1,383 @@
+"""Reading a subslip result file: cases, their valid rows, units, tensors in one convention.
+
+Layout (docs/scenes.md, "Result file layout"): root attributes, /units, /cases/<case>/...,
+/progress. A series is laid out whole before the run (rows reserved, NaN or INT_MIN) and filled
+as the run goes; /progress/rows[case] counts its valid rows and /progress/state says whether
+the case was started. Every series read here is cut to those rows, so NaN padding, rows left
+over from before a restart and cases a killed run never reached do not show up. Files without
+/progress (format version 1, trimmed at the end) have every row valid.
+"""
+
+import functools
+import os
+
+import numpy as np
+
+from . import csv_export, derived, tensors, texture
+from ._deps import require
+
+h5py = require("h5py")
+
+CASE_STATES = {0: "not_started", 1: "running", 2: "completed", 3: "failed"}
+# What a crystal scene's `output` block may ask for (docs/scenes.md), for hints.
+OUTPUT_FIELDS = {"macro": ("time", "L", "F", "strain", "stress", "segment"),
+                 "grains": ("stress", "orientation", "slip", "slip_rate", "crss", "r", "r_s")}
+
+
+class NotAResult(ValueError):
+    """A readable HDF5 file that is not a subslip result."""
+
+
+class MissingData(LookupError):
+    """A quantity that needs data the file does not hold (the message says which)."""
+
+
+def decoded(value):
+    """An attribute value as Python data: str for strings (h5py gives str or bytes, and
+    reserved fixed-length strings come NUL-padded), lists of str, numbers, numpy arrays."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace").rstrip("\0")
+    if isinstance(value, np.ndarray) and value.dtype.kind in "OSU":
+        return [decoded(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def text_attribute(obj, name, default=None):
+    value = decoded(obj.attrs[name]) if name in obj.attrs else default
+    return value if isinstance(value, str) or value is default else str(value)
+
+
+def open(path):  # noqa: A001  (subslip.open mirrors h5py.File / builtins.open on purpose)
+    """Opens a result file: `with subslip.open("run.h5") as r: ...`."""
+    return Result(path)
+
+
+class Result:
+    """A result file: `cases` (the started ones, in run order), `scene_kind`, `completed`,
+    `units`, `title`, `case(name)`. Close it (or use `with`)."""
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self.file = h5py.File(self.path, "r")
+        try:
+            self._read_header()
+        except Exception:
+            self.file.close()
+            raise
+
+    def _read_header(self):
+        attrs = self.file.attrs
+        if text_attribute(self.file, "format", "") != "subslip":
+            raise NotAResult(f"{self.path}: not a subslip result file "
+                             "(no root attribute format = \"subslip\")")
+        self.scene_kind = text_attribute(self.file, "scene_kind", "")
+        self.title = text_attribute(self.file, "title", "")
+        self.format_version = int(attrs.get("format_version", 1))
+        self.completed = int(attrs.get("completed", 0)) == 1
+        self.write_error = text_attribute(self.file, "write_error", "")
+        units = self.file.get("units")
+        self.units = {k: decoded(v) for k, v in units.attrs.items()} if units else {}
+        self.all_cases = self._case_names()
+        self._rows, self._states = self._progress()
+        self.cases = [n for n in self.all_cases if self.state(n) != "not_started"]
+
+    def _case_names(self):
+        """Run order (/cases attribute `names`), then any group it does not list."""
+        cases = self.file.get("cases")
+        if cases is None:  # killed before the layout was complete
+            return []
+        names = [decoded(n) if isinstance(n, bytes) else str(n)
+                 for n in cases.attrs.get("names", [])]
+        return names + [n for n in cases.keys() if n not in names]
+
+    def _progress(self):
+        """Valid rows (None: all) and state of each case, from /progress when it has one entry
+        per case (as `subslip post` reads it)."""
+        rows = {n: None for n in self.all_cases}
+        states = {n: "unknown" for n in self.all_cases}
+        progress = self.file.get("progress")
+        if progress is None or "rows" not in progress or "state" not in progress:
+            return rows, states
+        counts, codes = progress["rows"][()], progress["state"][()]
+        if not len(counts) == len(codes) == len(self.all_cases):
+            return rows, states
+        for name, count, code in zip(self.all_cases, counts, codes):
+            rows[name] = int(count) if count >= 0 else None
+            states[name] = CASE_STATES.get(int(code), "unknown")
+        return rows, states
+
+    def state(self, name):
+        """"not_started", "running" (or killed), "completed", "failed"; "unknown" for a file
+        without /progress."""
+        self._check_name(name)
+        if name not in self.file.get("cases", {}):
+            return "not_started"
+        return self._states[name]
+
+    def valid_rows(self, name):
+        """How many rows of the case's series are valid (None: all of them)."""
+        self._check_name(name)
+        return 0 if self.state(name) == "not_started" else self._rows[name]
+
+    def case(self, name):
+        """The case `name`; a case the run never started has no rows (empty series)."""
+        self._check_name(name)
+        group = self.file["cases"].get(name)
+        return Case(self, name, group, self.valid_rows(name))
+
+    def _check_name(self, name):
+        if name not in self.all_cases:
+            raise KeyError(f"{self.path}: no case '{name}'; the file has: "
+                           + (", ".join(self.all_cases) or "none"))
+
+    @property
+    def scene(self):
+        """The scene YAML as run."""
+        return self.file["scene"].asstr()[()] if "scene" in self.file else ""
+
+    def close(self):
+        self.file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self):
+        state = "completed" if self.completed else "NOT completed"
+        return f"<subslip result {self.path}: {self.scene_kind}, {state}, cases {self.cases}>"
+
+
+class Case:
+    """One case of a result: its series cut to the valid rows, tensors as (..., 3, 3)."""
+
+    def __init__(self, result, name, group, valid_rows):
+        self.result = result
+        self.name = name
+        self.group = group  # None: a case listed but never created (format version 1)
+        self.valid_rows = valid_rows  # None: every row
+
+    # ------------------------------------------------------------ datasets and attributes
+
+    def __contains__(self, path):
+        return self.group is not None and isinstance(self.group.get(path), h5py.Dataset)
+
+    def dataset(self, path):
+        if path not in self:
+            raise MissingData(f"case '{self.name}' has no dataset '{path}'; it has: "
+                              + ", ".join(self.datasets()))
+        return self.group[path]
+
+    def datasets(self, under=""):
+        """Paths (relative to the case) of every dataset below `under`, in creation order."""
+        if self.group is None:
+            return []
+        base = self.group[under] if under else self.group
+        found = []
+        for name, obj in base.items():  # creation order: the groups track it
+            path = f"{under}/{name}" if under else name
+            found += [path] if isinstance(obj, h5py.Dataset) else self.datasets(path)
+        return found
+
+    def is_series(self, path):
+        """A time series (chunked, one row per output step) rather than a fixed array."""
+        return self.dataset(path).chunks is not None
+
+    def raw(self, path):
+        """The dataset as stored, a series cut to its valid rows (no reshaping)."""
+        d = self.dataset(path)
+        if not self.is_series(path) or self.valid_rows is None:
+            return d[()]
+        return d[: min(self.valid_rows, d.shape[0])]
+
+    def series(self, path):
+        """The dataset cut to its valid rows; a 3x3 tensor dataset as (n, 3, 3) (macro) or
+        (n, G, 3, 3) (per grain), whatever its stored layout (tensors.LayoutError when the
+        layout is one this package does not know)."""
+        values = self.raw(path)
+        layout = self.tensor_layout(path)
+        if layout is None:
+            return values
+        return tensors.to_matrices(values, layout, f"case '{self.name}': {path}")
+
+    def tensor_layout(self, path):
+        """The `layout` or `components` text of a tensor dataset; None for other data."""
+        d = self.dataset(path)
+        for name in ("layout", "components"):
+            text = text_attribute(d, name)
+            if text is not None and tensors.looks_like_tensor(text):
+                return text
+        return None
+
+    def grains(self, field, grain=None):
+        """A per-grain field ("stress", "slip_rate", "weight", ...): (n, G, ...) for series,
+        or of one grain (n, ...) with `grain`."""
+        values = self.series(f"grains/{field}")
+        if grain is None:
+            return values
+        return values[:, grain] if self.is_series(f"grains/{field}") else values[grain]
+
+    def unit(self, path):
+        return text_attribute(self.dataset(path), "unit")
+
+    def description(self, path):
+        return text_attribute(self.dataset(path), "description")
+
+    @functools.cached_property
+    def attrs(self):
+        """The case group's attributes (parameters, summary), decoded (read once: the file is
+        open read-only)."""
+        if self.group is None:
+            return {}
+        return {k: decoded(v) for k, v in self.group.attrs.items()}
+
+    def attribute_unit(self, name):
+        """The unit of a parameter or summary attribute (its `name.unit` sibling)."""
+        return self.attrs.get(f"{name}.unit")
+
+    @property
+    def state(self):
+        return self.result.state(self.name)
+
+    @property
+    def failed(self):
+        """Why the case stopped on a numerical failure ("" if it did not)."""
+        return self.attrs.get("failed", "") or ""
+
+    # ------------------------------------------------------------ sweeps
+
+    def sweep(self):
+        """The swept values of this case: [(path, value, unit or None)], in sweep order."""
+        out = []
+        for key, value in self.attrs.items():
+            if key.startswith("sweep:") and not key.endswith(".unit"):
+                path = key[len("sweep:"):]
+                out.append((path, value, derived.sweep_unit(self, path)))
+        return out
+
+    def label(self):
+        """A legend label: the swept values with their units ("speed=200 mm/min"), else the
+        case name."""
+        parts = []
+        for path, value, unit in self.sweep():
+            number = f"{value:g}" if isinstance(value, (int, float)) else str(value)
+            parts.append(f"{derived.sweep_label(path)}={number}" + (f" {unit}" if unit
+                                                                        and unit != "1" else ""))
+        return ", ".join(parts) or self.name
+
+    # ------------------------------------------------------------ derived quantities
+
+    def time(self):
+        return self.series("macro/time" if "macro/time" in self else "time")
+
+    def von_mises_stress(self):
+        """Von Mises stress of the aggregate at every valid row (n,)."""
+        return tensors.von_mises_stress(self.series(self._need("macro/stress")))
+
+    def von_mises_strain(self):
+        """Von Mises (equivalent) strain of the aggregate at every valid row (n,)."""
+        return tensors.von_mises_strain(self.series(self._need("macro/strain")))
+
+    def grain_weights(self):
+        """Volume fractions (G,) summing to 1 (grains/weight, written with every grain field)."""
+        w = self.raw(self._need("grains/weight"))
+        return w / np.sum(w)
+
+    def slip_system_labels(self):
+        d = self.dataset(self._need("grains/slip_systems"))
+        return [str(s) for s in decoded(d.attrs.get("labels", []))]
+
+    def schmid_tensors(self):
+        """sym(s (x) m) of every slip system, lattice frame (N, 3, 3)."""
+        return derived.schmid_tensors(self.raw(self._need("grains/slip_systems")))
+
+    def slip_activity(self):
+        """Grain-weighted mean |slip rate| per slip system (n, N), unit of grains/slip_rate."""
+        rates = self.series(self._need("grains/slip_rate"))
+        return derived.weighted_mean_abs(rates, self.grain_weights())
+
+    def equivalent_plastic_strain(self, per_grain=False):
+        """Accumulated von Mises equivalent plastic strain, (n,) grain-weighted or (n, G):
+        the sum over output steps of sqrt(2/3 dE:dE), dE = sum_a dgamma_a sym(s_a (x) m_a)
+        with dgamma the change of grains/slip between rows (exact while no system reverses
+        within an output step). Needs grains/slip and grains/slip_systems."""
+        slip = self.series(self._need("grains/slip"))
+        eps = derived.equivalent_plastic_strain(slip, self.schmid_tensors())
+        return eps if per_grain else eps @ self.grain_weights()
+
+    def loading_component(self):
+        """(i, j) of the largest prescribed L_ij (None without macro/L)."""
+        if "macro/L" not in self:
+            return None
+        segment = self.raw("macro/segment") if "macro/segment" in self else None
+        return derived.loading_component(self.series("macro/L"), segment)
+
+    # ------------------------------------------------------------ texture
+
+    def lattice(self):
+        """"cubic", "hcp" or "unknown" (custom slip systems), from slip_families."""
+        families = self.attrs.get("slip_families", [])
+        families = [families] if isinstance(families, str) else list(families)
+        if families and all(f.startswith("hcp") for f in families):
+            return "hcp"
+        if families and all(f.startswith(("fcc", "bcc")) for f in families):
+            return "cubic"
+        return "unknown"
+
+    def orientations(self, step=-1):
+        """Quaternions (G, 4) of every grain at valid row `step` (0: initial, -1: last)."""
+        if "grains/orientation" in self:
+            q = self.series("grains/orientation")
+            if len(q) == 0:
+                raise MissingData(f"case '{self.name}' has no valid rows")
+            return q[step]
+        fixed = step == 0 or self.attrs.get("kinematics") == "small_strain"
+        if fixed and "grains/initial_orientation" in self:
+            return self.raw("grains/initial_orientation")
+        raise MissingData(self._missing("grains/orientation"))
+
+    def pole_figure(self, crystal_vectors, step=-1, projection="equal_area"):
+        """(X, Y) of the poles `crystal_vectors` (e.g. texture.cubic_family((1, 0, 0))) of
+        every grain at `step`, sample frame (x right, y up), upper hemisphere."""
+        return texture.pole_figure_points(self.orientations(step), crystal_vectors, projection)
+
+    def inverse_pole_figure(self, sample_direction=(0.0, 0.0, 1.0), step=-1,
+                            projection="equal_area"):
+        """(X, Y) of a sample direction in every grain's crystal frame, in the standard
+        triangle of the lattice."""
+        lattice = self.lattice()
+        return texture.inverse_pole_figure_points(self.orientations(step), sample_direction,
+                                                  lattice, projection)
+
+    # ------------------------------------------------------------ export
+
+    def to_csv(self, directory, names=None, grain=None, overwrite=False):
+        """Writes `names` (dataset or group paths relative to the case; default: every
+        dataset) as CSV files `<case>_<path>.csv` in `directory`, as `subslip post --csv`
+        does. Returns the paths written."""
+        return csv_export.export_case(self, directory, names, grain, overwrite)
+
+    # ------------------------------------------------------------ helpers
+
+    def _need(self, path):
+        """`path`, or MissingData naming the scene's output setting that writes it."""
+        if path not in self:
+            raise MissingData(self._missing(path))
+        return path
+
+    def _missing(self, path):
+        group, _, field = path.rpartition("/")
+        if field in OUTPUT_FIELDS.get(group, ()):
+            hint = f"; ask the scene for it: output: {{{group}: [{field}]}}"
+        elif group == "grains":  # weight, slip_systems: written with any grain field
+            hint = "; ask the scene for grain fields: output: {grains: [...]}"
+        else:
+            hint = ""
+        return f"case '{self.name}' has no {path}{hint}"
+
+    def __repr__(self):
+        rows = "all" if self.valid_rows is None else self.valid_rows
+        return f"<subslip case '{self.name}': {self.state}, {rows} valid rows>"
