@@ -68,19 +68,23 @@ struct MagnitudeKind {
   Dimension dimension;   // of the value
   const char* shown_in;  // the unit the plausible range is stated in
   PlausibleRange WarningLimits::*range;
+  // A typical value in SI, for stresses (where Pa, kPa, MPa and GPa get mixed up): the unit
+  // suggested is the one that puts the written number nearest to it. 0: no suggestion (a
+  // duration or a speed far out of range says little about the unit meant).
+  double typical = 0.0;
 };
 
 MagnitudeKind kind_of(Magnitude m) {
   switch (m) {
     case Magnitude::elastic_constant:
       return {"the elastic constants of crystals", dimension::stress, "GPa",
-              &WarningLimits::elastic_constant};
+              &WarningLimits::elastic_constant, 1e11};
     case Magnitude::tau0:
       return {"the reference stresses (CRSS) of slip systems", dimension::stress, "MPa",
-              &WarningLimits::tau0};
+              &WarningLimits::tau0, 1e7};
     case Magnitude::normal_traction:
       return {"the normal tractions of frictional contacts", dimension::stress, "MPa",
-              &WarningLimits::normal_traction};
+              &WarningLimits::normal_traction, 1e6};
     case Magnitude::sliding_speed:
       return {"the sliding speeds of friction tests", dimension::velocity, "m/s",
               &WarningLimits::sliding_speed};
@@ -99,18 +103,18 @@ std::string number_text(double x) {
   return buf;
 }
 
-// The unit of `dimension` in which `number` lands nearest the middle (geometric) of `range`,
-// when it lands inside it in some unit other than `scene_unit`.
-std::optional<std::string> likely_unit(double number, Dimension d, const std::string& scene_unit,
-                                       PlausibleRange range) {
-  const double middle = 0.5 * (std::log10(range.lo) + std::log10(range.hi));
+// The unit of kind `k` in which `number` is plausible and nearest to the typical value, when
+// there is one other than `scene_unit`.
+std::optional<std::string> likely_unit(double number, const MagnitudeKind& k,
+                                       const std::string& scene_unit, PlausibleRange range) {
+  if (!(k.typical > 0.0)) return std::nullopt;
   std::optional<std::string> best;
   double best_distance = std::numeric_limits<double>::infinity();
-  for (const std::string& name : unit_names_of(d)) {
+  for (const std::string& name : unit_names_of(k.dimension)) {
     if (name == scene_unit) continue;
     const double si = std::abs(to_si(number, parse_unit(name)->scale));
     if (!(si >= range.lo && si <= range.hi)) continue;
-    const double distance = std::abs(std::log10(si) - middle);
+    const double distance = std::abs(std::log10(si / k.typical));
     if (distance < best_distance) {
       best = name;
       best_distance = distance;
@@ -134,14 +138,16 @@ void check_magnitude(Collector& w, const std::string& case_name, const WrittenVa
   message += std::string(si < range.lo ? " is below " : " is above ") + k.what + " (" +
              number_text(convert(range.lo, Scale{}, shown)) + " to " +
              number_text(convert(range.hi, Scale{}, shown)) + " " + k.shown_in + ")";
-  const auto unit = v.bare_number ? likely_unit(*v.bare_number, k.dimension, scene_unit.name, range)
-                                  : std::nullopt;
+  const auto unit =
+      v.bare_number ? likely_unit(*v.bare_number, k, scene_unit.name, range) : std::nullopt;
   if (unit) {
+    char written[32];
+    std::snprintf(written, sizeof written, "%.15g", *v.bare_number);
     message += ": a number in " + *unit + " in a scene in " + scene_unit.name +
-               "? The scene's units apply to bare numbers; write '" + number_text(*v.bare_number) +
-               " " + *unit + "' if that is meant";
+               "? A bare number is in the scene's units; write '" + written + " " + *unit +
+               "' if that is meant";
   } else {
-    message += ": check the number and its unit";
+    message += ": check the number and its unit (a bare number is in the scene's units)";
   }
   w.add(case_name, message, v.line);
 }
