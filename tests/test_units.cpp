@@ -8,15 +8,20 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
 #include <vector>
 
+#include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/units.hpp"
 
@@ -346,6 +351,38 @@ TEST(UnitsInScenes, UnknownOrMismatchedUnitIsOneError) {
     EXPECT_EQ(e.key, "units.length");
     EXPECT_NE(e.message.find("expected one of: m, cm, mm, um"), std::string::npos) << e.what();
   }
+}
+
+// The result file states the scene's units: /units, each dataset's unit and each parameter's
+// X.unit, with the values converted into them (and um stored for µm).
+TEST(UnitsInScenes, ResultFileStatesTheSceneUnits) {
+  namespace fs = std::filesystem;
+  const fs::path dir = subslip::testing::scratch_dir("units");
+  std::string text = kContactGpaUmMinWithUnits.text();
+  text = replaced(text, "{stress: GPa, length: um, time: min}",
+                  "{stress: GPa, length: \xC2\xB5m, time: h}");
+  std::ofstream(dir / "h.yaml") << text;
+  std::string command = "'";
+  command.append(SUBSLIP_BINARY).append("' run -q '").append((dir / "h.yaml").string());
+  command.append("' -o '").append((dir / "h.h5").string()).append("' 2>&1");
+  const auto run = subslip::testing::run_command(command);
+  ASSERT_EQ(run.code, 0) << run.out;
+  const h5::File file = h5::File::open_read(dir / "h.h5");
+  const h5::Group root = file.root();
+  const h5::Group units = root.open_group("units");
+  EXPECT_EQ(units.attribute_string("stress"), "GPa");
+  EXPECT_EQ(units.attribute_string("length"), "um");
+  EXPECT_EQ(units.attribute_string("time"), "h");
+  const h5::Group base = root.open_group("cases").open_group("base");
+  EXPECT_EQ(base.open_dataset("time").attribute_string("unit"), "h");
+  EXPECT_EQ(base.open_dataset("slip_path").attribute_string("unit"), "um");
+  EXPECT_EQ(base.attribute_string("alpha_t.unit"), "GPa/um");
+  EXPECT_EQ(base.attribute_double("alpha_t"), 1.0);  // 1e6 MPa/mm
+  EXPECT_EQ(base.attribute_string("eta_v.unit"), "h/um");
+  EXPECT_NEAR(base.attribute_double("eta_v"), 57000.0 / 3600.0 / 1000.0, 1e-16);
+  // 600 s + 6 s of the hold and the last slide, 2 mm at 0.5 mm/s before: 610 s in hours.
+  EXPECT_NEAR(base.open_dataset("time").read_doubles().back(), 610.0 / 3600.0, 1e-15);
+  fs::remove_all(dir);
 }
 
 // ---------------------------------------------------------------- one physical scene, three ways
