@@ -190,6 +190,28 @@ class ReservedRows(unittest.TestCase):
         self.assertEqual(os.listdir(out), ["traction_ratio.png"])
 
 
+class SweepLabels(unittest.TestCase):
+    """Legends name swept values with units: the scene's unit after a bare number, the value
+    as written when it was swept with its own unit (docs/scenes.md, "Units")."""
+
+    def test_labels(self):
+        directory = tempfile.mkdtemp(prefix="subslip_plots_labels_")
+        self.addCleanup(shutil.rmtree, directory, ignore_errors=True)
+        path = os.path.join(directory, "sweep.h5")
+        with h5py.File(path, "w") as f:
+            f.attrs.update({"format": "subslip", "scene_kind": "contact", "completed": 1})
+            f.create_group("units").attrs.update({"stress": "MPa", "length": "mm",
+                                                  "time": "min"})
+            cases = f.create_group("cases")
+            values = {"speed=200": 200.0, "speed=1 mm_s": "1 mm/s", "speed=2.5e-3": "2.5e-3"}
+            cases.attrs["names"] = list(values)
+            for name, value in values.items():
+                cases.create_group(name).attrs["sweep:loading[0].slide.speed"] = value
+        with sp.Result(path) as result:
+            labels = [result.case(n).label() for n in result.cases]
+        self.assertEqual(labels, ["speed=200 mm/min", "speed=1 mm/s", "speed=2.5e-3 mm/min"])
+
+
 def png_size(path):
     with open(path, "rb") as f:
         head = f.read(24)
