@@ -497,7 +497,7 @@ double CheckedNode::as_quantity(const Unit& unit, const Range& range) const {
   const std::string& text = node_.Scalar();
   const bool quoted = is_quoted(node_);
   std::optional<double> value = quoted ? std::nullopt : parse_double(text);
-  std::string converted;  // ", that is 60 mm/min" when a unit was written
+  std::string converted;  // " (60 mm/min)" when a value was written in another unit
   if (!value && !quoted && out_of_double_range(text))
     fail(text + " is out of the range of double precision");
   bool out_of_range = false;
@@ -523,6 +523,7 @@ double CheckedNode::as_quantity(const Unit& unit, const Range& range) const {
       fail("'" + given->name + "' is a unit of " + describe(given->dimension) + ", but " + takes);
     }
     if (out_of_range) fail(text + " is out of the range of double precision");
+    if (!std::isfinite(split->number)) fail("must be a finite number, got " + text);
     value = convert(split->number, given->scale, unit.scale);
     if (!std::isfinite(*value) || (*value == 0.0) != (split->number == 0.0) ||
         (split->number != 0.0 && std::abs(*value) < std::numeric_limits<double>::min())) {
