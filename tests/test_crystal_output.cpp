@@ -21,6 +21,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/orientation_file.hpp"
+#include "subslip/io/result_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -97,7 +98,7 @@ std::vector<Reported> run_into(const std::string& text, const fs::path& out) {
   const auto results = run_crystal_scene(scene, file, options);
   EXPECT_EQ(results.size(), 1u);
   EXPECT_TRUE(results[0].failure.empty()) << results[0].failure;
-  file.close();
+  close_and_finish(file);
   return seen;
 }
 
@@ -291,6 +292,11 @@ TEST(CrystalCli, RunsTheDefaultSceneIntoATempFile) {
   EXPECT_NE(r.out.find("strain_33  stress[MPa]"), std::string::npos) << r.out;
   const h5::File file = h5::File::open_read(dir / "out.h5");
   EXPECT_EQ(file.root().attribute_int("completed"), 1);
+  // The finished result: its rows only, no checkpoint (the restart file is gone), small.
+  EXPECT_EQ(file.root().attribute_int("finished"), 1);
+  EXPECT_FALSE(file.root().has("checkpoint"));
+  EXPECT_FALSE(fs::exists(dir / "out.restart.h5"));
+  EXPECT_LT(fs::file_size(dir / "out.h5"), 200u * 1000u);
   const h5::Group c = file.root().open_group("cases").open_group("base");
   EXPECT_EQ(c.open_group("macro").open_dataset("time").shape(), (std::vector<std::size_t>{251}));
   EXPECT_FALSE(c.has("grains"));

@@ -22,6 +22,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/result_file.hpp"
 #include "subslip/io/result_post.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
@@ -51,6 +52,7 @@ const fs::path& contact_result() {
     const auto scene = parse_contact_scene(YamlDocument::from_file(kData / "contact_small.yaml"));
     h5::File file = h5::File::create(out, true);
     for (const auto& c : run_contact_scene(scene, file)) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(file);
     return out;
   }();
   return path;
@@ -63,6 +65,7 @@ const fs::path& crystal_result() {
     const auto scene = parse_crystal_scene(YamlDocument::from_file(kData / "crystal_small.yaml"));
     h5::File file = h5::File::create(out, true);
     for (const auto& c : run_crystal_scene(scene, file, {})) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(file);
     return out;
   }();
   return path;

@@ -76,6 +76,8 @@ class Result:
         self.title = text_attribute(self.file, "title", "")
         self.format_version = int(attrs.get("format_version", 1))
         self.completed = int(attrs.get("completed", 0)) == 1
+        # Format 3: the run ended and every series was rewritten with exactly its rows.
+        self.finished = int(attrs.get("finished", 0)) == 1
         self.write_error = text_attribute(self.file, "write_error", "")
         units = self.file.get("units")
         self.units = {k: decoded(v) for k, v in units.attrs.items()} if units else {}

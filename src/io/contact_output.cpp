@@ -428,6 +428,7 @@ void ContactCaseWriter::mark_failed(const ContactSummary& summary, const std::st
 
 RunSize estimate_contact_run(const ContactScene& scene) {
   constexpr double kCaseOverheadBytes = 32e3;  // attributes, headers, B-trees of a case group
+  constexpr double kFinishedCaseBytes = 16e3;  // the same in a finished file (one chunk index)
   RunSize size;
   double largest_case = -1.0;
   for (const auto& c : scene.cases) {
@@ -437,6 +438,8 @@ RunSize estimate_contact_run(const ContactScene& scene) {
     const double rows = static_cast<double>(output_count(c.segments));
     const double bytes = 8.0 * rows * values + kCaseOverheadBytes;
     size.result_bytes += bytes;
+    // The finished file, written before the working one goes: the rows, no reservation.
+    size.finish_bytes += 8.0 * rows * values + kFinishedCaseBytes;
     if (bytes <= largest_case) continue;
     largest_case = bytes;
     size.rows = output_count(c.segments);
@@ -493,9 +496,6 @@ std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::
   } else {
     run_serial(*run, todo, results);
   }
-  const bool all_ok = std::all_of(results.begin(), results.end(),
-                                  [](const ContactCaseResult& r) { return r.failure.empty(); });
-  if (all_ok) h5::mark_completed(file);
   return results;
 }
 

@@ -609,6 +609,7 @@ struct RunContext {
   h5::Group cases;
   h5::CaseProgress progress;
   const CrystalRunOptions& options;
+  std::optional<h5::File> restart_file = {};  // the checkpoint store's file, when there is one
 };
 
 // The writer of case `index`, continued after `resume_rows` valid rows (0: from the start).
@@ -654,11 +655,15 @@ CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
   const CrystalCase& c = run.scene.cases[index];
   const CheckpointPolicy policy = checkpoint_policy(c, run.options.checkpoint_every);
   std::optional<CheckpointStore> checkpoints;
-  // (A restart asking for checkpoints the first run had none of runs without: no store.)
-  const h5::Group root = run.file.root();
-  if (policy.enabled() && root.has("checkpoint")) checkpoints.emplace(root);
+  if (run.restart_file) checkpoints.emplace(run.restart_file->root());
   std::optional<StoredCheckpoint> resume;
   if (resuming && checkpoints) resume = checkpoints->latest(index);
+  // (A store too small for this case, from a run that had none for it: no new checkpoints.)
+  const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
+  const std::size_t values =
+      c.orientations.size() *
+      static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
+  if (checkpoints && (!policy.enabled() || checkpoints->capacity() < values)) checkpoints.reset();
   CrystalCaseWriter writer = open_writer(run, index, resume ? resume->rows : 0);
   if (resume) writer.set_last_state(resume->last_output);
   CheckpointClock clock(policy);
@@ -724,10 +729,27 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
   h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+  RunContext run{scene, file, std::move(cases), std::move(progress), options};
+  // The restart file is complete before the result says its layout is.
   const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
-  if (capacity > 0) CheckpointStore::create(root, capacity);
+  if (capacity > 0 && !options.restart_file.empty()) {
+    run.restart_file.emplace(
+        create_restart_file(options.restart_file, root.attribute_string("run_id"), capacity));
+  }
   h5::mark_layout_complete(file);
-  return RunContext{scene, file, std::move(cases), std::move(progress), options};
+  return run;
+}
+
+// A restart: the run's restart file, or a new one when it has none (deleted, or checkpoints
+// were off) and a case now writes checkpoints.
+std::optional<h5::File> reopen_restart_file(const CrystalScene& scene, const h5::File& file,
+                                            const CrystalRunOptions& options) {
+  if (options.restart_file.empty()) return std::nullopt;
+  const std::string run_id = file.root().attribute_string("run_id");
+  if (auto existing = open_restart_file(options.restart_file, run_id)) return existing;
+  const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
+  if (capacity == 0) return std::nullopt;
+  return create_restart_file(options.restart_file, run_id, capacity);
 }
 
 }  // namespace
@@ -771,6 +793,8 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
     const double bytes = 8.0 * rows * (macro_values + grains * grain_values) + chunk_slack +
                          8.0 * grains * 16.0 + kCaseOverheadBytes;
     size.result_bytes += bytes;
+    // The finished file, written before the working one goes: no reserved chunk space.
+    size.finish_bytes += bytes - chunk_slack;
     const double per_grain =
         8.0 * crystal::checkpoint_values_per_grain(static_cast<int>(slip_count));
     const double memory = grains * (kStateCopies * per_grain + 8.0 * 16.0) +
@@ -787,7 +811,7 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
           std::max_element(per_segment.begin(), per_segment.end()) - per_segment.begin());
     }
   }
-  // Two slots, each of the largest case's grain values.
+  // Two slots, each of the largest case's grain values (in the restart file).
   size.checkpoint_bytes =
       2.0 * 8.0 * static_cast<double>(checkpoint_capacity(scene, checkpoint_every));
   size.result_bytes += size.checkpoint_bytes;
@@ -814,6 +838,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::
     h5::mark_running(file);
     run.emplace(
         RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
+    run->restart_file = reopen_restart_file(scene, file, options);
   } else {
     run.emplace(lay_out(scene, file, options));
     if (options.on_header_written) options.on_header_written();
@@ -830,9 +855,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::
     }
     if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
   }
-  const bool all_ok = std::all_of(results.begin(), results.end(),
-                                  [](const CrystalCaseResult& r) { return r.failure.empty(); });
-  if (all_ok) h5::mark_completed(file);
+  if (run->restart_file) run->restart_file->close();
   return results;
 }
 
