@@ -14,6 +14,7 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/io/case_group.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -129,6 +130,9 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   EXPECT_EQ(g.open_dataset("ratio").attribute_string("unit"), "1");
   EXPECT_EQ(g.open_dataset("slip").shape(), (std::vector<std::size_t>{n, 2}));
   EXPECT_EQ(g.open_dataset("traction").shape(), (std::vector<std::size_t>{n, 3}));
+  EXPECT_EQ(g.open_dataset("slip").attribute_string("components"), "x y");
+  EXPECT_EQ(g.open_dataset("traction").attribute_string("components"), "x y n");
+  EXPECT_FALSE(g.open_dataset("ratio").has_attribute("components"));
 
   // Values: bit for bit what run_history reported.
   const auto time = g.open_dataset("time").read_doubles();
@@ -207,7 +211,9 @@ TEST(H5Output, SweepCasesCarryOverridesAndDoNotDependOnThreads) {
   }
   const h5::Group g = a.open_group("speed=100,function=reciprocal");
   EXPECT_DOUBLE_EQ(g.attribute_double("sweep:loading[0].slide.speed"), 100.0);
+  EXPECT_EQ(g.attribute_string("sweep:loading[0].slide.speed.unit"), "mm/min");
   EXPECT_EQ(g.attribute_string("sweep:law.subloading.function"), "reciprocal");
+  EXPECT_FALSE(g.has_attribute("sweep:law.subloading.function.unit"));  // a name has no unit
   EXPECT_EQ(g.attribute_string("subloading_function"), "reciprocal");
   EXPECT_EQ(g.attribute_int("index"), 5);
   fs::remove_all(dir);
@@ -395,6 +401,9 @@ void check_killed_file(const fs::path& killed, const fs::path& reference, std::s
   if (root.attribute_int("finished") == 1) {
     EXPECT_EQ(root.attribute_int("completed"), 1);
     subslip::testing::expect_same_datasets(reference, killed);
+    const h5::CaseProgress progress = h5::CaseProgress::open(root);
+    for (std::size_t k = 0; k < progress.size(); ++k)
+      valid += static_cast<std::size_t>(progress.rows(k));
     return;
   }
   EXPECT_EQ(root.attribute_int("completed"), 0);
@@ -561,4 +570,47 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
     EXPECT_NE(h5::failure_message(failed), "");
   }
   fs::remove_all(dir);
+}
+
+// The unit of every kind of swept value, in the scene's own units (`sweep:<path>.unit`).
+TEST(CaseGroup, SweepUnitsFollowTheSceneUnits) {
+  Units u;
+  u.stress = "GPa";
+  u.length = "um";
+  u.time = "s";
+  const std::pair<const char*, const char*> contact[] = {{"loading[0].slide.speed", "um/s"},
+                                                         {"loading[*].slide.velocity", "um/s"},
+                                                         {"loading[1].slide.distance", "um"},
+                                                         {"loading[2].hold.duration", "s"},
+                                                         {"loading[0].normal.traction", "GPa"},
+                                                         {"loading[0].normal.velocity", "um/s"},
+                                                         {"law.friction.kappa", "1/um"},
+                                                         {"law.friction.xi", "1/s"},
+                                                         {"law.overstress.eta_v", "s/um"},
+                                                         {"law.overstress.n", "1"},
+                                                         {"contact.alpha_t", "GPa/um"},
+                                                         {"contact.normal_traction", "GPa"},
+                                                         {"initial.mu", "1"},
+                                                         {"loading[0].increments", "1"},
+                                                         {"law.subloading.function", ""},
+                                                         {"integrator.method", ""}};
+  for (const auto& [path, unit] : contact)
+    EXPECT_EQ(sweep_unit(SceneKind::contact, path, u), unit) << path;
+  const std::pair<const char*, const char*> crystal[] = {
+      {"loading[0].L[2][2]", "1/s"},
+      {"loading[0].L", "1/s"},
+      {"loading[0].stress[0][0]", "GPa"},
+      {"loading[0].duration", "s"},
+      {"loading[0].strain", "1"},
+      {"phase.tau0", "GPa"},
+      {"phase.elasticity.C44", "GPa"},
+      {"phase.elasticity.nu", "1"},
+      {"phase.law.friction.kappa", "1"},
+      {"phase.law.overstress.eta_v", "s"},
+      {"phase.per_family.fcc_111_110.law.friction.xi", "1/s"},
+      {"phase.per_family.hcp_basal_a.tau0", "GPa"},
+      {"orientations.component.spread_deg", "deg"},
+      {"phase.kinematics", ""}};
+  for (const auto& [path, unit] : crystal)
+    EXPECT_EQ(sweep_unit(SceneKind::crystal, path, u), unit) << path;
 }

@@ -206,9 +206,10 @@ class Case:
         return tensors.to_matrices(values, layout, f"case '{self.name}': {path}")
 
     def tensor_layout(self, path):
-        """The `layout` or `components` text of a tensor dataset; None for other data."""
+        """The `components` (format 3) or `layout` / `components` (format 2) text of a tensor
+        dataset; None for other data."""
         d = self.dataset(path)
-        for name in ("layout", "components"):
+        for name in ("components", "layout"):
             text = text_attribute(d, name)
             if text is not None and tensors.looks_like_tensor(text):
                 return text

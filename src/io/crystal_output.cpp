@@ -38,7 +38,9 @@ std::string orientations_digest(const CrystalCase& c) {
 
 using crystal::Mat3;
 
-constexpr const char* kMatrixLayout = "row-major 3x3: 11 12 13 21 22 23 31 32 33";
+// Every second-order tensor of the file, macro or per grain, is stored with two trailing axes
+// of 3 ([n, 3, 3], [n, G, 3, 3]; symmetric ones in full), and says so in `components`.
+constexpr const char* kTensorComponents = h5::kTensorConvention;
 constexpr std::size_t kMacroBlockRows = 256;
 // Per-grain rows can be large (grains x slip systems): chunks of about 1 MiB, and about 4 MiB
 // gathered in memory between writes.
@@ -46,36 +48,45 @@ constexpr std::size_t kGrainChunkBytes = std::size_t{1} << 20;
 constexpr std::size_t kGrainBlockBytes = std::size_t{4} << 20;
 
 struct FieldSpec {
-  std::size_t width;  // values per row (macro) or per grain (grains); 0: a 1-D macro series
+  std::vector<std::size_t> shape;  // of a row (macro) or of a grain's value (grains); {}: scalar
   h5::Type type;
   std::string unit;
   std::string description;
-  std::string components;  // the meaning of the last axis ("" for scalars)
+  std::string components;  // the meaning of the trailing axes ("" for scalars)
 };
+
+// Values per row (macro) or per grain (grains).
+std::size_t width_of(const FieldSpec& spec) {
+  std::size_t n = 1;
+  for (std::size_t d : spec.shape) n *= d;
+  return n;
+}
+
+const std::vector<std::size_t> kTensorShape = {3, 3};
 
 FieldSpec macro_spec(MacroField f, const Units& u) {
   const std::string one(kDimensionless);
   switch (f) {
     case MacroField::time:
-      return {0, h5::Type::float64, u.time, "time since the start of the loading history", ""};
+      return {{}, h5::Type::float64, u.time, "time since the start of the loading history", ""};
     case MacroField::L:
-      return {9, h5::Type::float64, "1/" + u.time,
+      return {kTensorShape, h5::Type::float64, "1/" + u.time,
               "velocity gradient L of the last increment (free components as solved)",
-              kMatrixLayout};
+              kTensorComponents};
     case MacroField::F:
-      return {9, h5::Type::float64, one, "deformation gradient F", kMatrixLayout};
+      return {kTensorShape, h5::Type::float64, one, "deformation gradient F", kTensorComponents};
     case MacroField::strain:
-      return {9, h5::Type::float64, one,
+      return {kTensorShape, h5::Type::float64, one,
               "strain: logarithmic ln V (finite_rotation) or the integral of D (small_strain)",
-              kMatrixLayout};
+              kTensorComponents};
     case MacroField::stress:
-      return {9, h5::Type::float64, u.stress,
-              "volume-averaged Cauchy stress (Taylor aggregate, sample frame)", kMatrixLayout};
+      return {kTensorShape, h5::Type::float64, u.stress,
+              "volume-averaged Cauchy stress (Taylor aggregate, sample frame)", kTensorComponents};
     case MacroField::segment:
-      return {0, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)",
-              ""};
+      return {
+          {}, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)", ""};
   }
-  return {0, h5::Type::float64, one, "", ""};
+  return {{}, h5::Type::float64, one, "", ""};
 }
 
 FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
@@ -83,27 +94,38 @@ FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
   const std::string per_system = "one value per slip system, in the order of slip_systems";
   switch (f) {
     case GrainField::stress:
-      return {6, h5::Type::float64, u.stress, "Cauchy stress of each grain, sample frame",
-              "11 22 33 23 13 12"};
+      return {kTensorShape, h5::Type::float64, u.stress,
+              "Cauchy stress of each grain, sample frame", kTensorComponents};
     case GrainField::orientation:
-      return {4, h5::Type::float64, one,
+      return {{4},
+              h5::Type::float64,
+              one,
               "orientation of each grain (passive, Rowenhorst P=-1, w>=0; maps sample to crystal)",
               "w x y z"};
     case GrainField::slip:
-      return {slip_count, h5::Type::float64, one, "accumulated signed slip", per_system};
+      return {{slip_count}, h5::Type::float64, one, "accumulated signed slip", per_system};
     case GrainField::slip_rate:
-      return {slip_count, h5::Type::float64, "1/" + u.time,
-              "signed slip rate over the last increment", per_system};
+      return {{slip_count},
+              h5::Type::float64,
+              "1/" + u.time,
+              "signed slip rate over the last increment",
+              per_system};
     case GrainField::crss:
-      return {slip_count, h5::Type::float64, u.stress, "critical resolved shear stress mu tau0",
+      return {{slip_count},
+              h5::Type::float64,
+              u.stress,
+              "critical resolved shear stress mu tau0",
               per_system};
     case GrainField::r:
-      return {slip_count, h5::Type::float64, one, "dynamic loading ratio r = |tau| / (mu f_n)",
+      return {{slip_count},
+              h5::Type::float64,
+              one,
+              "dynamic loading ratio r = |tau| / (mu f_n)",
               per_system};
     case GrainField::r_s:
-      return {slip_count, h5::Type::float64, one, "subloading ratio r_s", per_system};
+      return {{slip_count}, h5::Type::float64, one, "subloading ratio r_s", per_system};
   }
-  return {0, h5::Type::float64, one, "", ""};
+  return {{}, h5::Type::float64, one, "", ""};
 }
 
 std::array<double, 9> row_major(const Mat3& m) {
@@ -195,8 +217,12 @@ void write_phase_parameters(const h5::Group& g, const CrystalCase& c, const Unit
       !d.families.empty() && crystal::lattice_of(d.families.front()) == crystal::LatticeKind::hcp;
   if (hexagonal) set_with_unit(g, "c_over_a", d.c_over_a, kDimensionless);
   g.set_attribute("elasticity", c.elasticity_type);
-  const std::vector<double> c_mandel(d.stiffness.data(), d.stiffness.data() + 36);
-  set_with_unit(g, "stiffness_mandel", c_mandel, u.stress);
+  std::vector<double> c_mandel;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) c_mandel.push_back(d.stiffness(i, j));
+  const std::size_t mandel_shape[2] = {6, 6};
+  g.set_attribute("stiffness_mandel", c_mandel, mandel_shape);
+  g.set_attribute("stiffness_mandel.unit", u.stress);
   g.set_attribute("latent", latent_kind(d.latent));
   if (d.latent.kind == crystal::LatentHardening::Kind::ratio)
     set_with_unit(g, "latent_ratio", d.latent.ratio, kDimensionless);
@@ -270,9 +296,20 @@ std::size_t rows_within(std::size_t bytes, std::size_t row_bytes, std::size_t mo
 void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matrices,
           std::vector<double>& out) {
   switch (f) {
-    case GrainField::stress:
-      g.stress(out.data());
+    case GrainField::stress: {
+      // [grains x 6] (11 22 33 23 13 12) from the aggregate, stored as full 3x3 tensors.
+      g.stress(matrices.data());
+      constexpr int kRow[6] = {0, 1, 2, 1, 0, 0}, kColumn[6] = {0, 1, 2, 2, 2, 1};
+      for (std::size_t k = 0; k < static_cast<std::size_t>(g.grain_count()); ++k) {
+        const double* voigt = matrices.data() + 6 * k;
+        double* t = out.data() + 9 * k;
+        for (int c = 0; c < 6; ++c) {
+          t[3 * kRow[c] + kColumn[c]] = voigt[c];
+          t[3 * kColumn[c] + kRow[c]] = voigt[c];
+        }
+      }
       return;
+    }
     case GrainField::orientation: {
       g.orientation(matrices.data());
       for (int k = 0; k < g.grain_count(); ++k) {
@@ -346,9 +383,9 @@ void lay_out_macro(const h5::Group& group, const CrystalCase& c, const Units& un
   for (MacroField f : c.output.macro) {
     const FieldSpec spec = macro_spec(f, units);
     const h5::Series series =
-        macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
-                             spec.description, chunk_rows, kMacroBlockRows, rows});
-    if (!spec.components.empty()) series.dataset().set_attribute("layout", spec.components);
+        macro.create_series({std::string(to_string(f)), 0, spec.type, spec.unit, spec.description,
+                             chunk_rows, kMacroBlockRows, rows, spec.shape});
+    if (!spec.components.empty()) series.dataset().set_attribute("components", spec.components);
   }
 }
 
@@ -360,7 +397,9 @@ void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& u
   const std::size_t rows = crystal_output_count(c.segments);
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units, systems.size());
-    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
+    std::vector<std::size_t> row_shape{n_grains};
+    row_shape.insert(row_shape.end(), spec.shape.begin(), spec.shape.end());
     const h5::SeriesSpec s{std::string(to_string(f)),
                            0,
                            spec.type,
@@ -369,7 +408,7 @@ void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& u
                            rows_within(kGrainChunkBytes, row_bytes, rows),
                            rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
                            rows,
-                           {n_grains, spec.width}};
+                           row_shape};
     grains.create_series(s).dataset().set_attribute("components", spec.components);
   }
 }
@@ -400,8 +439,8 @@ void write_summary(const h5::Group& g, const CrystalSummary& summary, const Unit
     g.set_attribute(numbers[k].first, values[k]);
     if (with_units) g.set_attribute(std::string(numbers[k].first) + ".unit", numbers[k].second);
   }
-  g.set_attribute("final_stress", row_major(summary.final_state.stress));
-  g.set_attribute("final_strain", row_major(summary.final_state.strain));
+  g.set_attribute("final_stress", row_major(summary.final_state.stress), kTensorShape);
+  g.set_attribute("final_strain", row_major(summary.final_state.strain), kTensorShape);
   if (with_units) {
     g.set_attribute("final_stress.unit", units.stress);
     g.set_attribute("final_strain.unit", one);
@@ -426,7 +465,8 @@ CrystalSummary placeholder_summary() {
 
 void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, int index,
                                 const Units& units) {
-  const h5::Group group = create_case_group(cases, c.name, index, c.overrides);
+  const h5::Group group =
+      create_case_group(cases, c.name, index, c.overrides, SceneKind::crystal, units);
   write_phase_parameters(group, c, units);
   write_law_parameters(group, c, units);
   write_run_parameters(group, c);
@@ -465,11 +505,11 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
-    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
     grains_[static_cast<std::size_t>(f)].emplace(grains.open_series(
         to_string(f), spec.type, rows, rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
-    grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
-    widest = std::max(widest, spec.width);
+    grain_width_[static_cast<std::size_t>(f)] = n_grains * width_of(spec);
+    widest = std::max(widest, width_of(spec));
   }
   matrices_.resize(n_grains * 9);
   row_.resize(n_grains * widest);
@@ -784,10 +824,9 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
     const double grains = static_cast<double>(c.orientations.size());
     double macro_values = 0.0, grain_values = 0.0;
     for (MacroField f : c.output.macro)
-      macro_values +=
-          static_cast<double>(std::max<std::size_t>(macro_spec(f, scene.units).width, 1));
+      macro_values += static_cast<double>(width_of(macro_spec(f, scene.units)));
     for (GrainField f : c.output.grains)
-      grain_values += static_cast<double>(grain_spec(f, scene.units, slip_count).width);
+      grain_values += static_cast<double>(width_of(grain_spec(f, scene.units, slip_count)));
     // Grain series reserve whole chunks of up to kGrainChunkBytes each.
     const double chunk_slack = static_cast<double>(c.output.grains.size() * kGrainChunkBytes);
     const double bytes = 8.0 * rows * (macro_values + grains * grain_values) + chunk_slack +

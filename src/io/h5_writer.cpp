@@ -351,6 +351,18 @@ void Object::set_attribute(std::string_view name, std::span<const double> values
                     values.data());
 }
 
+void Object::set_attribute(std::string_view name, std::span<const double> values,
+                           std::span<const std::size_t> shape) const {
+  const std::vector<hsize_t> dims(shape.begin(), shape.end());
+  std::size_t n = 1;
+  for (std::size_t d : shape) n *= d;
+  if (n != values.size())
+    throw Error("HDF5: attribute '" + std::string(name) + "': values do not fit its shape");
+  Handle space = simple_space(dims);
+  replace_attribute(id(), std::string(name), H5T_IEEE_F64LE, space.get(), H5T_NATIVE_DOUBLE,
+                    values.data());
+}
+
 void Object::set_attribute(std::string_view name, const std::vector<std::string>& values) const {
   const hsize_t n[1] = {values.size()};
   Handle space = simple_space(n);

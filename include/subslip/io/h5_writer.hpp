@@ -126,6 +126,9 @@ class Object {
     set_attribute(name, std::string_view(value));
   }
   void set_attribute(std::string_view name, std::span<const double> values) const;  // 1-D array
+  // An array of `shape` (row-major `values`, size = product of shape): [3, 3] for a tensor.
+  void set_attribute(std::string_view name, std::span<const double> values,
+                     std::span<const std::size_t> shape) const;
   void set_attribute(std::string_view name, const std::vector<std::string>& values) const;
 
   // A fixed-length UTF-8 string attribute of `bytes` bytes, empty (NUL-padded): a message
@@ -387,6 +390,12 @@ void sync_to_disk(const std::filesystem::path& file);
 // A random identifier of a run (16 hex digits), stored in the result as `run_id` and in its
 // restart file, which must name the same run.
 std::string new_run_id();
+
+// The `components` attribute of every second-order tensor dataset of a result file: the two
+// trailing axes are the tensor's row and column.
+inline constexpr const char* kTensorConvention =
+    "3x3 tensor: [..., i, j] is the component ij (i the row, j the column); symmetric tensors "
+    "are stored in full";
 
 // 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); a finished file is
 // rewritten with exactly its rows (`finished` = 1); checkpoints in a separate restart file.
