@@ -262,7 +262,7 @@ TEST(Cli, BinaryFileAsSceneIsOneShortLine) {
   fs::remove_all(dir);
 }
 
-// A result larger than any disk (1e4 grains, every field, 2e9 increments: ~11 PB) is refused
+// A result larger than any disk (1e4 grains, every field, 2e9 increments: ~12 PB) is refused
 // before the file is created, naming the key and line; 1e12 increments name the key's limit.
 TEST(Cli, ResultTooLargeForTheDiskIsRefusedBeforeAnyWork) {
   const fs::path dir = scratch_dir();
@@ -274,7 +274,7 @@ TEST(Cli, ResultTooLargeForTheDiskIsRefusedBeforeAnyWork) {
   const Outcome r = run(dir, "run big.yaml -o out/big.h5");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.err.rfind("subslip: error: big.yaml:16: loading[0].increments: the result would "
-                        "take about 11.2 PB",
+                        "take about 11.7 PB",
                         0),
             0u)
       << r.err;

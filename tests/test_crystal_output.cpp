@@ -21,6 +21,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/orientation_file.hpp"
+#include "subslip/io/result_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -97,7 +98,7 @@ std::vector<Reported> run_into(const std::string& text, const fs::path& out) {
   const auto results = run_crystal_scene(scene, file, options);
   EXPECT_EQ(results.size(), 1u);
   EXPECT_TRUE(results[0].failure.empty()) << results[0].failure;
-  file.close();
+  close_and_finish(file);
   return seen;
 }
 
@@ -147,8 +148,14 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
   EXPECT_EQ(time.shape(), (std::vector<std::size_t>{n}));
   EXPECT_EQ(time.attribute_string("unit"), "s");
   const auto stress = macro.open_dataset("stress");
-  EXPECT_EQ(stress.shape(), (std::vector<std::size_t>{n, 9}));
-  EXPECT_EQ(stress.attribute_string("layout"), "row-major 3x3: 11 12 13 21 22 23 31 32 33");
+  // Every tensor [n, 3, 3], [n, i, j] = component ij, saying so in `components`.
+  for (const char* tensor : {"L", "F", "strain", "stress"}) {
+    SCOPED_TRACE(tensor);
+    const auto d = macro.open_dataset(tensor);
+    EXPECT_EQ(d.shape(), (std::vector<std::size_t>{n, 3, 3}));
+    EXPECT_EQ(d.attribute_string("components"), h5::kTensorConvention);
+    EXPECT_FALSE(d.has_attribute("layout"));
+  }
   EXPECT_EQ(stress.attribute_string("unit"), "MPa");
   EXPECT_EQ(macro.open_dataset("L").attribute_string("unit"), "1/s");
   EXPECT_EQ(macro.open_dataset("F").attribute_string("unit"), "1");
@@ -187,8 +194,7 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
     std::vector<double> Reported::*field;
     const char* unit;
   };
-  const Expect expect[] = {{"stress", 6, &Reported::stress, "MPa"},
-                           {"slip", systems, &Reported::slip, "1"},
+  const Expect expect[] = {{"slip", systems, &Reported::slip, "1"},
                            {"slip_rate", systems, &Reported::slip_rate, "1/s"},
                            {"crss", systems, &Reported::crss, "MPa"},
                            {"r", systems, &Reported::r, "1"},
@@ -203,6 +209,26 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
     for (std::size_t k = 0; k < n; ++k)
       EXPECT_EQ(step_of(values, k, grains * x.k), seen[k].*x.field);
   }
+  // The grain stress as full 3x3 tensors [n, G, 3, 3]: the kernel's 11 22 33 23 13 12 at (i, j)
+  // and (j, i).
+  const auto grain_stress = g.open_dataset("stress");
+  EXPECT_EQ(grain_stress.shape(), (std::vector<std::size_t>{n, grains, 3, 3}));
+  EXPECT_EQ(grain_stress.attribute_string("components"), h5::kTensorConvention);
+  EXPECT_EQ(grain_stress.attribute_string("unit"), "MPa");
+  const auto sigma = grain_stress.read_doubles();
+  const int voigt_i[6] = {0, 1, 2, 1, 0, 0}, voigt_j[6] = {0, 1, 2, 2, 2, 1};
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t grain = 0; grain < grains; ++grain) {
+      const double* t = sigma.data() + (k * grains + grain) * 9;
+      const double* v = seen[k].stress.data() + 6 * grain;
+      for (int c = 0; c < 6; ++c) {
+        EXPECT_EQ(t[3 * voigt_i[c] + voigt_j[c]], v[c]);
+        EXPECT_EQ(t[3 * voigt_j[c] + voigt_i[c]], v[c]);
+      }
+    }
+  }
+  EXPECT_NE(sigma[(n - 1) * grains * 9 + 8], 0.0);  // sigma_33 of grain 0 in tension
+
   const auto orientation = g.open_dataset("orientation");
   EXPECT_EQ(orientation.shape(), (std::vector<std::size_t>{n, grains, 4}));
   const auto q = orientation.read_doubles();
@@ -225,6 +251,8 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
   EXPECT_TRUE(c.has_attribute("wall_seconds"));
   EXPECT_TRUE(c.has_attribute("grain_steps_per_second"));
   EXPECT_EQ(c.attribute_string("final_von_mises_stress.unit"), "MPa");
+  EXPECT_EQ(c.attribute_doubles("final_stress"), row_major(seen.back().macro.stress));  // [3, 3]
+  EXPECT_EQ(c.attribute_size("stiffness_mandel"), 36u);
   EXPECT_NEAR(c.attribute_double("final_von_mises_stress"),
               von_mises_stress(seen.back().macro.stress), 1e-12);
   EXPECT_EQ(c.attribute_doubles("tau0"), std::vector<double>(systems, 10.0));
@@ -291,6 +319,11 @@ TEST(CrystalCli, RunsTheDefaultSceneIntoATempFile) {
   EXPECT_NE(r.out.find("strain_33  stress[MPa]"), std::string::npos) << r.out;
   const h5::File file = h5::File::open_read(dir / "out.h5");
   EXPECT_EQ(file.root().attribute_int("completed"), 1);
+  // The finished result: its rows only, no checkpoint (the restart file is gone), small.
+  EXPECT_EQ(file.root().attribute_int("finished"), 1);
+  EXPECT_FALSE(file.root().has("checkpoint"));
+  EXPECT_FALSE(fs::exists(dir / "out.restart.h5"));
+  EXPECT_LT(fs::file_size(dir / "out.h5"), 200u * 1000u);
   const h5::Group c = file.root().open_group("cases").open_group("base");
   EXPECT_EQ(c.open_group("macro").open_dataset("time").shape(), (std::vector<std::size_t>{251}));
   EXPECT_FALSE(c.has("grains"));

@@ -14,11 +14,13 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/io/case_group.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -68,6 +70,7 @@ fs::path write_run(const ContactScene& scene, const fs::path& path, int threads)
   options.threads = threads;
   const auto results = run_contact_scene(scene, file, options);
   for (const auto& r : results) EXPECT_TRUE(r.failure.empty()) << r.failure;
+  close_and_finish(file);
   return path;
 }
 
@@ -91,6 +94,9 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   EXPECT_EQ(root.attribute_string("scene_file"), "h5_test.yaml");
   EXPECT_EQ(root.attribute_string("title"), "h5 test");
   EXPECT_EQ(root.attribute_int("completed"), 1);
+  EXPECT_EQ(root.attribute_int("finished"), 1);
+  EXPECT_EQ(root.attribute_string("run_id").size(), 16u);
+  EXPECT_FALSE(root.has("checkpoint"));
   const std::string created = root.attribute_string("created");
   EXPECT_EQ(created.size(), 20u);
   EXPECT_EQ(created.back(), 'Z');
@@ -114,7 +120,9 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
     EXPECT_FALSE(ds.attribute_string("description").empty());
     EXPECT_EQ(ds.shape().front(), n);
     EXPECT_TRUE(ds.filters().empty());  // live rows are written in place, uncompressed
-    EXPECT_FALSE(ds.chunk_shape().empty());
+    // A finished file: chunked (extendible) as while the run went, but exactly its rows.
+    ASSERT_FALSE(ds.chunk_shape().empty());
+    EXPECT_LE(ds.chunk_shape().front(), n);
   }
   EXPECT_EQ(g.open_dataset("time").attribute_string("unit"), "min");
   EXPECT_EQ(g.open_dataset("slip").attribute_string("unit"), "mm");
@@ -122,6 +130,9 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   EXPECT_EQ(g.open_dataset("ratio").attribute_string("unit"), "1");
   EXPECT_EQ(g.open_dataset("slip").shape(), (std::vector<std::size_t>{n, 2}));
   EXPECT_EQ(g.open_dataset("traction").shape(), (std::vector<std::size_t>{n, 3}));
+  EXPECT_EQ(g.open_dataset("slip").attribute_string("components"), "x y");
+  EXPECT_EQ(g.open_dataset("traction").attribute_string("components"), "x y n");
+  EXPECT_FALSE(g.open_dataset("ratio").has_attribute("components"));
 
   // Values: bit for bit what run_history reported.
   const auto time = g.open_dataset("time").read_doubles();
@@ -200,7 +211,9 @@ TEST(H5Output, SweepCasesCarryOverridesAndDoNotDependOnThreads) {
   }
   const h5::Group g = a.open_group("speed=100,function=reciprocal");
   EXPECT_DOUBLE_EQ(g.attribute_double("sweep:loading[0].slide.speed"), 100.0);
+  EXPECT_EQ(g.attribute_string("sweep:loading[0].slide.speed.unit"), "mm/min");
   EXPECT_EQ(g.attribute_string("sweep:law.subloading.function"), "reciprocal");
+  EXPECT_FALSE(g.has_attribute("sweep:law.subloading.function.unit"));  // a name has no unit
   EXPECT_EQ(g.attribute_string("subloading_function"), "reciprocal");
   EXPECT_EQ(g.attribute_int("index"), 5);
   fs::remove_all(dir);
@@ -376,14 +389,23 @@ bool is_fill(double v, bool integer) {
   return integer ? v == static_cast<double>(h5::kInt32Fill) : std::isnan(v);
 }
 
-// What a file killed at any moment must hold: completed = 0; for each case, /progress counts
-// rows that are all present and equal (bit for bit) to the uninterrupted run's, and every row
-// after them is either not written (fill) or also equal; a completed case equals the reference.
-// Adds the number of valid rows found to `valid`.
+// What a file killed at any moment must hold: a working file (completed = 0, finished = 0) in
+// which, for each case, /progress counts rows that are all present and equal (bit for bit) to
+// the uninterrupted run's, and every row after them is either not written (fill) or also equal;
+// or, when the kill came after the finished file replaced it, that finished file, equal to the
+// reference. Adds the number of valid rows found to `valid`.
 void check_killed_file(const fs::path& killed, const fs::path& reference, std::size_t& valid) {
   const auto ref = subslip::testing::case_datasets(reference);
   const h5::File file = h5::File::open_read(killed);  // readable
   const h5::Group root = file.root();
+  if (root.attribute_int("finished") == 1) {
+    EXPECT_EQ(root.attribute_int("completed"), 1);
+    subslip::testing::expect_same_datasets(reference, killed);
+    const h5::CaseProgress progress = h5::CaseProgress::open(root);
+    for (std::size_t k = 0; k < progress.size(); ++k)
+      valid += static_cast<std::size_t>(progress.rows(k));
+    return;
+  }
   EXPECT_EQ(root.attribute_int("completed"), 0);
   const auto names = root.open_group("cases").attribute_strings("names");
   const h5::CaseProgress progress = h5::CaseProgress::open(root);
@@ -403,14 +425,16 @@ void check_killed_file(const fs::path& killed, const fs::path& reference, std::s
       const auto& actual = it->second;
       const bool fixed = name.ends_with("/weight") || name.ends_with("/initial_orientation") ||
                          name.ends_with("/slip_systems");  // written once, not series
-      if (state == h5::CaseState::completed || fixed) {
+      if (fixed) {
         ASSERT_EQ(actual.shape, expected.shape);
         for (std::size_t i = 0; i < expected.values.size(); ++i)
           ASSERT_TRUE(subslip::testing::same_bits(actual.values[i], expected.values[i])) << i;
         continue;
       }
-      // A series of the running case: reserved rows, the first `rows` valid.
-      ASSERT_EQ(state, h5::CaseState::running);
+      // A series: reserved rows, the first `rows` valid (all of them for a completed case).
+      if (state == h5::CaseState::completed) {
+        ASSERT_EQ(rows, expected.shape.front());
+      }
       ASSERT_GE(actual.shape.front(), rows);
       std::size_t width = 1;
       for (std::size_t d = 1; d < expected.shape.size(); ++d) width *= expected.shape[d];
@@ -491,6 +515,14 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
       at_layout = fs::file_size(path);
       orders = attribute_orders(file);
     };
+    // Checkpoints go to the restart file, which does not grow either.
+    options.restart_file = restart_file_for(path);
+    std::uintmax_t restart_at_layout = 0;
+    const auto on_layout = options.on_header_written;
+    options.on_header_written = [&] {
+      on_layout();
+      restart_at_layout = fs::file_size(options.restart_file);
+    };
     const auto results = run_crystal_scene(
         parse_crystal_scene(YamlDocument::from_string(kCrystalKillScene, "kill.yaml")), file,
         options);
@@ -499,7 +531,17 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
     file.close();
     EXPECT_GT(at_layout, 0u);
     EXPECT_EQ(fs::file_size(path), at_layout);
-    EXPECT_TRUE(h5::File::open_read(path).root().has("checkpoint"));
+    EXPECT_FALSE(h5::File::open_read(path).root().has("checkpoint"));
+    EXPECT_GT(restart_at_layout, 0u);
+    EXPECT_EQ(fs::file_size(options.restart_file), restart_at_layout);
+    const h5::File restart = h5::File::open_read(options.restart_file);
+    EXPECT_GT(restart.root()
+                  .open_group("checkpoint")
+                  .open_group("a")
+                  .open_dataset("sequence")
+                  .read_ints()
+                  .front(),
+              0);  // checkpoints were written
   }
   {
     // The slide in one step: the implicit case completes, forward Euler fails.
@@ -528,4 +570,47 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
     EXPECT_NE(h5::failure_message(failed), "");
   }
   fs::remove_all(dir);
+}
+
+// The unit of every kind of swept value, in the scene's own units (`sweep:<path>.unit`).
+TEST(CaseGroup, SweepUnitsFollowTheSceneUnits) {
+  Units u;
+  u.stress = "GPa";
+  u.length = "um";
+  u.time = "s";
+  const std::pair<const char*, const char*> contact[] = {{"loading[0].slide.speed", "um/s"},
+                                                         {"loading[*].slide.velocity", "um/s"},
+                                                         {"loading[1].slide.distance", "um"},
+                                                         {"loading[2].hold.duration", "s"},
+                                                         {"loading[0].normal.traction", "GPa"},
+                                                         {"loading[0].normal.velocity", "um/s"},
+                                                         {"law.friction.kappa", "1/um"},
+                                                         {"law.friction.xi", "1/s"},
+                                                         {"law.overstress.eta_v", "s/um"},
+                                                         {"law.overstress.n", "1"},
+                                                         {"contact.alpha_t", "GPa/um"},
+                                                         {"contact.normal_traction", "GPa"},
+                                                         {"initial.mu", "1"},
+                                                         {"loading[0].increments", "1"},
+                                                         {"law.subloading.function", ""},
+                                                         {"integrator.method", ""}};
+  for (const auto& [path, unit] : contact)
+    EXPECT_EQ(sweep_unit(SceneKind::contact, path, u), unit) << path;
+  const std::pair<const char*, const char*> crystal[] = {
+      {"loading[0].L[2][2]", "1/s"},
+      {"loading[0].L", "1/s"},
+      {"loading[0].stress[0][0]", "GPa"},
+      {"loading[0].duration", "s"},
+      {"loading[0].strain", "1"},
+      {"phase.tau0", "GPa"},
+      {"phase.elasticity.C44", "GPa"},
+      {"phase.elasticity.nu", "1"},
+      {"phase.law.friction.kappa", "1"},
+      {"phase.law.overstress.eta_v", "s"},
+      {"phase.per_family.fcc_111_110.law.friction.xi", "1/s"},
+      {"phase.per_family.hcp_basal_a.tau0", "GPa"},
+      {"orientations.component.spread_deg", "deg"},
+      {"phase.kinematics", ""}};
+  for (const auto& [path, unit] : crystal)
+    EXPECT_EQ(sweep_unit(SceneKind::crystal, path, u), unit) << path;
 }

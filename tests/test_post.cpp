@@ -22,6 +22,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/result_file.hpp"
 #include "subslip/io/result_post.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
@@ -51,6 +52,7 @@ const fs::path& contact_result() {
     const auto scene = parse_contact_scene(YamlDocument::from_file(kData / "contact_small.yaml"));
     h5::File file = h5::File::create(out, true);
     for (const auto& c : run_contact_scene(scene, file)) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(file);
     return out;
   }();
   return path;
@@ -63,6 +65,7 @@ const fs::path& crystal_result() {
     const auto scene = parse_crystal_scene(YamlDocument::from_file(kData / "crystal_small.yaml"));
     h5::File file = h5::File::create(out, true);
     for (const auto& c : run_crystal_scene(scene, file, {})) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(file);
     return out;
   }();
   return path;
@@ -181,9 +184,10 @@ TEST(PostSummary, CrystalListsGrainDatasetsWithTheirShapes) {
   EXPECT_TRUE(contains(s, "units:       stress MPa, time s")) << s;
   EXPECT_TRUE(contains(s, "case L[2][2]=1.0e-3 (index 0)")) << s;
   EXPECT_FALSE(contains(s, "case L[2][2]=1.0e-1 (index")) << "--case selects one case\n" << s;
-  EXPECT_TRUE(contains(s, "macro/stress                [21, 9]       [MPa]")) << s;
-  EXPECT_TRUE(contains(s, "grains/crss                 [21, 20, 12]  [MPa]")) << s;
-  EXPECT_TRUE(contains(s, "grains/orientation          [21, 20, 4]   [1]")) << s;
+  EXPECT_TRUE(contains(s, "macro/stress                [21, 3, 3]      [MPa]")) << s;
+  EXPECT_TRUE(contains(s, "grains/stress               [21, 20, 3, 3]  [MPa]")) << s;
+  EXPECT_TRUE(contains(s, "grains/crss                 [21, 20, 12]    [MPa]")) << s;
+  EXPECT_TRUE(contains(s, "grains/orientation          [21, 20, 4]     [1]")) << s;
   EXPECT_TRUE(contains(s, "tau0                     = 10 (x12) MPa")) << s;
 }
 
@@ -259,6 +263,54 @@ TEST(PostCsv, A2DSeriesRoundTripsExactly) {
     EXPECT_EQ(number(csv.rows[i][0]), static_cast<double>(i));
     EXPECT_EQ(number(csv.rows[i][1]), time[i]);
     for (std::size_t k = 0; k < 9; ++k) EXPECT_EQ(number(csv.rows[i][2 + k]), stress[9 * i + k]);
+  }
+}
+
+// A per-grain tensor [n, G, 3, 3]: nine columns 11 ... 33 per (step, grain), or per step for one
+// grain; [step, grain, i, j] of the file is column ij.
+TEST(PostCsv, PerGrainTensorIsNineColumnsOfItsComponents) {
+  const fs::path dir = scratch_dir();
+  const std::string path = "cases/" + kCrystalCase + "/grains/stress";
+  const auto stress = read_dataset(crystal_result(), path);  // [21, 20, 3, 3]
+  const std::size_t n = 21, grains = 20;
+  ASSERT_EQ(stress.size(), n * grains * 9);
+  const auto all =
+      post::export_csv(crystal_result(), csv_options(dir, kCrystalCase, {"grains/stress"}));
+  ASSERT_EQ(all.size(), 1u);
+  const Csv csv = read_csv(all[0]);
+  const std::vector<std::string> header{"step",
+                                        "time [s]",
+                                        "grain",
+                                        "stress_11 [MPa]",
+                                        "stress_12 [MPa]",
+                                        "stress_13 [MPa]",
+                                        "stress_21 [MPa]",
+                                        "stress_22 [MPa]",
+                                        "stress_23 [MPa]",
+                                        "stress_31 [MPa]",
+                                        "stress_32 [MPa]",
+                                        "stress_33 [MPa]"};
+  EXPECT_EQ(csv.header, header);
+  ASSERT_EQ(csv.rows.size(), n * grains);
+  for (std::size_t r = 0; r < csv.rows.size(); ++r) {
+    for (std::size_t c = 0; c < 9; ++c) EXPECT_EQ(number(csv.rows[r][3 + c]), stress[9 * r + c]);
+  }
+  // Symmetric: 12 = 21, 13 = 31, 23 = 32.
+  for (const auto& row : csv.rows) {
+    EXPECT_EQ(row[4], row[6]);
+    EXPECT_EQ(row[5], row[9]);
+    EXPECT_EQ(row[8], row[10]);
+  }
+  auto options = csv_options(dir, kCrystalCase, {"grains/stress"});
+  options.grain = 3;
+  const auto one = post::export_csv(crystal_result(), options);
+  ASSERT_EQ(one.size(), 1u);
+  const Csv g3 = read_csv(one[0]);
+  ASSERT_EQ(g3.header.size(), 2u + 9u);
+  ASSERT_EQ(g3.rows.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t c = 0; c < 9; ++c)
+      EXPECT_EQ(number(g3.rows[i][2 + c]), stress[(i * grains + 3) * 9 + c]);
   }
 }
 

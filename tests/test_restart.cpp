@@ -28,6 +28,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/restart.hpp"
+#include "subslip/io/result_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -301,10 +302,8 @@ TEST(Checkpoint, KillWhileWritingLeavesAWholeCheckpoint) {
     ASSERT_GE(child, 0);
     if (child == 0) {
       ::close(ready[0]);
-      h5::File file = h5::File::create(path, false);
-      h5::write_result_header(file, {"crystal", "k.yaml", "scene: crystal\n", "kill", {}});
-      CheckpointStore::create(file.root(), grains * per_grain);
-      file.flush();
+      // As a run writes it: the restart file next to its result.
+      h5::File file = create_restart_file(path, "0123456789abcdef", grains * per_grain);
       if (::write(ready[1], "r", 1) != 1) ::_exit(1);
       CheckpointStore store(file.root());
       crystal::MacroState last;
@@ -380,6 +379,10 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
       dir, {"run", "scene.yaml", "-o", "out.h5", "-q"}, dir / "run.log", dir / "out.h5", when(rng));
   ASSERT_TRUE(first == 128 + SIGKILL || first == 0) << log_of(dir);
   if (killed_unfinished(first, dir / "out.h5")) {
+    // The checkpoints are in the restart file next to the result, of the same run.
+    std::string run_id;
+    EXPECT_TRUE(is_restart_file(dir / "out.restart.h5", &run_id));
+    EXPECT_EQ(run_id, h5::File::open_read(dir / "out.h5").root().attribute_string("run_id"));
     // Kill the restarted run too (early in it), then let a second restart finish.
     const int second = subslip::testing::run_and_kill(dir, {"run", "--restart", "out.h5", "-q"},
                                                       dir / "run.log", 0.3 * when(rng));
@@ -393,9 +396,10 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
   const h5::CaseProgress progress = h5::CaseProgress::open(out.root());
   for (std::size_t k = 0; k < progress.size(); ++k)
     EXPECT_EQ(progress.state(k), h5::CaseState::completed);
-  // One checkpoint store for the run, not one per case.
-  EXPECT_TRUE(out.root().has("checkpoint"));
+  // No checkpoint in the finished result, and its restart file is gone.
+  EXPECT_FALSE(out.root().has("checkpoint"));
   EXPECT_FALSE(out.root().open_group("cases").open_group("tau0=10").has("checkpoint"));
+  EXPECT_FALSE(fs::exists(dir / "out.restart.h5"));
   subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
   fs::remove_all(dir);
 }
@@ -441,6 +445,7 @@ namespace {
 void mark_interrupted(const fs::path& file) {
   h5::File f = h5::File::open_write(file);
   h5::mark_running(f);
+  f.root().set_attribute("finished", 0);
   h5::CaseProgress progress = h5::CaseProgress::open(f.root());
   progress.set_state(0, h5::CaseState::running);
 }
@@ -511,5 +516,29 @@ TEST(Restart, RefusesChangedOrientations) {
   expect_refused(dir, {"run", "--restart", "out.h5"}, "the orientations differ");
   std::ofstream(dir / "grains.txt") << header << "10 20 30\n40 50 60\n";
   EXPECT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+  fs::remove_all(dir);
+}
+
+// The restart file next to an interrupted result must be that run's: a restart file of another
+// run (its run_id) or another file at that path is refused, naming it and what to do.
+TEST(Restart, RefusesARestartFileOfAnotherRun) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml") << crystal_scene(2, 6, "output:\n  checkpoint_every: 2\n");
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "a.h5", "-q", "--keep-restart"},
+                        dir / "run.log"),
+            0)
+      << log_of(dir);
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "b.h5", "-q"}, dir / "run.log"), 0)
+      << log_of(dir);
+  mark_interrupted(dir / "b.h5");
+  fs::copy_file(dir / "a.restart.h5", dir / "b.restart.h5");
+  expect_refused(dir, {"run", "--restart", "b.h5"},
+                 "b.restart.h5: run_id: cannot restart b.h5: the restart file belongs to another "
+                 "run; remove it");
+  std::ofstream(dir / "b.restart.h5", std::ios::trunc) << "not a restart file\n";
+  expect_refused(dir, {"run", "--restart", "b.h5"}, "it is not a subslip restart file");
+  fs::remove(dir / "b.restart.h5");
+  EXPECT_EQ(restart(dir, "b.h5"), 0) << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "a.h5", dir / "b.h5");
   fs::remove_all(dir);
 }

@@ -65,9 +65,9 @@ InputError refusal(const YamlDocument& d, const RunSize& size, const Capacity& c
 TEST(RunSize, CrystalEstimateCountsEveryRowOfEveryGrain) {
   const YamlDocument d = YamlDocument::from_string(crystal_text(1000, "250000000"), "s.yaml");
   const RunSize size = estimate_crystal_run(parse_crystal_scene(d), 0);
-  // rows x (macro 1 + 4 x 9 + 1, grains 1000 x (6 + 4 + 5 x 12)) x 8 bytes
+  // rows x (macro 1 + 4 x 9 + 1, grains 1000 x (9 + 4 + 5 x 12)) x 8 bytes
   const double rows = 10 + 250000000 + 1;
-  const double expected = rows * (38.0 + 1000.0 * 70.0) * 8.0;
+  const double expected = rows * (38.0 + 1000.0 * 73.0) * 8.0;
   EXPECT_GE(size.result_bytes, expected);
   EXPECT_LT(size.result_bytes, expected * 1.001);
   EXPECT_EQ(size.rows, 250000011u);
@@ -91,7 +91,7 @@ TEST(RunSize, TooLargeForTheDiskIsRefusedAtTheIncrements) {
   EXPECT_EQ(e.file, "s.yaml");
   EXPECT_EQ(e.line, 21);
   EXPECT_EQ(e.key, "loading[1].increments");
-  EXPECT_NE(e.message.find("the result would take about 140 TB (250000011 output rows)"),
+  EXPECT_NE(e.message.find("the result would take about 146 TB (250000011 output rows)"),
             std::string::npos)
       << e.what();
   EXPECT_NE(e.message.find("out/x.h5 is on a file system with 1 TB free"), std::string::npos)

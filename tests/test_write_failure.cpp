@@ -199,8 +199,8 @@ TEST(WriteFailure, FullTmpfsWhileGrowingKeepsRows) {
   fs::remove_all(dir);
 }
 
-// A disk too small for the layout (about 75 kB), though large enough for the size check's
-// estimate (about 32 kB): nothing is left on it.
+// A disk too small for the layout (about 55 kB), though large enough for the size check's
+// estimate (about 32 kB, and 16 kB for the finished file): nothing is left on it.
 TEST(WriteFailure, FullTmpfsDuringLayoutLeavesNothing) {
   const fs::path dir = subslip::testing::scratch_dir("write_failure");
   write_file(dir / "scene.yaml", adaptive_scene());

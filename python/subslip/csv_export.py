@@ -3,8 +3,8 @@
 One file per dataset, `<case>_<path with / as _>.csv` (characters other than letters, digits
 and ._=+- become _); a header line of `name [unit]` columns; time series start with `step` and
 the case's `time`; an [n, k] series has k columns named from its `layout`/`components`
-attribute; an [n, G, k] series is in long format (one row per step and grain, with a `grain`
-column) or, with `grain`, of one grain. Only the valid rows of a series are written. Numbers
+attribute (a tensor's [3, 3] axes are k = 9 columns 11 12 ... 33); an [n, G, k] series is in
+long format (one row per step and grain, with a `grain` column) or, with `grain`, of one grain. Only the valid rows of a series are written. Numbers
 are the shortest text that reads back to the same double, in the form C++ std::to_chars
 chooses (fixed or scientific, whichever is shorter: 20, 0.5, 1e-04, 1.5e+22), so that files of
 both writers compare equal.
@@ -13,6 +13,10 @@ both writers compare equal.
 import math
 import os
 import re
+
+from .tensors import TENSOR_CONVENTION
+
+TENSOR_COMPONENTS = ["11", "12", "13", "21", "22", "23", "31", "32", "33"]
 
 
 def shortest_digits(value):
@@ -76,6 +80,8 @@ def component_names(case, path, k):
     for per-system data, the words of `components`/`layout` (after a ':'), the contact
     layouts, else 0..k-1."""
     d = case.dataset(path)
+    if is_tensor(d):
+        return list(TENSOR_COMPONENTS)
     directory = path.rpartition("/")[0]
     systems = f"{directory}/slip_systems" if directory else "slip_systems"
     for attribute in ("components", "layout"):
@@ -98,6 +104,17 @@ def _text(value):
     return value.decode() if isinstance(value, bytes) else value
 
 
+def is_tensor(dataset):
+    """A format-3 tensor dataset: trailing axes (3, 3), components = TENSOR_CONVENTION."""
+    return (dataset.ndim >= 3 and dataset.shape[-2:] == (3, 3)
+            and _text(dataset.attrs.get("components", "")) == TENSOR_CONVENTION)
+
+
+def table_shape(dataset, shape):
+    """The shape a table sees: a tensor's two trailing axes as one of 9 components."""
+    return tuple(shape[:-2]) + (9,) if is_tensor(dataset) else tuple(shape)
+
+
 def time_column(case, path, rows):
     """The case's time series of `rows` valid rows: a sibling `time`, `time`, `macro/time`."""
     directory = path.rpartition("/")[0]
@@ -114,7 +131,7 @@ def table_lines(case, path, grain=None):
     d = case.dataset(path)
     values = case.raw(path)
     series = case.is_series(path)
-    shape = values.shape or (1,)
+    shape = table_shape(d, values.shape) or (1,)
     values = values.reshape(shape).astype(float)
     rows = shape[0]
     name = path.rpartition("/")[2]
@@ -177,11 +194,13 @@ def export_case(case, directory, names=None, grain=None, overwrite=False):
     name and target is checked before anything is written."""
     plan, used = [], set()
     for path in requested_paths(case, names):
-        ndim = case.dataset(path).ndim
+        d = case.dataset(path)
+        ndim = len(table_shape(d, d.shape))  # (a tensor's 3x3 counted as one axis)
         if ndim > 3:
-            raise ValueError(f"'{path}' has rank {ndim}; only ranks 0 to 3 are exported")
+            raise ValueError(f"'{path}' has rank {ndim}; only ranks 0 to 3 (and tensors of rank "
+                             "3 and 4) are exported")
         one_grain = grain if ndim == 3 else None
-        grains = case.dataset(path).shape[1] if ndim == 3 else 0
+        grains = d.shape[1] if ndim == 3 else 0
         if one_grain is not None and not 0 <= one_grain < grains:
             raise IndexError(f"grain {grain} is out of range: '{path}' has {grains} grains")
         stem = f"{file_safe(case.name)}_{file_safe(path.replace('/', '_'))}"

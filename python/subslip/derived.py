@@ -84,9 +84,9 @@ def written_with_unit(text):
 
 
 def sweep_unit(case, path):
-    """The unit of a swept value, or None when unknown (counts, names). The file does not
-    store it: taken from a `sweep:<path>.unit` attribute if a later file has one, else from
-    the case attribute of the same key (`eta_v.unit`), else from the scene's loading keys."""
+    """The unit of a swept value, or None when unknown (names). Format 3 stores it as the
+    attribute `sweep:<path>.unit`; for older files it is taken from the case attribute of the
+    same key (`eta_v.unit`), else from the scene's loading keys."""
     attrs = case.attrs
     if f"sweep:{path}.unit" in attrs:
         return attrs[f"sweep:{path}.unit"]

@@ -76,6 +76,8 @@ class Result:
         self.title = text_attribute(self.file, "title", "")
         self.format_version = int(attrs.get("format_version", 1))
         self.completed = int(attrs.get("completed", 0)) == 1
+        # Format 3: the run ended and every series was rewritten with exactly its rows.
+        self.finished = int(attrs.get("finished", 0)) == 1
         self.write_error = text_attribute(self.file, "write_error", "")
         units = self.file.get("units")
         self.units = {k: decoded(v) for k, v in units.attrs.items()} if units else {}
@@ -204,9 +206,10 @@ class Case:
         return tensors.to_matrices(values, layout, f"case '{self.name}': {path}")
 
     def tensor_layout(self, path):
-        """The `layout` or `components` text of a tensor dataset; None for other data."""
+        """The `components` (format 3) or `layout` / `components` (format 2) text of a tensor
+        dataset; None for other data."""
         d = self.dataset(path)
-        for name in ("layout", "components"):
+        for name in ("components", "layout"):
             text = text_attribute(d, name)
             if text is not None and tensors.looks_like_tensor(text):
                 return text

@@ -1,15 +1,21 @@
 """Second-order tensors of a result file as (..., 3, 3) arrays, and their von Mises measures.
 
-The file stores 3x3 tensors in two layouts: macro tensors as 9 columns with the attribute
-`layout = "row-major 3x3: 11 12 13 21 22 23 31 32 33"`, per-grain symmetric tensors as 6
-columns with `components = "11 22 33 23 13 12"` (tensor components, no Voigt factor 2 on the
-shears, no Mandel sqrt 2). Both are read from the attribute rather than assumed, so that a
+Format 3 stores every tensor as it is used: [n, 3, 3] (macro) and [n, G, 3, 3] (per grain),
+[..., i, j] the component ij, symmetric ones in full, with the attribute `components` =
+TENSOR_CONVENTION. Format 2 stored macro tensors as 9 columns with the attribute `layout =
+"row-major 3x3: 11 12 13 21 22 23 31 32 33"` and per-grain symmetric tensors as 6 columns
+with `components = "11 22 33 23 13 12"` (tensor components, no Voigt factor 2 on the shears,
+no Mandel sqrt 2). Every layout is read from its attribute rather than assumed, so that a
 layout this module does not know stops with a message instead of silently wrong components.
 """
 
 import re
 
 import numpy as np
+
+# The `components` attribute of a format-3 tensor dataset (h5::kTensorConvention).
+TENSOR_CONVENTION = ("3x3 tensor: [..., i, j] is the component ij (i the row, j the column); "
+                     "symmetric tensors are stored in full")
 
 # Prefixes (the text before ':') that say the columns are plain tensor components. Any other
 # prefix (e.g. "Mandel") may mean scaled components: refused, not guessed.
@@ -26,6 +32,11 @@ def parse_layout(text):
     ["11", "12", ...]); a text without ':' has an empty prefix."""
     prefix, _, rest = text.rpartition(":")
     return prefix.strip(), rest.split()
+
+
+def is_full_tensor(text, shape):
+    """True for a format-3 tensor: its trailing axes are (3, 3) and the attribute says so."""
+    return text == TENSOR_CONVENTION and tuple(shape[-2:]) == (3, 3)
 
 
 def is_tensor_layout(text):
@@ -65,8 +76,13 @@ def component_pairs(text, columns, where="dataset"):
 
 
 def to_matrices(values, layout, where="dataset"):
-    """(..., k) columns in `layout` -> (..., 3, 3) tensors (k = 9 or 6)."""
+    """(..., k) columns in `layout` -> (..., 3, 3) tensors (k = 9 or 6); a format-3 tensor,
+    already (..., 3, 3), as it is."""
     values = np.asarray(values, dtype=float)
+    if is_full_tensor(layout, values.shape):
+        return values
+    if layout == TENSOR_CONVENTION:
+        raise LayoutError(f"{where}: a 3x3 tensor whose trailing axes are {values.shape[-2:]}")
     pairs = component_pairs(layout, values.shape[-1], where)
     out = np.empty(values.shape[:-1] + (3, 3))
     for column, targets in enumerate(pairs):

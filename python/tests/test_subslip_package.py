@@ -107,6 +107,12 @@ class Tensors(unittest.TestCase):
         t = subslip.to_matrices([1.0, 2.0, 3.0, 4.0, 5.0, 6.0], "11 22 33 23 13 12")
         np.testing.assert_array_equal(t, [[1, 6, 5], [6, 2, 4], [5, 4, 3]])
 
+    def test_format_3_tensors_are_taken_as_stored(self):
+        t = np.arange(18.0).reshape(2, 3, 3)
+        np.testing.assert_array_equal(subslip.to_matrices(t, tensors.TENSOR_CONVENTION), t)
+        with self.assertRaises(subslip.LayoutError):  # the convention on 9 columns: not 3x3
+            subslip.to_matrices(np.zeros((2, 9)), tensors.TENSOR_CONVENTION, "macro/stress")
+
     def test_layout_is_read_not_assumed(self):
         values = np.arange(9.0)
         row_major = "row-major 3x3: 11 12 13 21 22 23 31 32 33"
@@ -127,6 +133,7 @@ class Tensors(unittest.TestCase):
                 self.assertIn("macro/stress", str(caught.exception))
 
     def test_which_layouts_are_tensors(self):
+        self.assertTrue(tensors.looks_like_tensor(tensors.TENSOR_CONVENTION))
         self.assertTrue(tensors.looks_like_tensor("row-major 3x3: 11 12 13 21 22 23 31 32 33"))
         self.assertTrue(tensors.looks_like_tensor("Mandel 11 22 33 23 13 12 with sqrt 2"))
         self.assertFalse(tensors.looks_like_tensor("w x y z"))
@@ -362,13 +369,14 @@ class Runs(unittest.TestCase):
             self.assertTrue(r.completed)
             case = r.case("base")
             rows = case.valid_rows
-            # The file reserves more rows than the adaptive steps took: the padding is there.
-            stored = case.dataset("macro/time")
-            self.assertGreater(stored.shape[0], rows)
-            self.assertTrue(np.isnan(stored[rows:]).all())
-            self.assertEqual(case.dataset("macro/segment")[-1], INT32_FILL)
+            # The run reserved more rows than the adaptive steps took (the scene plans 200);
+            # the finished file holds only the rows taken, as stored.
+            self.assertTrue(r.finished)
+            self.assertLess(rows, 201)
             for path in case.datasets():
                 if case.is_series(path):
+                    stored = case.dataset(path)
+                    self.assertEqual(stored.shape[0], rows, path)
                     values = case.series(path)
                     self.assertEqual(len(values), rows, path)
                     self.assertTrue(np.isfinite(values).all(), path)
@@ -404,38 +412,67 @@ class Runs(unittest.TestCase):
 
     # ---- tensors
 
-    def test_tensor_reshape_equals_raw_components(self):
+    def test_every_tensor_is_stored_as_3x3_with_its_convention(self):
         with h5py.File(self.files["crystal_small"], "r") as f, \
                 subslip.open(self.files["crystal_small"]) as r:
             name = r.cases[1]
             case = r.case(name)
             raw = f["cases"][name]
-            for field in ("L", "F", "strain", "stress"):
-                t = case.series(f"macro/{field}")
-                stored = raw[f"macro/{field}"][()]
-                self.assertEqual(t.shape, (len(stored), 3, 3))
-                for i in range(3):
-                    for j in range(3):
-                        np.testing.assert_array_equal(t[:, i, j], stored[:, 3 * i + j])
-            t = case.grains("stress")
-            stored = raw["grains/stress"][()]  # 11 22 33 23 13 12
-            self.assertEqual(t.shape, stored.shape[:2] + (3, 3))
-            for column, (i, j) in enumerate([(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]):
-                np.testing.assert_array_equal(t[..., i, j], stored[..., column])
-                np.testing.assert_array_equal(t[..., j, i], stored[..., column])
-            np.testing.assert_array_equal(case.grains("stress", grain=3), t[:, 3])
+            self.assertEqual(int(f.attrs["format_version"]), 3)
+            for path in ("macro/L", "macro/F", "macro/strain", "macro/stress", "grains/stress"):
+                d = raw[path]
+                self.assertEqual(d.shape[-2:], (3, 3), path)
+                self.assertEqual(d.attrs["components"], tensors.TENSOR_CONVENTION, path)
+                self.assertNotIn("layout", d.attrs, path)
+                np.testing.assert_array_equal(case.series(path), d[()])
+            # L is not symmetric under mixed control: [n, i, j] is L_ij (row i), as the
+            # prescribed L_33 = 1e-3 shows; the grain stress is symmetric, stored in full.
+            L = raw["macro/L"][()]
+            rate = case.attrs["sweep:loading[0].L[2][2]"]
+            np.testing.assert_array_equal(L[1:, 2, 2], np.full(len(L) - 1, rate))
+            self.assertEqual(case.attrs["sweep:loading[0].L[2][2].unit"], "1/s")
+            sigma = raw["grains/stress"][()]
+            np.testing.assert_array_equal(sigma, np.swapaxes(sigma, -1, -2))
+            self.assertGreater(np.abs(sigma[..., 0, 1]).max(), 0.0)
+            np.testing.assert_array_equal(case.grains("stress", grain=3), sigma[:, 3])
+
+    def test_format_2_tensor_columns_read_as_the_same_matrices(self):
+        # An older file stored macro tensors as 9 row-major columns (attribute `layout`) and
+        # per-grain stresses as 6 columns 11 22 33 23 13 12: rewritten so, they read the same.
+        path = self.copy("crystal_small", "format2.h5")
+        with subslip.open(self.files["crystal_small"]) as r:
+            name = r.cases[0]
+            expected = {p: r.case(name).series(p) for p in ("macro/stress", "grains/stress")}
+        with h5py.File(path, "r+") as f:
+            f.attrs["format_version"] = 2
+            g = f["cases"][name]
+            stress = g["macro/stress"][()]
+            del g["macro/stress"]
+            d = g.create_dataset("macro/stress", data=stress.reshape(len(stress), 9))
+            d.attrs["layout"] = "row-major 3x3: 11 12 13 21 22 23 31 32 33"
+            sigma = g["grains/stress"][()]
+            del g["grains/stress"]
+            voigt = np.stack([sigma[..., i, j] for i, j in
+                              [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]], axis=-1)
+            d = g.create_dataset("grains/stress", data=voigt, chunks=(1,) + voigt.shape[1:])
+            d.attrs["components"] = "11 22 33 23 13 12"
+        with subslip.open(path) as r:
+            self.assertEqual(r.format_version, 2)
+            for p, values in expected.items():
+                np.testing.assert_array_equal(r.case(name).series(p), values, p)
 
     def test_unknown_layout_in_a_file_stops_with_the_dataset_name(self):
         path = self.copy("crystal_small", "mandel.h5")
         with h5py.File(path, "r+") as f:
             name = f["cases"].attrs["names"][0]
-            f["cases"][name]["grains/stress"].attrs["components"] = "Mandel: 11 22 33 23 13 12"
+            f["cases"][name]["grains/stress"].attrs["components"] = "Mandel: 11 22 33 23 13 12 " \
+                "with sqrt 2"
         with subslip.open(path) as r:
             case = r.case(r.cases[0])
             with self.assertRaises(subslip.LayoutError) as caught:
                 case.grains("stress")
             self.assertIn("grains/stress", str(caught.exception))
-            self.assertEqual(case.raw("grains/stress").shape, (21, 20, 6))  # still readable
+            self.assertEqual(case.raw("grains/stress").shape, (21, 20, 3, 3))  # still readable
 
     def test_von_mises_matches_the_programs_summary(self):
         with subslip.open(self.files["crystal_small"]) as r:
@@ -527,7 +564,10 @@ class Runs(unittest.TestCase):
                 with open(target, newline="") as f:
                     table = list(csv.reader(f))
                 header, body = table[0], np.array(table[1:], dtype=float)
-                values = body[:, -case.raw(path).shape[-1]:]
+                values = body[:, -9:]  # a tensor: its nine components 11 ... 33
+                self.assertEqual(header[-9:], [f"stress_{ij} [MPa]" for ij in
+                                               ("11", "12", "13", "21", "22", "23", "31", "32",
+                                                "33")])
                 np.testing.assert_array_equal(values.ravel().view(np.int64),
                                               case.raw(path).ravel().view(np.int64))
                 self.assertEqual(header[:2], ["step", "time [s]"])

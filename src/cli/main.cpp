@@ -39,6 +39,7 @@
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/orientation_file.hpp"
 #include "subslip/io/restart.hpp"
+#include "subslip/io/result_file.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/scene_warnings.hpp"
 #include "subslip/io/text_layout.hpp"
@@ -60,6 +61,7 @@ struct RunArgs {
   double flush_interval = 0.0;
   std::string restart;        // --restart FILE: continue the run that wrote FILE
   int checkpoint_every = -1;  // --checkpoint-every N (-1: the scene's, or automatic)
+  bool keep_restart = false;  // --keep-restart: keep the restart file when the run finishes
 };
 
 fs::path output_path(const RunArgs& a) {
@@ -88,18 +90,23 @@ struct RunOutput {
   fs::path path;
   fs::path partial;  // empty on a restart
   io::h5::File file;
+  bool keep_restart = false;
   bool restart() const { return partial.empty(); }
   void header_written() { fs::rename(partial, path); }
+  fs::path restart_file() const { return io::restart_file_for(path); }
 
-  // Runs `run` (which writes into `file`), then closes the file. A failed write (a full disk,
-  // a file-size limit) becomes one error naming the file, what was being written and the
-  // system's reason; the file records it and keeps the rows written before, or is removed
-  // when it holds none (it would only take space on a disk that is already full).
+  // Runs `run` (which writes into `file`), then closes the file and, when every case ended,
+  // rewrites it as the finished file (exactly its rows) and deletes the restart file (unless
+  // --keep-restart). A failed write (a full disk, a file-size limit) becomes one error naming
+  // the file, what was being written and the system's reason; the file records it and keeps
+  // the rows written before, or is removed when it holds none (it would only take space on a
+  // disk that is already full).
   template <class Run>
   auto write(Run&& run) -> decltype(run()) {
     try {
       auto result = run();
       file.close();
+      finish();
       return result;
     } catch (const io::h5::Error& e) {
       throw std::runtime_error(write_failure(e));
@@ -107,6 +114,34 @@ struct RunOutput {
   }
 
  private:
+  // The working file, closed, becomes the finished file. A failure leaves the working file as
+  // it was (every row in it, /progress counting them) and says how to finish it later.
+  void finish() {
+    if (!io::every_case_ended(path)) return;
+    std::string why;
+    try {
+      io::finish_result(path);
+    } catch (const io::h5::Error& e) {
+      why = e.action + (e.reason.empty() ? "" : ": " + e.reason);
+    } catch (const fs::filesystem_error& e) {
+      why = e.what();
+    }
+    if (!why.empty()) {
+      const std::string what = path.string() + ": cannot write the finished file (" + why + ")";
+      {
+        io::h5::File working = io::h5::File::open_write(path);
+        io::h5::mark_write_failed(working, "the run ended but " + what);
+        working.close_quietly();
+      }
+      throw std::runtime_error(what + "; every row is in the working file " + path.string() +
+                               " (/progress counts them); free space and finish it with "
+                               "--restart " +
+                               path.string());
+    }
+    std::error_code ec;
+    if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
+  }
+
   std::string write_failure(const io::h5::Error& e) {
     const std::string what =
         path.string() + ": cannot " + e.action + (e.reason.empty() ? "" : ": " + e.reason);
@@ -151,23 +186,47 @@ void refuse_output_over_inputs(const fs::path& out, const std::vector<fs::path>&
   }
 }
 
+// The restart file of a new run's result (checkpoints): a restart file left by an interrupted
+// run is replaced only with --force; anything else at that path is never replaced.
+void check_restart_path(const fs::path& out, bool force) {
+  const fs::path restart = io::restart_file_for(out);
+  std::error_code ec;
+  if (!fs::exists(restart, ec)) return;
+  if (!io::is_restart_file(restart)) {
+    throw io::h5::OutputPathError(restart.string() +
+                                  ": exists and is not a subslip restart file, but the "
+                                  "checkpoints of " +
+                                  out.string() + " go there; move it away or choose another -o");
+  }
+  if (!force) {
+    throw io::h5::OutputPathError(restart.string() +
+                                  ": already exists (the checkpoints of an "
+                                  "interrupted run of " +
+                                  out.string() + "); continue that run with --restart " +
+                                  out.string() + ", or use --force to start anew");
+  }
+}
+
 // The checks of the output, then the file: `size` is what the run will write and need.
 RunOutput open_output(const RunArgs& a, const io::YamlDocument& document,
                       const std::vector<std::string>& case_names, const io::RestartInfo* restart,
-                      const std::vector<fs::path>& inputs, const io::RunSize& size) {
+                      const std::vector<fs::path>& inputs, const io::RunSize& size,
+                      bool checkpoints = false) {
   const fs::path out = output_path(a);
   if (restart != nullptr) {
     io::check_restart_cases(out, *restart, case_names);
     check_run_fits(a, document, size);
-    return {out, {}, io::h5::File::open_write(out)};
+    return {out, {}, io::h5::File::open_write(out), a.keep_restart};
   }
   refuse_output_over_inputs(out, inputs);
+  if (checkpoints) refuse_output_over_inputs(io::restart_file_for(out), inputs);
   check_run_fits(a, document, size);  // before check_output_path creates directories
   io::h5::check_output_path(out, a.force);
+  if (checkpoints) check_restart_path(out, a.force);
   fs::path partial = out;
   partial += ".partial";
   try {
-    return {out, partial, io::h5::File::create(partial, true)};
+    return {out, partial, io::h5::File::create(partial, true), a.keep_restart};
   } catch (const io::h5::Error& e) {
     std::error_code ec;
     fs::remove(partial, ec);
@@ -423,11 +482,15 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
   const io::CrystalScene scene = io::parse_crystal_scene(document);
   const std::optional<long> checkpoint_every =
       a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
-  RunOutput output = open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
-                                 io::estimate_crystal_run(scene, checkpoint_every));
-  bool checkpoints = true;
-  for (const auto& c : scene.cases)
-    checkpoints = checkpoints && io::checkpoint_policy(c, checkpoint_every).enabled();
+  bool checkpoints = true, any_checkpoints = false;
+  for (const auto& c : scene.cases) {
+    const bool on = io::checkpoint_policy(c, checkpoint_every).enabled();
+    checkpoints = checkpoints && on;
+    any_checkpoints = any_checkpoints || on;
+  }
+  RunOutput output =
+      open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
+                  io::estimate_crystal_run(scene, checkpoint_every), any_checkpoints);
   print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
   // Crystal cases run one after the other; the threads go to the grains of a case.
   if (a.threads > 0) omp_set_num_threads(a.threads);
@@ -441,6 +504,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
   options.flush_interval = std::chrono::duration<double>(a.flush_interval);
   options.restart = output.restart();
   options.checkpoint_every = checkpoint_every;
+  options.restart_file = output.restart_file();
   options.on_header_written = [&] { output.header_written(); };
   options.on_case_done = [&](std::size_t, const io::CrystalCase&, const io::CrystalCaseResult& r) {
     progress.clear();
@@ -520,6 +584,9 @@ void add_run_command(CLI::App& app, RunArgs& a) {
                   "Crystal runs: write a checkpoint every N increments (0: never); default: "
                   "output.checkpoint_every of the scene, else about once a minute")
       ->check(cli::non_negative());
+  run->add_flag("--keep-restart", a.keep_restart,
+                "Crystal runs: keep the restart file (checkpoints, <result stem>.restart.h5) "
+                "when the run finishes; default: it is deleted");
 }
 
 // ---- subslip orientations

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "subslip/io/result_file.hpp"
+
 namespace subslip::io {
 
 namespace {
@@ -173,7 +175,9 @@ void CheckpointStore::create(const h5::Group& parent, std::size_t capacity) {
     slot.create_fixed("grains", grain_shape, h5::Type::float64,
                       "per grain (grain_count x values_per_grain, row-major): stress (lattice "
                       "frame, Mandel) 6, orientation g (row-major) 9, then mu, r_s, slip, slip "
-                      "rate (N each); the rest unused");
+                      "rate (N each); the rest unused")
+        .set_attribute("stress_scaling",
+                       "Mandel: 11 22 33 sqrt(2)*23 sqrt(2)*13 sqrt(2)*12 (lattice frame)");
     const std::size_t value_shape[1] = {names.size()};
     slot.create_fixed("values", value_shape, h5::Type::float64, "macro state, see names")
         .set_attribute("names", names);
@@ -187,6 +191,39 @@ void CheckpointStore::create(const h5::Group& parent, std::size_t capacity) {
 
 CheckpointStore::CheckpointStore(const h5::Group& parent)
     : store_(parent.open_group("checkpoint")) {}
+
+std::size_t CheckpointStore::capacity() const {
+  return static_cast<std::size_t>(store_.attribute_int("capacity"));
+}
+
+h5::File create_restart_file(const std::filesystem::path& path, const std::string& run_id,
+                             std::size_t capacity) {
+  std::filesystem::path partial = path;
+  partial += ".partial";
+  {
+    h5::File f = h5::File::create(partial, true);
+    const h5::Group root = f.root();
+    root.set_attribute("format", kRestartFormat);
+    root.set_attribute("format_version", h5::kFormatVersion);
+    root.set_attribute("program_version", SUBSLIP_VERSION);
+    root.set_attribute("run_id", run_id);
+    root.set_attribute("description",
+                       "checkpoints of the run whose result file has the same run_id "
+                       "(subslip run --restart RESULT continues from them); deleted when the run "
+                       "finishes");
+    CheckpointStore::create(root, capacity);
+    f.close();
+  }
+  std::filesystem::rename(partial, path);
+  return h5::File::open_write(path);
+}
+
+std::optional<h5::File> open_restart_file(const std::filesystem::path& path,
+                                          const std::string& run_id) {
+  std::string id;
+  if (!is_restart_file(path, &id) || id != run_id) return std::nullopt;
+  return h5::File::open_write(path);
+}
 
 void CheckpointStore::write(std::size_t case_index, const crystal::AggregateCheckpoint& state,
                             std::size_t rows, const crystal::MacroState& last_output) {

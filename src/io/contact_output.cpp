@@ -18,6 +18,7 @@ struct FieldSpec {
   h5::Type type;
   std::string unit;
   std::string description;
+  std::string components = {};  // the meaning of the columns ("" for 1-D series)
 };
 
 FieldSpec field_spec(ContactField f, const Units& u) {
@@ -26,12 +27,13 @@ FieldSpec field_spec(ContactField f, const Units& u) {
     case ContactField::time:
       return {0, h5::Type::float64, u.time, "time since the start of the loading history"};
     case ContactField::slip:
-      return {2, h5::Type::float64, u.length, "tangential sliding displacement u_t (x, y)"};
+      return {2, h5::Type::float64, u.length, "tangential sliding displacement u_t (x, y)", "x y"};
     case ContactField::slip_path:
       return {0, h5::Type::float64, u.length, "accumulated sliding distance, integral of |du_t|"};
     case ContactField::traction:
       return {3, h5::Type::float64, u.stress,
-              "contact traction: tangential x, tangential y, normal f_n (compression positive)"};
+              "contact traction: tangential x, tangential y, normal f_n (compression positive)",
+              "x y n"};
     case ContactField::ratio:
       return {0, h5::Type::float64, one, "contact stress ratio f_t / f_n"};
     case ContactField::mu:
@@ -324,15 +326,18 @@ ContactSummary placeholder_summary() {
 
 void ContactCaseWriter::lay_out(const h5::Group& cases, const ContactCase& c, int index,
                                 const Units& units) {
-  const h5::Group group = create_case_group(cases, c.name, index, c.overrides);
+  const h5::Group group =
+      create_case_group(cases, c.name, index, c.overrides, SceneKind::contact, units);
   write_parameters(group, c, units);
   write_summary(group, placeholder_summary(), units, true);
   group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
   const std::size_t chunk_rows = chunk_rows_for(c);
   for (ContactField f : c.fields) {
     const FieldSpec spec = field_spec(f, units);
-    group.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
-                         spec.description, chunk_rows, kBlockRows, output_count(c.segments)});
+    const h5::Series series =
+        group.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
+                             spec.description, chunk_rows, kBlockRows, output_count(c.segments)});
+    if (!spec.components.empty()) series.dataset().set_attribute("components", spec.components);
   }
 }
 
@@ -428,6 +433,7 @@ void ContactCaseWriter::mark_failed(const ContactSummary& summary, const std::st
 
 RunSize estimate_contact_run(const ContactScene& scene) {
   constexpr double kCaseOverheadBytes = 32e3;  // attributes, headers, B-trees of a case group
+  constexpr double kFinishedCaseBytes = 16e3;  // the same in a finished file (one chunk index)
   RunSize size;
   double largest_case = -1.0;
   for (const auto& c : scene.cases) {
@@ -437,6 +443,8 @@ RunSize estimate_contact_run(const ContactScene& scene) {
     const double rows = static_cast<double>(output_count(c.segments));
     const double bytes = 8.0 * rows * values + kCaseOverheadBytes;
     size.result_bytes += bytes;
+    // The finished file, written before the working one goes: the rows, no reservation.
+    size.finish_bytes += 8.0 * rows * values + kFinishedCaseBytes;
     if (bytes <= largest_case) continue;
     largest_case = bytes;
     size.rows = output_count(c.segments);
@@ -493,9 +501,6 @@ std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::
   } else {
     run_serial(*run, todo, results);
   }
-  const bool all_ok = std::all_of(results.begin(), results.end(),
-                                  [](const ContactCaseResult& r) { return r.failure.empty(); });
-  if (all_ok) h5::mark_completed(file);
   return results;
 }
 

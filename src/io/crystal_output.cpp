@@ -38,7 +38,9 @@ std::string orientations_digest(const CrystalCase& c) {
 
 using crystal::Mat3;
 
-constexpr const char* kMatrixLayout = "row-major 3x3: 11 12 13 21 22 23 31 32 33";
+// Every second-order tensor of the file, macro or per grain, is stored with two trailing axes
+// of 3 ([n, 3, 3], [n, G, 3, 3]; symmetric ones in full), and says so in `components`.
+constexpr const char* kTensorComponents = h5::kTensorConvention;
 constexpr std::size_t kMacroBlockRows = 256;
 // Per-grain rows can be large (grains x slip systems): chunks of about 1 MiB, and about 4 MiB
 // gathered in memory between writes.
@@ -46,36 +48,45 @@ constexpr std::size_t kGrainChunkBytes = std::size_t{1} << 20;
 constexpr std::size_t kGrainBlockBytes = std::size_t{4} << 20;
 
 struct FieldSpec {
-  std::size_t width;  // values per row (macro) or per grain (grains); 0: a 1-D macro series
+  std::vector<std::size_t> shape;  // of a row (macro) or of a grain's value (grains); {}: scalar
   h5::Type type;
   std::string unit;
   std::string description;
-  std::string components;  // the meaning of the last axis ("" for scalars)
+  std::string components;  // the meaning of the trailing axes ("" for scalars)
 };
+
+// Values per row (macro) or per grain (grains).
+std::size_t width_of(const FieldSpec& spec) {
+  std::size_t n = 1;
+  for (std::size_t d : spec.shape) n *= d;
+  return n;
+}
+
+const std::vector<std::size_t> kTensorShape = {3, 3};
 
 FieldSpec macro_spec(MacroField f, const Units& u) {
   const std::string one(kDimensionless);
   switch (f) {
     case MacroField::time:
-      return {0, h5::Type::float64, u.time, "time since the start of the loading history", ""};
+      return {{}, h5::Type::float64, u.time, "time since the start of the loading history", ""};
     case MacroField::L:
-      return {9, h5::Type::float64, "1/" + u.time,
+      return {kTensorShape, h5::Type::float64, "1/" + u.time,
               "velocity gradient L of the last increment (free components as solved)",
-              kMatrixLayout};
+              kTensorComponents};
     case MacroField::F:
-      return {9, h5::Type::float64, one, "deformation gradient F", kMatrixLayout};
+      return {kTensorShape, h5::Type::float64, one, "deformation gradient F", kTensorComponents};
     case MacroField::strain:
-      return {9, h5::Type::float64, one,
+      return {kTensorShape, h5::Type::float64, one,
               "strain: logarithmic ln V (finite_rotation) or the integral of D (small_strain)",
-              kMatrixLayout};
+              kTensorComponents};
     case MacroField::stress:
-      return {9, h5::Type::float64, u.stress,
-              "volume-averaged Cauchy stress (Taylor aggregate, sample frame)", kMatrixLayout};
+      return {kTensorShape, h5::Type::float64, u.stress,
+              "volume-averaged Cauchy stress (Taylor aggregate, sample frame)", kTensorComponents};
     case MacroField::segment:
-      return {0, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)",
-              ""};
+      return {
+          {}, h5::Type::int32, "index", "loading segment of the state (-1: the initial state)", ""};
   }
-  return {0, h5::Type::float64, one, "", ""};
+  return {{}, h5::Type::float64, one, "", ""};
 }
 
 FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
@@ -83,27 +94,38 @@ FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
   const std::string per_system = "one value per slip system, in the order of slip_systems";
   switch (f) {
     case GrainField::stress:
-      return {6, h5::Type::float64, u.stress, "Cauchy stress of each grain, sample frame",
-              "11 22 33 23 13 12"};
+      return {kTensorShape, h5::Type::float64, u.stress,
+              "Cauchy stress of each grain, sample frame", kTensorComponents};
     case GrainField::orientation:
-      return {4, h5::Type::float64, one,
+      return {{4},
+              h5::Type::float64,
+              one,
               "orientation of each grain (passive, Rowenhorst P=-1, w>=0; maps sample to crystal)",
               "w x y z"};
     case GrainField::slip:
-      return {slip_count, h5::Type::float64, one, "accumulated signed slip", per_system};
+      return {{slip_count}, h5::Type::float64, one, "accumulated signed slip", per_system};
     case GrainField::slip_rate:
-      return {slip_count, h5::Type::float64, "1/" + u.time,
-              "signed slip rate over the last increment", per_system};
+      return {{slip_count},
+              h5::Type::float64,
+              "1/" + u.time,
+              "signed slip rate over the last increment",
+              per_system};
     case GrainField::crss:
-      return {slip_count, h5::Type::float64, u.stress, "critical resolved shear stress mu tau0",
+      return {{slip_count},
+              h5::Type::float64,
+              u.stress,
+              "critical resolved shear stress mu tau0",
               per_system};
     case GrainField::r:
-      return {slip_count, h5::Type::float64, one, "dynamic loading ratio r = |tau| / (mu f_n)",
+      return {{slip_count},
+              h5::Type::float64,
+              one,
+              "dynamic loading ratio r = |tau| / (mu f_n)",
               per_system};
     case GrainField::r_s:
-      return {slip_count, h5::Type::float64, one, "subloading ratio r_s", per_system};
+      return {{slip_count}, h5::Type::float64, one, "subloading ratio r_s", per_system};
   }
-  return {0, h5::Type::float64, one, "", ""};
+  return {{}, h5::Type::float64, one, "", ""};
 }
 
 std::array<double, 9> row_major(const Mat3& m) {
@@ -195,8 +217,12 @@ void write_phase_parameters(const h5::Group& g, const CrystalCase& c, const Unit
       !d.families.empty() && crystal::lattice_of(d.families.front()) == crystal::LatticeKind::hcp;
   if (hexagonal) set_with_unit(g, "c_over_a", d.c_over_a, kDimensionless);
   g.set_attribute("elasticity", c.elasticity_type);
-  const std::vector<double> c_mandel(d.stiffness.data(), d.stiffness.data() + 36);
-  set_with_unit(g, "stiffness_mandel", c_mandel, u.stress);
+  std::vector<double> c_mandel;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) c_mandel.push_back(d.stiffness(i, j));
+  const std::size_t mandel_shape[2] = {6, 6};
+  g.set_attribute("stiffness_mandel", c_mandel, mandel_shape);
+  g.set_attribute("stiffness_mandel.unit", u.stress);
   g.set_attribute("latent", latent_kind(d.latent));
   if (d.latent.kind == crystal::LatentHardening::Kind::ratio)
     set_with_unit(g, "latent_ratio", d.latent.ratio, kDimensionless);
@@ -270,9 +296,20 @@ std::size_t rows_within(std::size_t bytes, std::size_t row_bytes, std::size_t mo
 void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matrices,
           std::vector<double>& out) {
   switch (f) {
-    case GrainField::stress:
-      g.stress(out.data());
+    case GrainField::stress: {
+      // [grains x 6] (11 22 33 23 13 12) from the aggregate, stored as full 3x3 tensors.
+      g.stress(matrices.data());
+      constexpr int kRow[6] = {0, 1, 2, 1, 0, 0}, kColumn[6] = {0, 1, 2, 2, 2, 1};
+      for (std::size_t k = 0; k < static_cast<std::size_t>(g.grain_count()); ++k) {
+        const double* voigt = matrices.data() + 6 * k;
+        double* t = out.data() + 9 * k;
+        for (int c = 0; c < 6; ++c) {
+          t[3 * kRow[c] + kColumn[c]] = voigt[c];
+          t[3 * kColumn[c] + kRow[c]] = voigt[c];
+        }
+      }
       return;
+    }
     case GrainField::orientation: {
       g.orientation(matrices.data());
       for (int k = 0; k < g.grain_count(); ++k) {
@@ -346,9 +383,9 @@ void lay_out_macro(const h5::Group& group, const CrystalCase& c, const Units& un
   for (MacroField f : c.output.macro) {
     const FieldSpec spec = macro_spec(f, units);
     const h5::Series series =
-        macro.create_series({std::string(to_string(f)), spec.width, spec.type, spec.unit,
-                             spec.description, chunk_rows, kMacroBlockRows, rows});
-    if (!spec.components.empty()) series.dataset().set_attribute("layout", spec.components);
+        macro.create_series({std::string(to_string(f)), 0, spec.type, spec.unit, spec.description,
+                             chunk_rows, kMacroBlockRows, rows, spec.shape});
+    if (!spec.components.empty()) series.dataset().set_attribute("components", spec.components);
   }
 }
 
@@ -360,7 +397,9 @@ void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& u
   const std::size_t rows = crystal_output_count(c.segments);
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units, systems.size());
-    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
+    std::vector<std::size_t> row_shape{n_grains};
+    row_shape.insert(row_shape.end(), spec.shape.begin(), spec.shape.end());
     const h5::SeriesSpec s{std::string(to_string(f)),
                            0,
                            spec.type,
@@ -369,7 +408,7 @@ void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& u
                            rows_within(kGrainChunkBytes, row_bytes, rows),
                            rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows),
                            rows,
-                           {n_grains, spec.width}};
+                           row_shape};
     grains.create_series(s).dataset().set_attribute("components", spec.components);
   }
 }
@@ -400,8 +439,8 @@ void write_summary(const h5::Group& g, const CrystalSummary& summary, const Unit
     g.set_attribute(numbers[k].first, values[k]);
     if (with_units) g.set_attribute(std::string(numbers[k].first) + ".unit", numbers[k].second);
   }
-  g.set_attribute("final_stress", row_major(summary.final_state.stress));
-  g.set_attribute("final_strain", row_major(summary.final_state.strain));
+  g.set_attribute("final_stress", row_major(summary.final_state.stress), kTensorShape);
+  g.set_attribute("final_strain", row_major(summary.final_state.strain), kTensorShape);
   if (with_units) {
     g.set_attribute("final_stress.unit", units.stress);
     g.set_attribute("final_strain.unit", one);
@@ -426,7 +465,8 @@ CrystalSummary placeholder_summary() {
 
 void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, int index,
                                 const Units& units) {
-  const h5::Group group = create_case_group(cases, c.name, index, c.overrides);
+  const h5::Group group =
+      create_case_group(cases, c.name, index, c.overrides, SceneKind::crystal, units);
   write_phase_parameters(group, c, units);
   write_law_parameters(group, c, units);
   write_run_parameters(group, c);
@@ -465,11 +505,11 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
-    const std::size_t row_bytes = n_grains * spec.width * sizeof(double);
+    const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
     grains_[static_cast<std::size_t>(f)].emplace(grains.open_series(
         to_string(f), spec.type, rows, rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
-    grain_width_[static_cast<std::size_t>(f)] = n_grains * spec.width;
-    widest = std::max(widest, spec.width);
+    grain_width_[static_cast<std::size_t>(f)] = n_grains * width_of(spec);
+    widest = std::max(widest, width_of(spec));
   }
   matrices_.resize(n_grains * 9);
   row_.resize(n_grains * widest);
@@ -609,6 +649,7 @@ struct RunContext {
   h5::Group cases;
   h5::CaseProgress progress;
   const CrystalRunOptions& options;
+  std::optional<h5::File> restart_file = {};  // the checkpoint store's file, when there is one
 };
 
 // The writer of case `index`, continued after `resume_rows` valid rows (0: from the start).
@@ -654,11 +695,15 @@ CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
   const CrystalCase& c = run.scene.cases[index];
   const CheckpointPolicy policy = checkpoint_policy(c, run.options.checkpoint_every);
   std::optional<CheckpointStore> checkpoints;
-  // (A restart asking for checkpoints the first run had none of runs without: no store.)
-  const h5::Group root = run.file.root();
-  if (policy.enabled() && root.has("checkpoint")) checkpoints.emplace(root);
+  if (run.restart_file) checkpoints.emplace(run.restart_file->root());
   std::optional<StoredCheckpoint> resume;
   if (resuming && checkpoints) resume = checkpoints->latest(index);
+  // (A store too small for this case, from a run that had none for it: no new checkpoints.)
+  const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
+  const std::size_t values =
+      c.orientations.size() *
+      static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
+  if (checkpoints && (!policy.enabled() || checkpoints->capacity() < values)) checkpoints.reset();
   CrystalCaseWriter writer = open_writer(run, index, resume ? resume->rows : 0);
   if (resume) writer.set_last_state(resume->last_output);
   CheckpointClock clock(policy);
@@ -724,10 +769,27 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
   h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+  RunContext run{scene, file, std::move(cases), std::move(progress), options};
+  // The restart file is complete before the result says its layout is.
   const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
-  if (capacity > 0) CheckpointStore::create(root, capacity);
+  if (capacity > 0 && !options.restart_file.empty()) {
+    run.restart_file.emplace(
+        create_restart_file(options.restart_file, root.attribute_string("run_id"), capacity));
+  }
   h5::mark_layout_complete(file);
-  return RunContext{scene, file, std::move(cases), std::move(progress), options};
+  return run;
+}
+
+// A restart: the run's restart file, or a new one when it has none (deleted, or checkpoints
+// were off) and a case now writes checkpoints.
+std::optional<h5::File> reopen_restart_file(const CrystalScene& scene, const h5::File& file,
+                                            const CrystalRunOptions& options) {
+  if (options.restart_file.empty()) return std::nullopt;
+  const std::string run_id = file.root().attribute_string("run_id");
+  if (auto existing = open_restart_file(options.restart_file, run_id)) return existing;
+  const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
+  if (capacity == 0) return std::nullopt;
+  return create_restart_file(options.restart_file, run_id, capacity);
 }
 
 }  // namespace
@@ -762,15 +824,16 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
     const double grains = static_cast<double>(c.orientations.size());
     double macro_values = 0.0, grain_values = 0.0;
     for (MacroField f : c.output.macro)
-      macro_values +=
-          static_cast<double>(std::max<std::size_t>(macro_spec(f, scene.units).width, 1));
+      macro_values += static_cast<double>(width_of(macro_spec(f, scene.units)));
     for (GrainField f : c.output.grains)
-      grain_values += static_cast<double>(grain_spec(f, scene.units, slip_count).width);
+      grain_values += static_cast<double>(width_of(grain_spec(f, scene.units, slip_count)));
     // Grain series reserve whole chunks of up to kGrainChunkBytes each.
     const double chunk_slack = static_cast<double>(c.output.grains.size() * kGrainChunkBytes);
     const double bytes = 8.0 * rows * (macro_values + grains * grain_values) + chunk_slack +
                          8.0 * grains * 16.0 + kCaseOverheadBytes;
     size.result_bytes += bytes;
+    // The finished file, written before the working one goes: no reserved chunk space.
+    size.finish_bytes += bytes - chunk_slack;
     const double per_grain =
         8.0 * crystal::checkpoint_values_per_grain(static_cast<int>(slip_count));
     const double memory = grains * (kStateCopies * per_grain + 8.0 * 16.0) +
@@ -787,7 +850,7 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
           std::max_element(per_segment.begin(), per_segment.end()) - per_segment.begin());
     }
   }
-  // Two slots, each of the largest case's grain values.
+  // Two slots, each of the largest case's grain values (in the restart file).
   size.checkpoint_bytes =
       2.0 * 8.0 * static_cast<double>(checkpoint_capacity(scene, checkpoint_every));
   size.result_bytes += size.checkpoint_bytes;
@@ -814,6 +877,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::
     h5::mark_running(file);
     run.emplace(
         RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
+    run->restart_file = reopen_restart_file(scene, file, options);
   } else {
     run.emplace(lay_out(scene, file, options));
     if (options.on_header_written) options.on_header_written();
@@ -830,9 +894,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::
     }
     if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
   }
-  const bool all_ok = std::all_of(results.begin(), results.end(),
-                                  [](const CrystalCaseResult& r) { return r.failure.empty(); });
-  if (all_ok) h5::mark_completed(file);
+  if (run->restart_file) run->restart_file->close();
   return results;
 }
 

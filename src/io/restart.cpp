@@ -4,6 +4,7 @@
 
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/result_file.hpp"
 
 namespace subslip::io {
 
@@ -49,6 +50,8 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
                "; a continued run would not be identical to an uninterrupted one");
   }
   if (root.attribute_int("completed") == 1) refuse(file, "completed", "the run completed");
+  if (root.has_attribute("finished") && root.attribute_int("finished") == 1)
+    refuse(file, "finished", "the run finished (every case completed or failed)");
   if (!root.has_attribute("layout_complete") || root.attribute_int("layout_complete") != 1) {
     refuse(file, "layout_complete",
            "the run stopped before its result layout was written, so the file holds no result; "
@@ -64,16 +67,28 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
   const h5::CaseProgress progress = h5::CaseProgress::open(root);
   if (progress.size() != info.case_names.size())
     refuse(file, "progress", "/progress does not list every case of /cases");
-  bool left = false;
-  for (std::size_t k = 0; k < progress.size(); ++k) {
-    const auto s = progress.state(k);
-    left = left || (s != h5::CaseState::completed && s != h5::CaseState::failed);
-  }
-  if (!left) refuse(file, "progress", "every case completed or failed; nothing is left to run");
+  // (Every case ended: the run stopped while it wrote its finished file; a restart finishes it.)
   if (scene_text && *scene_text != info.scene_text) {
     refuse(file, "scene",
            "the scene file given differs from the scene the run started with (/scene); restart "
            "without naming a scene, or start a new run");
+  }
+  info.restart_file = restart_file_for(file);
+  std::error_code exists_error;
+  if (std::filesystem::exists(info.restart_file, exists_error)) {
+    std::string run_id;
+    if (!is_restart_file(info.restart_file, &run_id)) {
+      throw InputError(info.restart_file.string(), 0, "",
+                       "cannot restart " + file.string() +
+                           ": this is where its checkpoints go, but it is not a subslip restart "
+                           "file; move it away");
+    }
+    if (!root.has_attribute("run_id") || run_id != root.attribute_string("run_id")) {
+      throw InputError(info.restart_file.string(), 0, "run_id",
+                       "cannot restart " + file.string() +
+                           ": the restart file belongs to another run; remove it to run the "
+                           "interrupted case again from its start");
+    }
   }
   return info;
 }

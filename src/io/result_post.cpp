@@ -414,12 +414,32 @@ struct Export {
   std::optional<std::size_t> valid_rows;  // of the case's series (see ResultFile)
 };
 
-// Names of the last axis (k values): the slip-system labels when the `components` attribute
-// says "per slip system", the words of `components` / `layout` (after a ':') when they are k,
-// the contact layouts of docs/scenes.md, else 0..k-1.
+// A second-order tensor dataset of format 3 and later: two trailing axes of 3, and the
+// `components` attribute says so (h5::kTensorConvention).
+bool is_tensor(const h5::Dataset& d, const std::vector<std::size_t>& shape) {
+  const std::size_t n = shape.size();
+  return n >= 3 && shape[n - 1] == 3 && shape[n - 2] == 3 &&
+         has_string_attribute(d, "components") &&
+         d.attribute_string("components") == h5::kTensorConvention;
+}
+
+// The shape a table sees: a tensor's two trailing axes as one of 9 components (11 12 ... 33).
+std::vector<std::size_t> table_shape(const h5::Dataset& d) {
+  auto shape = d.shape();
+  if (is_tensor(d, shape)) {
+    shape.pop_back();
+    shape.back() = 9;
+  }
+  return shape;
+}
+
+// Names of the last axis (k values): 11 12 ... 33 for a tensor, the slip-system labels when the
+// `components` attribute says "per slip system", the words of `components` / `layout` (after a
+// ':', format 2) when they are k, the contact layouts of docs/scenes.md, else 0..k-1.
 std::vector<std::string> component_names(const h5::Group& base, const std::string& path,
                                          std::size_t k) {
   const h5::Dataset d = base.open_dataset(path);
+  if (is_tensor(d, d.shape())) return {"11", "12", "13", "21", "22", "23", "31", "32", "33"};
   const std::string dir = parent(path);
   for (const char* attr : {"components", "layout"}) {
     if (!has_string_attribute(d, attr)) continue;
@@ -469,7 +489,8 @@ void write_line(std::ostream& out, const std::vector<std::string>& fields) {
   out << "\n";
 }
 
-// Writes one dataset as CSV. Layouts (n rows, G grains, k components):
+// Writes one dataset as CSV. Layouts (n rows, G grains, k components; a tensor's [3, 3] is k = 9
+// columns 11 12 ... 33):
 //   [n] / [n, k] series        step, time, value(s)
 //   [n, G, k] series           step, time, grain, values   (one row per step and grain)
 //   [n, G, k] with `grain`     step, time, values of that grain
@@ -478,7 +499,7 @@ void write_line(std::ostream& out, const std::vector<std::string>& fields) {
 void write_table(std::ostream& out, const h5::Group& base, const std::string& path,
                  std::optional<std::size_t> grain, std::optional<std::size_t> valid) {
   const h5::Dataset d = base.open_dataset(path);
-  auto shape = d.shape();
+  auto shape = table_shape(d);
   const std::size_t rows = usable_rows(d, shape, valid);
   if (shape.empty()) shape = {1};  // a scalar: one row
   const std::vector<double> values = d.read_doubles();
@@ -628,11 +649,11 @@ class Planner {
                            (cls == h5::ValueClass::string ? "text" : "non-numeric data") +
                            ", not numbers; print it with: h5dump -d " + full + " " + r_.name);
     }
-    const auto shape = d.shape();
+    const auto shape = table_shape(d);  // (a tensor's 3x3 counted as one axis)
     if (shape.size() > 3) {
       throw InputError(r_.name, 0, "--dataset",
                        "'" + full + "' has rank " + std::to_string(shape.size()) +
-                           "; only ranks 0 to 3 are exported");
+                           "; only ranks 0 to 3 (and tensors of rank 3 and 4) are exported");
     }
     const bool per_grain = shape.size() == 3 && o_.grain.has_value();
     if (per_grain && *o_.grain >= shape[1]) {

@@ -71,17 +71,21 @@ Capacity capacity_for(const std::filesystem::path& output) {
 
 void check_run_fits(const YamlDocument& scene, const RunSize& size, const Capacity& capacity,
                     const std::filesystem::path& output) {
-  if (size.result_bytes > capacity.disk_bytes) {
+  if (size.result_bytes + size.finish_bytes > capacity.disk_bytes) {
     const std::string checkpoints =
         size.checkpoint_bytes > 0.0
             ? " (checkpoints " + format_bytes(size.checkpoint_bytes) + " of it)"
             : std::string();
+    const std::string finish = size.finish_bytes > 0.0
+                                   ? ", and up to " + format_bytes(size.finish_bytes) +
+                                         " more while the finished file is written"
+                                   : std::string();
     const std::string grains =
         size.grains > 0 ? ", fewer grains or fewer output.grains fields" : std::string();
     increments_node(scene, size.rows_segment)
         .fail("the result would take about " + format_bytes(size.result_bytes) + checkpoints +
-              " (" + std::to_string(size.rows) + " output rows), but " + output.string() +
-              " is on a file system with " + format_bytes(capacity.disk_bytes) +
+              " (" + std::to_string(size.rows) + " output rows)" + finish + ", but " +
+              output.string() + " is on a file system with " + format_bytes(capacity.disk_bytes) +
               " free; write fewer rows (output_every, fewer increments)" + grains);
   }
   if (size.memory_bytes > capacity.memory_bytes) {

@@ -1,4 +1,4 @@
-// Checkpoints of the running crystal case, stored in the result file:
+// Checkpoints of the running crystal case, stored in the restart file next to the result:
 //
 //   /checkpoint/                         attribute capacity: grain values a slot holds
 //       a/, b/                           two slots, written alternately:
@@ -18,10 +18,16 @@
 // order of the writes is the order in the file. A kill while a slot is written leaves that
 // slot at -1 and the other one intact. The case's series rows named by a checkpoint are in the
 // file before it.
+//
+// The store lives in the result's restart file (io/result_file.hpp), not in the result: a
+// finished result holds no checkpoint. Root attributes of a restart file: format =
+// "subslip-restart", format_version, program_version, run_id (the result's), description.
 #pragma once
 
 #include <cstddef>
+#include <filesystem>
 #include <optional>
+#include <string>
 
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/io/h5_writer.hpp"
@@ -34,6 +40,15 @@ struct StoredCheckpoint {
   crystal::MacroState last_output;  // the last state written to the series
   long long sequence = 0;
 };
+
+// Creates the restart file `path` with a store of `capacity` grain values for the run
+// `run_id` (the result's root attribute): under a temporary name, renamed to `path` once
+// complete (a kill while it is created leaves no restart file), then opened for writing.
+h5::File create_restart_file(const std::filesystem::path& path, const std::string& run_id,
+                             std::size_t capacity);
+// The restart file `path` opened for writing, when it is one and belongs to `run_id`.
+std::optional<h5::File> open_restart_file(const std::filesystem::path& path,
+                                          const std::string& run_id);
 
 class CheckpointStore {
  public:
@@ -51,6 +66,7 @@ class CheckpointStore {
   std::optional<StoredCheckpoint> latest(std::size_t case_index) const;
 
   long long sequence() const { return sequence_; }  // of the latest write (0: none yet)
+  std::size_t capacity() const;                     // grain values a slot holds
 
  private:
   h5::Group store_;

@@ -106,13 +106,14 @@ struct ContactRunOptions {
   std::function<void(std::size_t index, const ContactCase&, const ContactCaseResult&)> on_case_done;
 };
 
-// Writes the result header, runs every case into /cases and, when all succeeded, sets
-// completed = 1. One thread streams each output step to the file; several threads compute
-// cases in memory and write them in case order, so the file's data do not depend on the thread
-// count. /progress records each case's valid rows and state as the run goes. A case that fails
-// numerically (contact::StepFailure) keeps the rows it reached, writes its `failed` attribute and
-// gets a result with `failure` set; the other cases still run, and the file then stays completed =
-// 0. Other errors (HDF5) are thrown.
+// Writes the result header and runs every case into /cases; the file stays a working file
+// (completed = 0, rows reserved), which the caller closes and, when every case ended, finishes
+// (io/result_file.hpp, finish_result). One thread streams each output step to the file;
+// several threads compute cases in memory and write them in case order, so the file's data do
+// not depend on the thread count. /progress records each case's valid rows and state as the
+// run goes. A case that fails numerically (contact::StepFailure) keeps the rows it reached,
+// writes its `failed` attribute and gets a result with `failure` set; the other cases still
+// run (the finished file then says completed = 0). Other errors (HDF5) are thrown.
 // The result size of the scene's layout (adaptive cases: their planned rows).
 RunSize estimate_contact_run(const ContactScene& scene);
 

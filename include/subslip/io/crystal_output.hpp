@@ -15,6 +15,7 @@
 #include <array>
 #include <chrono>
 #include <cstddef>
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -121,6 +122,10 @@ struct CrystalRunOptions {
   bool restart = false;
   // --checkpoint-every: overrides every case's checkpoint_policy.
   std::optional<long> checkpoint_every;
+  // Where checkpoints go (io/result_file.hpp: restart_file_for(result)); empty: nowhere, so
+  // no checkpoints. Created with the layout when a case writes checkpoints; on a restart, the
+  // existing one of the same run_id is continued (else a new one is created).
+  std::filesystem::path restart_file;
   // Called once the file holds its whole layout (not on a restart): the
   // command line writes to a temporary name and renames it here, so that the result path never
   // names a file that is not a readable result file.
@@ -136,13 +141,14 @@ struct CrystalRunOptions {
 };
 
 // Writes the result header, runs every case in order (the grains of a case run in parallel
-// inside the aggregate) into /cases and, when all succeeded, sets completed = 1. Each output
-// step is streamed to the file as it is computed. A case that fails numerically
-// (crystal::CrystalStepFailure) keeps the rows it reached, writes its `failed` attribute and gets a
-// result with `failure` set; the other cases still run and the file stays completed = 0.
-// Other errors (HDF5) are thrown.
-// The result size (checkpoints with `checkpoint_every`, as run_crystal_scene would write them)
-// and the memory of the largest case, from the layout the run would write.
+// inside the aggregate) into /cases. Each output step is streamed to the file as it is
+// computed. The file stays a working file (completed = 0, rows reserved): the caller closes it
+// and, when every case ended, finishes it (io/result_file.hpp, finish_result). A case that fails
+// numerically (crystal::CrystalStepFailure) keeps the rows it reached, writes its `failed`
+// attribute and gets a result with `failure` set; the other cases still run and the file stays
+// completed = 0. Other errors (HDF5) are thrown. The result size (checkpoints with
+// `checkpoint_every`, as run_crystal_scene would write them) and the memory of the largest case,
+// from the layout the run would write.
 RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> checkpoint_every);
 
 std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,

@@ -13,13 +13,15 @@
 // created and attributes replaced while the run went). Hence a result file is laid out whole
 // before any computation: every case group with its attributes (the summary ones as NaN / 0
 // placeholders, `failed` as a reserved fixed-length string), every series with its rows
-// reserved (allocated at once, filled with NaN), the checkpoint slots; then one flush and
-// `layout_complete = 1`. While the run goes, only values are written, in place: rows of a
-// series (no compression, no chunk cache, no sieve buffer, so each row is in the file when
-// commit() returns), the /progress table, checkpoint slots, and attributes of unchanged type
-// and shape. The one structural change left is a series that outgrows its reservation (an
-// adaptive run taking more output steps than its scene plans): its extent is doubled and
-// flushed, and a kill inside that flush can damage that series of the running case.
+// reserved (allocated at once, filled with NaN); then one flush and `layout_complete = 1`.
+// While the run goes, only values are written, in place: rows of a series (no compression, no
+// chunk cache, no sieve buffer, so each row is in the file when commit() returns), the
+// /progress table, and attributes of unchanged type and shape. The one structural change left
+// is a series that outgrows its reservation (an adaptive run taking more output steps than its
+// scene plans): its extent is doubled and flushed, and a kill inside that flush can damage
+// that series of the running case. When the run has ended, write_exact_copy makes the finished
+// file without the reservation, in a new file that replaces this one by a rename
+// (io/result_file.hpp): the working file itself is never trimmed.
 //
 // Write failures (a full disk, a file-size limit). Every HDF5 call is checked and becomes an
 // Error naming the object and the system's reason (errno, which HDF5's file driver records).
@@ -35,6 +37,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -122,6 +126,9 @@ class Object {
     set_attribute(name, std::string_view(value));
   }
   void set_attribute(std::string_view name, std::span<const double> values) const;  // 1-D array
+  // An array of `shape` (row-major `values`, size = product of shape): [3, 3] for a tensor.
+  void set_attribute(std::string_view name, std::span<const double> values,
+                     std::span<const std::size_t> shape) const;
   void set_attribute(std::string_view name, const std::vector<std::string>& values) const;
 
   // A fixed-length UTF-8 string attribute of `bytes` bytes, empty (NUL-padded): a message
@@ -168,8 +175,8 @@ class Dataset : public Object {
 // Rows are gathered in a block in memory and written in place by commit() (or when the block is
 // full) into rows reserved ahead; a series that outgrows its reservation doubles it (and
 // flushes). The dataset's extent is its reservation: rows beyond the valid ones (/progress
-// rows) read as NaN (int32: kInt32Fill); they are not trimmed at the end, since a trim is a
-// structural change (see the crash-safety note).
+// rows) read as NaN (int32: kInt32Fill); they are not trimmed in place, since a trim is a
+// structural change (see the crash-safety note): the finished file is a trimmed copy.
 class Series {
  public:
   // A series whose rows have `row_shape` (empty: scalar rows); float64 only when rank > 2.
@@ -349,8 +356,8 @@ struct ResultHeader {
 };
 
 // Root attributes format = "subslip", format_version, program_version, scene_kind,
-// scene_file, title, created (ISO-8601 UTC), completed = 0, layout_complete = 0, write_error
-// (reserved, empty: see mark_write_failed); dataset
+// scene_file, title, created (ISO-8601 UTC), run_id (new_run_id), completed = 0, finished = 0,
+// layout_complete = 0, write_error (reserved, empty: see mark_write_failed); dataset
 // /scene; group /units with one string attribute per unit. Flushes.
 void write_result_header(File& file, const ResultHeader& header);
 // Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes
@@ -365,8 +372,35 @@ bool mark_write_failed(File& file, std::string_view message) noexcept;
 // Sets completed = 0, empties write_error and flushes (a restart, before it changes anything).
 void mark_running(File& file);
 
+// The rows to keep of an extendible dataset (a Series) at `path` ("/cases/base/time") when a
+// file is copied by write_exact_copy; nullopt: every row of its extent.
+using RowsToKeep = std::function<std::optional<std::size_t>(const std::string& path)>;
+
+// Copies every group, dataset and attribute of `source` into `target` (an empty file), in
+// creation order, except that an extendible dataset holds only the rows `rows` gives (chunked
+// as before, chunks no longer than those rows) and a fixed-length string attribute (a reserved
+// message: `failed`, `write_error`) becomes a variable-length one (h5py reads it as str).
+// Datasets are copied in blocks of at most a few MB. `target` stays open.
+void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows);
+
+// fsync of the file and of its directory (after a rename into it), so that what was written
+// survives a crash of the machine too. Throws Error naming the file.
+void sync_to_disk(const std::filesystem::path& file);
+
+// A random identifier of a run (16 hex digits), stored in the result as `run_id` and in its
+// restart file, which must name the same run.
+std::string new_run_id();
+
+// The `components` attribute of every second-order tensor dataset of a result file: the two
+// trailing axes are the tensor's row and column.
+inline constexpr const char* kTensorConvention =
+    "3x3 tensor: [..., i, j] is the component ij (i the row, j the column); symmetric tensors "
+    "are stored in full";
+
+// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); a finished file is
+// rewritten with exactly its rows (`finished` = 1); checkpoints in a separate restart file.
 // 2: the whole layout is written before the run (summary attributes as placeholders, `failed`
 // a fixed-length string, series keep their reservation, checkpoints in /checkpoint).
-inline constexpr int kFormatVersion = 2;
+inline constexpr int kFormatVersion = 3;
 
 }  // namespace subslip::io::h5

@@ -15,11 +15,13 @@ struct RestartInfo {
   std::string scene_file;  // as the interrupted run was given it
   std::string scene_text;  // /scene, verbatim
   std::vector<std::string> case_names;
+  std::filesystem::path restart_file;  // where its checkpoints are (io/result_file.hpp)
 };
 
-// Reads FILE and checks that it is a result file of this program version whose run did not
-// complete and that has the /progress table. `scene_text`, when given, is the text of a scene
-// file named on the command line: it must equal /scene.
+// Reads FILE and checks that it is a working result file of this program version (not
+// finished: a run killed, or stopped by a failed write) that has the /progress table, and
+// that its restart file, if there is one, belongs to the same run (run_id). `scene_text`, when
+// given, is the text of a scene file named on the command line: it must equal /scene.
 RestartInfo inspect_for_restart(const std::filesystem::path& file,
                                 const std::optional<std::string>& scene_text = std::nullopt);
 

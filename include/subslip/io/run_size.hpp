@@ -13,10 +13,12 @@
 
 namespace subslip::io {
 
-// Estimated from the scene (the layout: every series with its rows reserved).
+// Estimated from the scene (the layout: every series with its rows reserved). The disk must
+// hold result_bytes + finish_bytes at the end of the run.
 struct RunSize {
   double result_bytes = 0.0;      // the result file, checkpoints included
-  double checkpoint_bytes = 0.0;  // of which the checkpoint store
+  double checkpoint_bytes = 0.0;  // of which the checkpoint store (the restart file)
+  double finish_bytes = 0.0;      // the finished file, written before the working one goes
   double memory_bytes = 0.0;      // the largest case in memory
   std::size_t rows = 0;           // output rows of the case with the most
   std::size_t rows_segment = 0;   // the loading segment with the most output rows in that case
