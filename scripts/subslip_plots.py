@@ -6,9 +6,14 @@
 
 Draws what the file has data for and says what it skips (names for --format png):
   stress_strain.png          crystal: the loading component sigma_ij against eps_ij and the von
-                             Mises stress against the von Mises strain, one curve per case
+                             Mises stress against the von Mises strain, one curve per case; with
+                             a peak at the start, sigma_ij against |eps_ij| on a logarithmic
+                             axis; with holds (the loading strain still while time runs), sigma_ij
+                             against time, holds shaded
   traction_ratio.png         contact: f_t/f_n against the sliding distance (linear and
-                             logarithmic), one curve per case
+                             logarithmic: the friction peak sits at the start), one curve per
+                             case; with holds (no sliding while time runs), f_t/f_n and mu
+                             against time, holds shaded
   slip_activity_<case>.png   crystal with grain fields slip_rate and/or slip: the grain average
                              (weighted) of |slip rate| and of |accumulated slip| per slip system
                              against the loading strain
@@ -20,7 +25,10 @@ Pole figures: sample frame (x right, y up, z towards the viewer), upper hemisphe
 quaternion of g with v_crystal = g v_sample (passive, Rowenhorst et al. 2015, P = -1), so a
 crystal direction c points along g^T c in the sample.
 
-Legends name each case by its swept values with their units (speed=200 mm/min). The file is
+A hold is an interval in which the abscissa of a panel (sliding distance, loading strain) does
+not change while time runs: on that abscissa it is a vertical line, so a time panel is added
+when holds take at least 1 % of a case's time (HOLD_FRACTION). Axis labels state units, legends
+name each case by its swept values with their units (speed=200 mm/min). The file is
 read with the package python/subslip (docs/python.md). Needs Debian's python3-h5py,
 python3-numpy and python3-matplotlib; run with /usr/bin/python3.
 """
@@ -56,7 +64,8 @@ from subslip.texture import (cubic_family, hexagonal_family, quaternion_to_matri
 
 Result = subslip.Result
 __all__ = ["main", "Result", "cubic_family", "hexagonal_family", "quaternion_to_matrix",
-           "sample_directions", "upper_hemisphere_projection", "pole_figure_points"]
+           "sample_directions", "upper_hemisphere_projection", "pole_figure_points",
+           "hold_intervals", "holds_matter", "peak_at_start"]
 FORMATS = ("png", "pdf", "svg")
 
 
@@ -103,6 +112,56 @@ def largest_component(tensor):
     return divmod(int(np.argmax(np.abs(tensor))), 3)
 
 
+# Holds taking at least this fraction of a case's time get a time panel.
+HOLD_FRACTION = 0.01
+# A peak "at the start": the largest |value| is reached within this fraction of the abscissa's
+# range, and the last value is at least PEAK_DROP below it (relative).
+PEAK_WITHIN = 0.25
+PEAK_DROP = 0.01
+
+
+def hold_intervals(time, x):
+    """[(t0, t1)] of the intervals in which `x` does not change while time runs (merged), for
+    series of the same length. `x` counts as unchanged within 1e-12 of its largest |value|."""
+    time, x = np.asarray(time, float), np.asarray(x, float)
+    if len(time) < 2:
+        return []
+    scale = np.max(np.abs(x)) if np.all(np.isfinite(x)) else 0.0
+    still = (np.abs(np.diff(x)) <= 1e-12 * scale) & (np.diff(time) > 0)
+    intervals = []
+    for k in np.flatnonzero(still):
+        t0, t1 = time[k], time[k + 1]
+        if intervals and intervals[-1][1] == t0:
+            intervals[-1] = (intervals[-1][0], t1)
+        else:
+            intervals.append((t0, t1))
+    return intervals
+
+
+def holds_matter(time, x):
+    """Whether the holds of (time, x) take at least HOLD_FRACTION of the time."""
+    intervals = hold_intervals(time, x)
+    total = float(time[-1] - time[0]) if len(time) > 1 else 0.0
+    return total > 0 and sum(t1 - t0 for t0, t1 in intervals) >= HOLD_FRACTION * total
+
+
+def peak_at_start(x, y):
+    """Whether |y| peaks within the first PEAK_WITHIN of the range of |x| and then falls by at
+    least PEAK_DROP (the friction peak; a yield point)."""
+    x, y = np.abs(np.asarray(x, float)), np.abs(np.asarray(y, float))
+    if len(x) < 3 or not np.all(np.isfinite(y)) or np.max(x) <= np.min(x):
+        return False
+    k = int(np.argmax(y))
+    early = x[k] - np.min(x) <= PEAK_WITHIN * (np.max(x) - np.min(x))
+    return bool(early and y[-1] < (1.0 - PEAK_DROP) * y[k])
+
+
+def shade_holds(ax, intervals):
+    """Light grey bands over hold intervals, one legend entry ("hold")."""
+    for k, (t0, t1) in enumerate(intervals):
+        ax.axvspan(t0, t1, color="0.9", zorder=0, label="hold" if k == 0 else "_nolegend_")
+
+
 def plot_stress_strain(result, cases, output, component=None):
     if result.scene_kind != "crystal":
         message("stress-strain: not a crystal result, skipped")
@@ -112,17 +171,39 @@ def plot_stress_strain(result, cases, output, component=None):
     if not usable:
         message("stress-strain: no macro/stress and macro/strain in the file, skipped")
         return None
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
     stress_unit = result.units.get("stress", "")
-    components = set()
+    time_unit = result.units.get("time", "")
+    curves = []  # (case, i, j, stress, strain, time)
     for name in usable:
         case = result.case(name)
         stress, strain = case.series("macro/stress"), case.series("macro/strain")  # (n, 3, 3)
         i, j = component or case.loading_component() or largest_component(strain[-1])
+        time = case.time() if "macro/time" in case else None
+        curves.append((case, i, j, stress, strain, time))
+    log_panel = any(peak_at_start(e[:, i, j], s[:, i, j]) for _, i, j, s, e, _ in curves)
+    time_panel = any(t is not None and holds_matter(t, e[:, i, j])
+                     for _, i, j, _, e, t in curves)
+    panels = 2 + log_panel + time_panel
+    fig, axes = plt.subplots(1, panels, figsize=(5 * panels, 4.2), squeeze=False)
+    ax1, ax2 = axes[0][0], axes[0][1]
+    ax_log = axes[0][2] if log_panel else None
+    ax_time = axes[0][-1] if time_panel else None
+    components = set()
+    for k, (case, i, j, stress, strain, time) in enumerate(curves):
         label_ij = f"{i + 1}{j + 1}"
         components.add(label_ij)
-        ax1.plot(strain[:, i, j], stress[:, i, j], label=f"{case.label()} ({label_ij})")
-        ax2.plot(case.von_mises_strain(), case.von_mises_stress(), label=case.label())
+        colour = f"C{k % 10}"
+        ax1.plot(strain[:, i, j], stress[:, i, j], color=colour,
+                 label=f"{case.label()} ({label_ij})")
+        ax2.plot(case.von_mises_strain(), case.von_mises_stress(), color=colour,
+                 label=case.label())
+        if ax_log is not None:
+            e = np.abs(strain[:, i, j])
+            ax_log.plot(e[e > 0], stress[e > 0, i, j], color=colour, label=case.label())
+        if ax_time is not None and time is not None:
+            ax_time.plot(time, stress[:, i, j], color=colour, label=case.label())
+            if k == 0:
+                shade_holds(ax_time, hold_intervals(time, strain[:, i, j]))
     ij = components.pop() if len(components) == 1 else "ij"
     ax1.set_xlabel(f"strain $\\varepsilon_{{{ij}}}$ [1]")
     ax1.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
@@ -130,9 +211,19 @@ def plot_stress_strain(result, cases, output, component=None):
     ax2.set_xlabel("von Mises strain [1]")
     ax2.set_ylabel(f"von Mises stress [{stress_unit}]")
     ax2.set_title("von Mises")
-    for ax in (ax1, ax2):
+    if ax_log is not None:
+        ax_log.set_xscale("log")
+        ax_log.set_xlabel(f"|strain $\\varepsilon_{{{ij}}}$| [1], logarithmic")
+        ax_log.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
+        ax_log.set_title("the start (peak)")
+    if ax_time is not None:
+        ax_time.set_xlabel(f"time [{time_unit}]")
+        ax_time.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
+        ax_time.set_title("against time (holds shaded)")
+    drawn = [a for a in (ax1, ax2, ax_log, ax_time) if a is not None]
+    for ax in drawn:
         ax.grid(alpha=0.3)
-        legend(ax, len(usable))
+        legend(ax, len(usable) + (ax is ax_time and len(ax.patches) > 0))
     fig.suptitle(heading(result, "stress-strain"), fontsize="medium")
     fig.tight_layout()
     return output.save(fig, "stress_strain")
@@ -152,29 +243,52 @@ def plot_traction_ratio(result, cases, output):
     if result.scene_kind != "contact":
         message("traction ratio: not a contact result, skipped")
         return None
-    # Linear (the paper's view) and logarithmic in the distance (resolves the peak).
-    fig, (ax, ax_log) = plt.subplots(1, 2, figsize=(11, 4.3))
-    drawn = 0
+    # Linear (the paper's view) and logarithmic in the distance (the friction peak sits at the
+    # start); against time when the cases hold (no sliding while time runs).
+    curves = []  # (case, x, ratio)
+    xlabel = ""
     for name in cases:
         case = result.case(name)
         abscissa = sliding_abscissa(result, case)
         if "ratio" not in case or abscissa is None:
             continue
         (x, xlabel), ratio = abscissa, case.series("ratio")
-        ax.plot(x, ratio, label=case.label())
-        positive = x > 0
-        ax_log.plot(x[positive], ratio[positive], label=case.label())
-        drawn += 1
-    if drawn == 0:
-        plt.close(fig)
+        curves.append((case, x, ratio))
+    if not curves:
         message("traction ratio: no ratio with slip_path or slip in the file, skipped")
         return None
+    time_panel = any("time" in c and holds_matter(c.time(), x) for c, x, _ in curves)
+    panels = 2 + time_panel
+    fig, axes = plt.subplots(1, panels, figsize=(5.5 * panels, 4.3), squeeze=False)
+    ax, ax_log = axes[0][0], axes[0][1]
+    ax_time = axes[0][2] if time_panel else None
+    for k, (case, x, ratio) in enumerate(curves):
+        colour = f"C{k % 10}"
+        ax.plot(x, ratio, color=colour, label=case.label())
+        positive = x > 0
+        ax_log.plot(x[positive], ratio[positive], color=colour, label=case.label())
+        if ax_time is not None and "time" in case:
+            time = case.time()
+            ax_time.plot(time, ratio, color=colour, label=case.label())
+            if "mu" in case:
+                ax_time.plot(time, case.series("mu"), color=colour, ls=":", lw=1.2,
+                             label="_nolegend_")
+            if k == 0:
+                shade_holds(ax_time, hold_intervals(time, x))
     ax_log.set_xscale("log")
     for a in (ax, ax_log):
         a.set_xlabel(xlabel)
         a.set_ylabel("traction ratio $f_t/f_n$ [1]")
         a.grid(alpha=0.3)
+    ax_log.set_xlabel(xlabel + ", logarithmic")
+    drawn = len(curves)
     legend(ax, drawn)
+    if ax_time is not None:
+        ax_time.set_xlabel(f"time [{result.units.get('time', '')}]")
+        ax_time.set_ylabel("$f_t/f_n$ (solid), friction coefficient $\\mu$ (dotted) [1]")
+        ax_time.set_title("against time (holds shaded)")
+        ax_time.grid(alpha=0.3)
+        legend(ax_time, drawn + (len(ax_time.patches) > 0))
     fig.suptitle(heading(result, "traction ratio"), fontsize="medium")
     fig.tight_layout()
     return output.save(fig, "traction_ratio")

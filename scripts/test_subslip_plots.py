@@ -1,14 +1,16 @@
 #!/usr/bin/python3
 """Tests of scripts/subslip_plots.py (run by ctest; unittest, Debian's h5py/numpy/matplotlib).
 
-    /usr/bin/python3 scripts/test_subslip_plots.py PoleGeometry ReservedRows  # no subslip
+    /usr/bin/python3 scripts/test_subslip_plots.py PoleGeometry PanelChoice ReservedRows
     SUBSLIP_BINARY=build/src/subslip /usr/bin/python3 scripts/test_subslip_plots.py Pictures
 
 PoleGeometry checks the projection and the rotation convention against hand-derived poles;
+PanelChoice checks, on series written out here, how holds and a peak at the start are found;
 Pictures runs subslip on the small scenes of tests/data/post/, draws them, checks the PNG files
-(and --format pdf / svg, --dpi, legends with units), and checks the poles of a grain whose
-quaternion subslip wrote against g built by hand from its Euler angles with the formula of
-include/subslip/crystal/rotation.hpp.
+(and --format pdf / svg, --dpi, legends with units, a time panel exactly for the scenes with
+holds, a logarithmic strain panel exactly for the one with a peak at the start), and checks the
+poles of a grain whose quaternion subslip wrote against g built by hand from its Euler angles
+with the formula of include/subslip/crystal/rotation.hpp.
 """
 
 import math
@@ -115,6 +117,41 @@ class PoleGeometry(unittest.TestCase):
         np.testing.assert_allclose(np.degrees(np.arctan2(y, x)) % 60.0, 30.0, atol=1e-9)
 
 
+class PanelChoice(unittest.TestCase):
+    """When a picture gets a time panel (holds) and a logarithmic panel (a peak at the start)."""
+
+    def test_hold_intervals(self):
+        # Slide 0 -> 1, hold 1 s, slide 1 -> 2, hold 2 s (two rows: merged into one interval).
+        t = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+        x = np.array([0.0, 1.0, 1.0, 2.0, 2.0, 2.0])
+        self.assertEqual(sp.hold_intervals(t, x), [(1.0, 2.0), (3.0, 5.0)])
+        # Round-off far below the scale of x is no motion; a tiny real motion is.
+        self.assertEqual(sp.hold_intervals([0.0, 1.0], [1.0, 1.0 + 1e-15]), [(0.0, 1.0)])
+        self.assertEqual(sp.hold_intervals([0.0, 1.0], [1.0, 1.0 + 1e-9]), [])
+        # Rows at the same time (a segment boundary) are not a hold.
+        self.assertEqual(sp.hold_intervals([0.0, 0.0], [1.0, 1.0]), [])
+
+    def test_holds_matter_from_one_percent_of_the_time(self):
+        # A 60 min hold after a 0.1 min slide matters; 0.5 % of the time does not, 2 % does.
+        self.assertTrue(sp.holds_matter(np.array([0.0, 0.1, 60.1]), np.array([0.0, 1.0, 1.0])))
+        for hold, expected in ((0.005, False), (0.02, True)):
+            t = np.array([0.0, 1.0 - hold, 1.0])
+            self.assertEqual(sp.holds_matter(t, np.array([0.0, 1.0, 1.0])), expected, hold)
+        self.assertFalse(sp.holds_matter(np.array([0.0, 1.0]), np.array([0.0, 1.0])))
+
+    def test_peak_at_the_start(self):
+        x = np.linspace(0.0, 20.0, 201)
+        # A friction peak at 0.04 mm over 20 mm, falling to the steady ratio.
+        friction = 0.13 - 0.012 * (1 - np.exp(-x / 2)) - 0.13 * np.exp(-x / 0.01)
+        self.assertTrue(sp.peak_at_start(x, friction))
+        self.assertFalse(sp.peak_at_start(x, 1 - np.exp(-x)))  # monotone hardening
+        self.assertFalse(sp.peak_at_start(x, np.sin(np.pi * x / 20)))  # peak at half the range
+        flat = np.minimum(x, 1.0) * (1 - 0.001 * np.minimum(x, 1.0))  # drops < 1 % after it
+        self.assertFalse(sp.peak_at_start(x, flat))
+        # Compression: magnitudes count (the peak of |stress| at the start of a negative path).
+        self.assertTrue(sp.peak_at_start(-x, -friction))
+
+
 class ReservedRows(unittest.TestCase):
     """A run that did not finish: its series hold reserved rows (NaN) after the valid ones, and
     /progress says how many are valid (docs/scenes.md). Nothing beyond them may be drawn."""
@@ -153,6 +190,28 @@ class ReservedRows(unittest.TestCase):
         self.assertEqual(os.listdir(out), ["traction_ratio.png"])
 
 
+class SweepLabels(unittest.TestCase):
+    """Legends name swept values with units: the scene's unit after a bare number, the value
+    as written when it was swept with its own unit (docs/scenes.md, "Units")."""
+
+    def test_labels(self):
+        directory = tempfile.mkdtemp(prefix="subslip_plots_labels_")
+        self.addCleanup(shutil.rmtree, directory, ignore_errors=True)
+        path = os.path.join(directory, "sweep.h5")
+        with h5py.File(path, "w") as f:
+            f.attrs.update({"format": "subslip", "scene_kind": "contact", "completed": 1})
+            f.create_group("units").attrs.update({"stress": "MPa", "length": "mm",
+                                                  "time": "min"})
+            cases = f.create_group("cases")
+            values = {"speed=200": 200.0, "speed=1 mm_s": "1 mm/s", "speed=2.5e-3": "2.5e-3"}
+            cases.attrs["names"] = list(values)
+            for name, value in values.items():
+                cases.create_group(name).attrs["sweep:loading[0].slide.speed"] = value
+        with sp.Result(path) as result:
+            labels = [result.case(n).label() for n in result.cases]
+        self.assertEqual(labels, ["speed=200 mm/min", "speed=1 mm/s", "speed=2.5e-3 mm/min"])
+
+
 def png_size(path):
     with open(path, "rb") as f:
         head = f.read(24)
@@ -168,7 +227,8 @@ class Pictures(unittest.TestCase):
         cls.dir = tempfile.mkdtemp(prefix="subslip_plots_")
         cls.addClassCleanup(shutil.rmtree, cls.dir, ignore_errors=True)  # also if setUp fails
         cls.results = {}
-        for scene in ("crystal_small", "contact_small", "single_crystal_euler"):
+        for scene in ("crystal_small", "contact_small", "single_crystal_euler", "contact_hold",
+                      "crystal_hold"):
             out = os.path.join(cls.dir, scene + ".h5")
             subprocess.run([os.environ["SUBSLIP_BINARY"], "run", "-q", "-o", out,
                             os.path.join(SOURCE, "tests", "data", "post", scene + ".yaml")],
@@ -235,6 +295,42 @@ class Pictures(unittest.TestCase):
         with open(os.path.join(out, "traction_ratio.svg"), encoding="utf-8") as f:
             svg = f.read()
         self.assertIn("speed=200 mm/min", svg)
+
+    def svg(self, scene, picture):
+        run, out = self.draw(scene, "--format", "svg")
+        self.assertEqual(run.returncode, 0, run.stderr)
+        with open(os.path.join(out, picture + ".svg"), encoding="utf-8") as f:
+            return f.read()
+
+    def test_a_hold_gets_a_time_axis(self):
+        # contact_hold.yaml holds 60 min between two slides of 0.02 and 0.03 min: against the
+        # sliding distance the hour is a vertical line, so a third panel runs against time.
+        svg = self.svg("contact_hold", "traction_ratio")
+        self.assertEqual(svg.count('<g id="axes_'), 3)
+        self.assertIn("time [min]", svg)
+        self.assertIn("hold", svg)
+        with sp.Result(self.results["contact_hold"]) as result:
+            t = result.case("base").time()
+            self.assertAlmostEqual(t[-1] - t[0], 60.05, places=9)  # the hold, in minutes
+        # Without holds: the two sliding-distance panels only.
+        svg = self.svg("contact_small", "traction_ratio")
+        self.assertEqual(svg.count('<g id="axes_'), 2)
+        self.assertNotIn("time [", svg)
+        self.assertIn("sliding distance [mm], logarithmic", svg)
+
+    def test_crystal_peak_and_hold_panels(self):
+        # crystal_hold.yaml softens after yield (a peak near 0.1 % of 2 % strain) and then holds
+        # 100 s: a logarithmic strain panel and a time panel.
+        svg = self.svg("crystal_hold", "stress_strain")
+        self.assertEqual(svg.count('<g id="axes_'), 4)
+        self.assertIn("logarithmic", svg)
+        self.assertIn("time [s]", svg)
+        self.assertIn("stress $\\sigma_{33}$ [MPa]", svg)
+        # crystal_small.yaml hardens monotonically without holds: the two usual panels.
+        svg = self.svg("crystal_small", "stress_strain")
+        self.assertEqual(svg.count('<g id="axes_'), 2)
+        self.assertNotIn("logarithmic", svg)
+        self.assertNotIn("time [", svg)
 
     def test_loading_component_is_the_prescribed_one(self):
         # Tension along z with free lateral L11, L22 (which change every step): 33.

@@ -93,10 +93,22 @@ const BadInput kTable[] = {
     {"scenes/short_direction.yaml", "loading[0].slide.direction", 13, "expected 2 numbers"},
     {"crystal_scenes/bad_matrix_shape.yaml", "loading[0].L", 15, "3 rows of 3 entries"},
     {"scenes/nan_value.yaml", "law.friction.kappa", 5, "finite"},
-    // units: only the listed names, stated once (a unit on a value is refused), never swept
+    // units: the scene's system from the listed names, never swept; a value written with a unit
+    // must use a known unit of its dimension (and dimensionless values take none)
     {"scenes/bad_unit.yaml", "units.stress", 3, "did you mean 'MPa'?"},
+    {"bad/scenes/unknown_scene_unit.yaml", "units.length", 4,
+     "unknown value 'ft'; expected one of: m, cm, mm, um"},
     {"scenes/missing_units.yaml", "units", 0, "missing required key"},
-    {"bad/scenes/value_with_unit.yaml", "contact.normal_traction", 12, "write the bare number"},
+    {"bad/scenes/unknown_unit.yaml", "contact.normal_traction", 12,
+     "unknown unit 'kpa'; did you mean 'kPa'? this value's dimension is stress; it takes Pa, kPa, MPa "
+     "or GPa (supported: stress Pa kPa MPa GPa; length m cm mm um nm"},
+    {"bad/scenes/unit_of_other_dimension.yaml", "loading[0].slide.speed", 14,
+     "'MPa' is a unit of stress, but this value's dimension is length/time"},
+    {"bad/scenes/unit_on_dimensionless.yaml", "law.friction.mu_s", 6, "dimensionless"},
+    {"bad/crystal_scenes/unit_on_slip_constant.yaml", "phase.law.friction.kappa", 10,
+     "dimensionless"},
+    {"bad/crystal_scenes/unit_in_velocity_gradient.yaml", "loading[0].L[2][2]", 16,
+     "'MPa' is a unit of stress, but this value's dimension is 1/time; it takes 1/s, 1/ms, 1/min or 1/h"},
     {"scenes/sweep_units.yaml", "units.stress", 17, "cannot be swept"},
     // physical ranges of the law
     {"bad/scenes/range_eta_v.yaml", "law.overstress.eta_v", 8, "must be > 0, got 0"},
@@ -250,7 +262,8 @@ std::vector<BadInput> cli_rows() {
     const std::string f = b.file;
     if (f == "bad/scenes/range_eta_v.yaml" || f == "crystal_scenes/asymmetric_pair.yaml" ||
         f == "crystal_scenes/bad_orientation_file.yaml" || f == "scenes/missing_units.yaml" ||
-        f == "bad/crystal_scenes/too_many_grains.yaml" || f == "scenes/malformed.yaml")
+        f == "bad/crystal_scenes/too_many_grains.yaml" || f == "scenes/malformed.yaml" ||
+        f == "bad/scenes/unknown_unit.yaml")
       rows.push_back(b);
   }
   return rows;
@@ -261,7 +274,7 @@ std::vector<BadInput> cli_rows() {
 TEST(BadInputCli, ExitsWithCode2AndOneLineBeforeCreatingOutput) {
   const fs::path dir = scratch_dir();
   const auto rows = cli_rows();
-  ASSERT_EQ(rows.size(), 6u);
+  ASSERT_EQ(rows.size(), 7u);
   for (const BadInput& b : rows) {
     SCOPED_TRACE(b.file);
     const fs::path scene = kData / b.file;

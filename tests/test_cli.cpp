@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -363,8 +364,9 @@ TEST(Cli, ProgressGoesToStderrAndStdoutKeepsOnlyTheResults) {
   fs::remove_all(dir);
 }
 
-// On an 80-column terminal the bar never wraps and leaves no line behind: the screen holds what
-// stdout holds when redirected, line for line.
+// On an 80-column terminal the bar never wraps and leaves no line behind: the screen holds one
+// row per line the run ended with a newline (the bar itself only returns the carriage). (Not
+// compared with a second, redirected run: its summary's timings can wrap to another line count.)
 TEST(Cli, ProgressStaysOneLineOnAnEightyColumnTerminal) {
   const fs::path dir = scratch_dir();
   write(dir / "sweep.yaml", kCrystalSweep);
@@ -376,9 +378,9 @@ TEST(Cli, ProgressStaysOneLineOnAnEightyColumnTerminal) {
   EXPECT_EQ(screen.wraps, 0) << tty.terminal;
   const auto rows = screen.text_rows();
   for (const auto& row : rows) EXPECT_FALSE(contains(row, "elapsed") || contains(row, " %")) << row;
-  const Outcome redirected = run(dir, "run sweep.yaml -o b.h5");
-  ASSERT_EQ(redirected.code, 0) << redirected.err;
-  EXPECT_EQ(rows.size(), lines_of(redirected.out).size()) << tty.terminal;
+  const auto newlines = std::count(tty.terminal.begin(), tty.terminal.end(), '\n');
+  EXPECT_EQ(rows.size(), static_cast<std::size_t>(newlines)) << tty.terminal;
+  EXPECT_TRUE(contains(rows.back(), "results: a.h5")) << tty.terminal;
   fs::remove_all(dir);
 }
 

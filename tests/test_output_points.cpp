@@ -202,8 +202,13 @@ TEST(OutputPoints, SpacingsGiveTheirPoints) {
   const std::vector<ClockSegment> one{{2.0, 5.0}};  // a clock of 0 .. 10
   auto points = [&](const std::string& yaml) {
     const YamlDocument d = YamlDocument::from_string("at: " + yaml + "\n", "p.yaml");
-    return parse_output_points(d.root().required("at"), {"time", "strain"},
-                               [&](const std::string&) { return one; })
+    return parse_output_points(
+               d.root().required("at"), {"time", "strain"}, [&](const std::string&) { return one; },
+               [](const std::string& clock) {
+                 Units u;
+                 u.time = "s";
+                 return u.unit(clock == "time" ? dimension::time : dimension::none);
+               })
         .values;
   };
   EXPECT_EQ(points("{strain: [0, 1, 2.5]}"), (std::vector<double>{1, 2.5}));  // 0 is row 0
@@ -216,6 +221,11 @@ TEST(OutputPoints, SpacingsGiveTheirPoints) {
   EXPECT_EQ(log.front(), 0.001);
   EXPECT_EQ(log.back(), 10.0);
   for (std::size_t k = 1; k < log.size(); ++k) EXPECT_NEAR(log[k] / log[k - 1], 10.0, 1e-12);
+  // Points written with their own unit are converted into the scene's (here: time in s).
+  EXPECT_EQ(points("{time: [0.05 min, 4500 ms, 9]}"), (std::vector<double>{3, 4.5, 9}));
+  EXPECT_EQ(points("{time: {every: 2500 ms}}"), (std::vector<double>{2.5, 5, 7.5, 10}));
+  EXPECT_THROW(points("{strain: [1 mm]}"), InputError);  // a strain has no unit
+  EXPECT_THROW(points("{time: [1 mm]}"), InputError);    // not a time
   // Points become times into the segments; a point in a hold is the end of the segment before.
   const std::vector<ClockSegment> three{{1.0, 2.0}, {0.0, 5.0}, {0.5, 4.0}};  // 0..2, 2, 2..4
   const auto times = segment_times({1.0, 2.0, 3.0, 4.0}, three);

@@ -7,9 +7,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
+#include "scratch_dir.hpp"
+#include "shell_command.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/scene_warnings.hpp"
@@ -20,6 +24,9 @@ using namespace subslip::io;
 namespace {
 
 struct CrystalScene_ {
+  std::string units = "{stress: MPa, time: s}";
+  std::string elasticity = "{type: cubic, C11: 168400, C12: 121400, C44: 75400}";
+  std::string rate = "1.0e-3";
   std::string grains = "4";
   std::string tau0 = "10.0";
   std::string overstress = "{form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}";
@@ -30,10 +37,12 @@ struct CrystalScene_ {
   std::string sweep = "";
   std::string text() const {
     return R"(scene: crystal
-units: {stress: MPa, time: s}
+units: )" + units +
+           R"(
 phase:
   families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  elasticity: )" +
+           elasticity + R"(
   tau0: )" +
            tau0 + R"(
   law:
@@ -45,7 +54,8 @@ orientations:
   random: {count: )" +
            grains + R"(, seed: 1}
 loading:
-  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, )" +
+           rate + R"(]]
     stress: [[0, x, x], [x, 0, x], [x, x, x]]
     duration: )" +
            duration + R"(
@@ -225,4 +235,153 @@ TEST(Warnings, SweepCasesAreListedOnce) {
   w = s.warnings();
   ASSERT_EQ(w.size(), 1u);
   EXPECT_NE(w[0].find("(every case)"), std::string::npos) << w[0];
+}
+
+// ---------------------------------------------------------------- magnitudes in the wrong unit
+
+// Copper's elastic constants in GPa written in an MPa scene: C11 = 168.4 MPa, a flow stress of a
+// few MPa, and no error (the numbers are legal): one warning at the line of C11, the largest
+// constant, naming the unit the number fits.
+TEST(MagnitudeWarnings, ElasticConstantsInGpaInAnMpaScene) {
+  CrystalScene_ s;
+  s.elasticity = "{type: cubic, C11: 168.4, C12: 121.4, C44: 75.4}";
+  expect_one(s.warnings(), {"w.yaml:5: phase.elasticity.C11: 168.4 MPa (0.1684 GPa) is below the "
+                            "elastic constants of crystals (1 to 2000 GPa)",
+                            "write '168.4 GPa'"});
+  // The same constants written with their unit: no warning.
+  s.elasticity = "{type: cubic, C11: 168.4 GPa, C12: 121.4 GPa, C44: 75.4 GPa}";
+  EXPECT_TRUE(s.warnings().empty());
+  // A unit written, but the wrong one: the number is checked, no unit is suggested.
+  s.elasticity = "{type: cubic, C11: 168.4 MPa, C12: 121.4 MPa, C44: 75.4 MPa}";
+  expect_one(s.warnings(), {"w.yaml:5: phase.elasticity.C11: 168.4 MPa",
+                            "check the number and "
+                            "its unit"});
+  // Isotropic: E is checked like the cubic constants.
+  s.elasticity = "{type: isotropic, E: 200, nu: 0.3}";
+  expect_one(s.warnings(), {"w.yaml:5: phase.elasticity.E: 200 MPa", "write '200 GPa'"});
+}
+
+// MPa values in a GPa scene: every constant above the stiffest crystal, and tau0 = 10 GPa.
+TEST(MagnitudeWarnings, MpaValuesInAGpaScene) {
+  CrystalScene_ s;
+  s.units = "{stress: GPa, time: s}";
+  const auto w = s.warnings();
+  ASSERT_EQ(w.size(), 4u);
+  EXPECT_NE(w[0].find("w.yaml:5: phase.elasticity.C11: 1.684e+05 GPa is above"), std::string::npos)
+      << w[0];
+  EXPECT_NE(w[0].find("write '168400 MPa'"), std::string::npos) << w[0];
+  EXPECT_NE(w[1].find("w.yaml:5: phase.elasticity.C12: 1.214e+05 GPa"), std::string::npos) << w[1];
+  EXPECT_NE(w[2].find("w.yaml:5: phase.elasticity.C44: 7.54e+04 GPa"), std::string::npos) << w[2];
+  EXPECT_NE(w[3].find("w.yaml:6: phase.tau0: 10 GPa (1e+04 MPa) is above the reference stresses"),
+            std::string::npos)
+      << w[3];
+  EXPECT_NE(w[3].find("write '10 MPa'"), std::string::npos) << w[3];
+  // Written in GPa, the same material warns about nothing.
+  s.elasticity = "{type: cubic, C11: 168.4, C12: 121.4, C44: 75.4}";
+  s.tau0 = "0.01";
+  EXPECT_TRUE(s.warnings().empty());
+}
+
+// tau0 below 10 kPa (Pa written where MPa was meant); strain rates and durations far outside
+// any test.
+TEST(MagnitudeWarnings, Tau0StrainRateAndDuration) {
+  CrystalScene_ s;
+  s.units = "{stress: Pa, time: s}";
+  s.elasticity = "{type: cubic, C11: 168.4e9, C12: 121.4e9, C44: 75.4e9}";
+  // (with the stiffness / tau0 warning)
+  auto pa = s.warnings();
+  ASSERT_EQ(pa.size(), 2u);
+  EXPECT_NE(pa[0].find("w.yaml:6: phase.tau0: 10 Pa (1e-05 MPa) is below"), std::string::npos)
+      << pa[0];
+  EXPECT_NE(pa[0].find("write '10 MPa'"), std::string::npos) << pa[0];
+  s.tau0 = "1.0e7";
+  EXPECT_TRUE(s.warnings().empty());
+  s.rate = "1.0e7";  // 1e7 /s
+  s.duration = "1.0e-9";
+  s.increments = "1";
+  const auto w = s.warnings();
+  ASSERT_GE(w.size(), 1u);
+  EXPECT_NE(w[0].find("w.yaml:14: loading[0].L[2][2]: 1e+07 1/s is above the strain rates"),
+            std::string::npos)
+      << w[0];
+  s.rate = "1.0e-3";
+  s.duration = "1.0e10";  // 300 years
+  s.increments = "1000000";
+  const auto d = s.warnings();
+  ASSERT_GE(d.size(), 1u);
+  EXPECT_NE(d[0].find("w.yaml:16: loading[0].duration: 1e+10 s is above the durations"),
+            std::string::npos)
+      << d[0];
+}
+
+// A speed in mm/min written in a scene in m and s: 200 m/s.
+TEST(MagnitudeWarnings, SlidingSpeedAndHold) {
+  std::string text = contact_text("1.0e6", "implicit", "0.02");
+  text.replace(text.find("length: mm, time: min"), 21, "length: m, time: s");
+  text.replace(text.find("speed: 1,"), 9, "speed: 200,");
+  expect_one(contact_scene_warnings(contact_scene(text)),
+             {"c.yaml:10: loading[0].slide.speed: 200 m/s is above the sliding speeds of friction "
+              "tests (1e-12 to 100 m/s): check the number and its unit"});
+  // A 1e8 min hold (190 years) after a slide at 1 mm/min.
+  std::string hold = contact_text("1.0e6", "implicit", "0.02") +
+                     "  - hold: {duration: 1.0e8}\n    increments: 10\n";
+  expect_one(contact_scene_warnings(contact_scene(hold)),
+             {"c.yaml:12: loading[1].hold.duration: 1e+08 min (6e+09 s) is above the durations"});
+  hold.replace(hold.find("duration: 1.0e8"), 15, "duration: 60");
+  EXPECT_TRUE(contact_scene_warnings(contact_scene(hold)).empty());
+}
+
+// A swept value is checked in its case, at its line in the sweep block.
+TEST(MagnitudeWarnings, SweptValuesNameTheirCase) {
+  CrystalScene_ s;
+  s.sweep = "sweep:\n  \"phase.tau0\": [10, 1.0e4]\n";
+  s.duration = "1";
+  const auto w = s.warnings();
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("w.yaml:20: phase.tau0: 1e+04 MPa is above"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("write '10000 kPa'"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("(case tau0=1.0e4)"), std::string::npos) << w[0];
+}
+
+// The plausible ranges hold every shipped scene: none of them warns about a magnitude.
+TEST(MagnitudeWarnings, NoShippedSceneLooksWrittenInAnotherUnit) {
+  namespace fs = std::filesystem;
+  int scenes = 0;
+  for (const auto& entry :
+       fs::recursive_directory_iterator(fs::path(SUBSLIP_SOURCE_DIR) / "inputs")) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    const YamlDocument document = YamlDocument::from_file(entry.path());
+    const std::vector<std::string> w =
+        scene_kind(document, {"contact", "crystal"}) == "contact"
+            ? contact_scene_warnings(parse_contact_scene(document))
+            : crystal_scene_warnings(parse_crystal_scene(document), true);
+    for (const std::string& line : w) {
+      EXPECT_EQ(line.find(" is below the "), std::string::npos) << line;
+      EXPECT_EQ(line.find(" is above the "), std::string::npos) << line;
+    }
+    ++scenes;
+  }
+  EXPECT_GT(scenes, 30);
+}
+
+// `subslip run` prints the warning before the run, on standard error, at the file and line of
+// the value, and the run goes on (warnings are not errors): the flow stress of copper with C11
+// = 168.4 MPa is a few MPa instead of ~65.
+TEST(MagnitudeWarnings, TheCommandLinePrintsThemWithTheLineAndRuns) {
+  namespace fs = std::filesystem;
+  const fs::path dir = subslip::testing::scratch_dir("warnings");
+  CrystalScene_ s;
+  s.elasticity = "{type: cubic, C11: 168.4, C12: 121.4, C44: 75.4}";
+  const fs::path scene = dir / "gpa_in_mpa.yaml";
+  std::ofstream(scene) << s.text();
+  const auto run =
+      subslip::testing::run_command("'" + std::string(SUBSLIP_BINARY) + "' run '" + scene.string() +
+                                    "' -o '" + (dir / "out.h5").string() + "' 2>&1 >/dev/null");
+  EXPECT_EQ(run.code, 0) << run.out;
+  EXPECT_EQ(run.out.rfind("warning: " + scene.string() + ":5: phase.elasticity.C11: 168.4 MPa", 0),
+            0u)
+      << run.out;
+  EXPECT_TRUE(fs::exists(dir / "out.h5"));
+  fs::remove_all(dir);
 }

@@ -73,6 +73,16 @@ LOADING_UNITS = {
 }
 
 
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def written_with_unit(text):
+    """Whether a swept value's text carries a unit of its own ("1 mm/s", "[0.2 mm/s, 0 mm/s]",
+    "60min"), as scenes may write values (docs/scenes.md, "Units"); "1.5e-3", "[1, 0]" do not."""
+    rest = _NUMBER.sub("", text)
+    return any(c.isalpha() or c in "/%" for c in rest)
+
+
 def sweep_unit(case, path):
     """The unit of a swept value, or None when unknown (names). Format 3 stores it as the
     attribute `sweep:<path>.unit`; for older files it is taken from the case attribute of the

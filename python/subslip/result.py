@@ -285,10 +285,13 @@ class Case:
 
     def label(self):
         """A legend label: the swept values with their units ("speed=200 mm/min"), else the
-        case name."""
+        case name. A value swept with its own unit ("1 mm/s", converted by subslip into the
+        scene's units) is shown as written."""
         parts = []
         for path, value, unit in self.sweep():
             number = f"{value:g}" if isinstance(value, (int, float)) else str(value)
+            if derived.written_with_unit(number):
+                unit = None
             parts.append(f"{derived.sweep_label(path)}={number}" + (f" {unit}" if unit
                                                                         and unit != "1" else ""))
         return ", ".join(parts) or self.name

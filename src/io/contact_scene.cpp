@@ -10,11 +10,12 @@ namespace subslip::io {
 
 namespace {
 
-void parse_contact_block(const CheckedNode& node, contact::ContactModel& model) {
+void parse_contact_block(const CheckedNode& node, contact::ContactModel& model, SceneValues& v) {
   node.allow_keys({"alpha_n", "alpha_t", "normal_traction"});
-  model.stiffness.alpha_n = node.get_double("alpha_n", Range::positive());
-  model.stiffness.alpha_t = node.get_double("alpha_t", Range::positive());
-  model.initial_normal_traction = node.get_double("normal_traction", Range::positive());
+  model.stiffness.alpha_n = v.get(node, "alpha_n", dimension::stiffness, Range::positive());
+  model.stiffness.alpha_t = v.get(node, "alpha_t", dimension::stiffness, Range::positive());
+  model.initial_normal_traction = v.get_noted(node, "normal_traction", dimension::stress,
+                                              Magnitude::normal_traction, Range::positive());
 }
 
 void parse_initial(const std::optional<CheckedNode>& node, contact::ContactModel& model) {
@@ -25,20 +26,22 @@ void parse_initial(const std::optional<CheckedNode>& node, contact::ContactModel
   model.initial_law_state.mu = node->get_double("mu", model.law.friction.mu_s, Range::positive());
 }
 
-contact::Vec2 read_vec2(const CheckedNode& node) {
-  const auto v = node.as_doubles(Range::any(), 2);
+contact::Vec2 read_vec2(const CheckedNode& node, const Unit& unit) {
+  const auto v = node.as_quantities(unit, Range::any(), 2);
   return {v[0], v[1]};
 }
 
 // The tangential velocity and duration of a `slide:` block.
-void parse_slide(const CheckedNode& node, contact::Segment& seg) {
+void parse_slide(const CheckedNode& node, contact::Segment& seg, SceneValues& v) {
   node.allow_keys({"speed", "direction", "velocity", "distance", "duration"});
   const std::string given = *node.one_of({"speed", "velocity"}, true);
   if (given == "speed") {
-    const double speed = node.get_double("speed", Range::non_negative());
+    const CheckedNode speed_node = node.required("speed");
+    const double speed = v.read(speed_node, dimension::velocity, Range::non_negative());
+    if (speed > 0.0) v.note(speed_node, Magnitude::sliding_speed, speed);
     contact::Vec2 direction(1.0, 0.0);
     if (auto d = node.optional("direction")) {
-      direction = read_vec2(*d);
+      direction = read_vec2(*d, v.unit(dimension::none));
       // stableNorm: [1e-200, 0] is a direction too, and [1e200, 1e200] does not overflow.
       if (!(direction.stableNorm() > 0.0)) d->fail("direction must be non-zero");
       direction = direction.stableNormalized();
@@ -47,36 +50,43 @@ void parse_slide(const CheckedNode& node, contact::Segment& seg) {
   } else {
     if (auto d = node.optional("direction"))
       d->fail("'direction' goes with 'speed'; a 'velocity' has its own");
-    seg.velocity = read_vec2(node.required("velocity"));
+    const CheckedNode velocity = node.required("velocity");
+    seg.velocity = read_vec2(velocity, v.unit(dimension::velocity));
+    const double speed = seg.velocity.stableNorm();
+    if (std::isfinite(speed) && speed > 0.0) v.note(velocity, Magnitude::sliding_speed, speed);
   }
   if (!std::isfinite(seg.velocity.norm()))
     node.required(given).fail("the sliding speed overflows double precision");
   if (*node.one_of({"distance", "duration"}, true) == "distance") {
     const CheckedNode distance = node.required("distance");
-    const double d = distance.as_double(Range::positive());
+    const double d = v.read(distance, dimension::length, Range::positive());
     const double speed = seg.velocity.stableNorm();  // norm() underflows below 1e-154
     if (!(speed > 0.0)) distance.fail("a slide at zero speed covers no distance; give a duration");
     seg.duration = d / speed;
     if (!(std::isfinite(seg.duration) && seg.duration > 0.0))
       distance.fail("distance / speed is not a usable duration (over- or underflow)");
   } else {
-    seg.duration = node.get_double("duration", Range::positive());
+    seg.duration =
+        v.get_noted(node, "duration", dimension::time, Magnitude::duration, Range::positive());
   }
 }
 
 // The normal side of a segment; `fn` is f_n at the segment start and becomes f_n at its end.
 void parse_normal(const std::optional<CheckedNode>& node, const contact::ContactModel& model,
-                  contact::Segment& seg, double& fn) {
+                  contact::Segment& seg, double& fn, SceneValues& v) {
   seg.normal_control = contact::NormalControl::traction;
   seg.normal_traction = fn;  // default: hold f_n constant
   if (!node) return;
   node->allow_keys({"traction", "velocity"});
   if (*node->one_of({"traction", "velocity"}, true) == "traction") {
-    seg.normal_traction = node->get_double("traction");
+    const CheckedNode traction = node->required("traction");
+    seg.normal_traction = v.read(traction, dimension::stress);
+    if (seg.normal_traction > 0.0)
+      v.note(traction, Magnitude::normal_traction, seg.normal_traction);
     fn = seg.normal_traction;
   } else {
     seg.normal_control = contact::NormalControl::velocity;
-    seg.normal_velocity = node->get_double("velocity");
+    seg.normal_velocity = v.get(*node, "velocity", dimension::velocity);
     fn += model.stiffness.alpha_n * seg.normal_velocity * seg.duration;
     if (!std::isfinite(fn))
       node->required("velocity").fail("f_n at the end of the segment overflows double precision");
@@ -91,29 +101,30 @@ void parse_stepping(const CheckedNode& node, contact::Segment& seg) {
 }
 
 contact::Segment parse_segment(const CheckedNode& node, const contact::ContactModel& model,
-                               double& fn) {
+                               double& fn, SceneValues& v) {
   node.allow_keys({"slide", "hold", "increments", "growth", "output_every", "normal"});
   contact::Segment seg;
   if (*node.one_of({"slide", "hold"}, true) == "slide") {
-    parse_slide(node.required("slide"), seg);
+    parse_slide(node.required("slide"), seg, v);
   } else {
     const CheckedNode hold = node.required("hold");
     hold.allow_keys({"duration"});
     seg.velocity.setZero();
-    seg.duration = hold.get_double("duration", Range::positive());
+    seg.duration =
+        v.get_noted(hold, "duration", dimension::time, Magnitude::duration, Range::positive());
   }
   parse_stepping(node, seg);
-  parse_normal(node.optional("normal"), model, seg, fn);
+  parse_normal(node.optional("normal"), model, seg, fn, v);
   return seg;
 }
 
 std::vector<contact::Segment> parse_loading(const CheckedNode& node,
-                                            const contact::ContactModel& model) {
+                                            const contact::ContactModel& model, SceneValues& v) {
   if (node.size() == 0) node.fail("needs at least one segment");
   std::vector<contact::Segment> segments;
   double fn = model.initial_normal_traction;
   for (const CheckedNode& element : node.elements())
-    segments.push_back(parse_segment(element, model, fn));
+    segments.push_back(parse_segment(element, model, fn, v));
   return segments;
 }
 
@@ -168,7 +179,8 @@ std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
 
 // `output.at`: output at chosen times or sliding distances instead of at increments; the
 // segments' steps end on them (contact::Segment::output_times).
-void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& segments) {
+void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& segments,
+                     const Units& units) {
   const auto output = root.optional("output");
   const auto at = output ? output->optional("at") : std::nullopt;
   if (!at) return;
@@ -178,7 +190,10 @@ void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& seg
       c.push_back({clock == "time" ? 1.0 : s.velocity.norm(), s.duration});
     return c;
   };
-  const OutputPoints points = parse_output_points(*at, {"time", "distance"}, clock_of);
+  auto unit_of = [&](const std::string& clock) {
+    return units.unit(clock == "time" ? dimension::time : dimension::length);
+  };
+  const OutputPoints points = parse_output_points(*at, {"time", "distance"}, clock_of, unit_of);
   const auto times = segment_times(points.values, clock_of(points.clock));
   const CheckedNode loading = root.required("loading");
   for (std::size_t k = 0; k < segments.size(); ++k) {
@@ -195,19 +210,21 @@ void check_top_level(const CheckedNode& root) {
   root.get_choice("scene", {"contact"});
 }
 
-ContactCase parse_case(SweepCase swept) {
+ContactCase parse_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
   check_top_level(root);
   ContactCase c;
   c.name = std::move(swept.name);
   c.overrides = std::move(swept.overrides);
-  c.model.law = parse_law_block(root.required("law"));
-  parse_contact_block(root.required("contact"), c.model);
+  SceneValues values(units);
+  c.model.law = parse_law_block(root.required("law"), contact_law_units(units));
+  parse_contact_block(root.required("contact"), c.model, values);
   parse_initial(root.optional("initial"), c.model);
-  c.segments = parse_loading(root.required("loading"), c.model);
+  c.segments = parse_loading(root.required("loading"), c.model, values);
   c.integrator = parse_integrator(root.optional("integrator"));
   c.fields = parse_output(root.optional("output"));
-  parse_output_at(root, c.segments);
+  parse_output_at(root, c.segments, units);
+  c.magnitudes = values.take_magnitudes();
   return c;
 }
 
@@ -253,7 +270,10 @@ ContactScene parse_contact_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units(root.required("units"));
-  scene.cases = parse_sweep_cases(document, kContactSweepable, parse_case);
+  const Units& units = scene.units;
+  scene.cases = parse_sweep_cases(document, kContactSweepable, [&units](SweepCase swept) {
+    return parse_case(std::move(swept), units);
+  });
   return scene;
 }
 

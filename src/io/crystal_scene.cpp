@@ -108,23 +108,25 @@ std::vector<crystal::CustomSlipSystem> parse_custom_systems(const CheckedNode& n
 // ---------------------------------------------------------------- elasticity
 
 // Reads the constants of `type`; the constructors check positive definiteness.
-crystal::Mat6 stiffness_of(const CheckedNode& node, const std::string& type) {
+crystal::Mat6 stiffness_of(const CheckedNode& node, const std::string& type, SceneValues& v) {
+  auto constant = [&](std::string_view key) {
+    return v.get_noted(node, key, dimension::stress, Magnitude::elastic_constant);
+  };
   if (type == "cubic") {
     node.allow_keys({"type", "C11", "C12", "C44"});
-    return crystal::cubic_stiffness(node.get_double("C11"), node.get_double("C12"),
-                                    node.get_double("C44"));
+    const double c11 = constant("C11"), c12 = constant("C12"), c44 = constant("C44");
+    return crystal::cubic_stiffness(c11, c12, c44);
   }
   if (type == "hexagonal") {
     node.allow_keys({"type", "C11", "C12", "C13", "C33", "C44"});
-    return crystal::hexagonal_stiffness(node.get_double("C11"), node.get_double("C12"),
-                                        node.get_double("C13"), node.get_double("C33"),
-                                        node.get_double("C44"));
+    const double c11 = constant("C11"), c12 = constant("C12"), c13 = constant("C13");
+    const double c33 = constant("C33"), c44 = constant("C44");
+    return crystal::hexagonal_stiffness(c11, c12, c13, c33, c44);
   }
   node.allow_keys({"type", "E", "G", "nu"});
   const double nu = node.get_double("nu");
-  if (*node.one_of({"E", "G"}, true) == "E")
-    return crystal::isotropic_from_E_nu(node.get_double("E"), nu);
-  return crystal::isotropic_from_G_nu(node.get_double("G"), nu);
+  if (*node.one_of({"E", "G"}, true) == "E") return crystal::isotropic_from_E_nu(constant("E"), nu);
+  return crystal::isotropic_from_G_nu(constant("G"), nu);
 }
 
 // A cubic stiffness on a hexagonal crystal (or the reverse) is a mistake; custom systems and
@@ -141,13 +143,13 @@ void check_elastic_symmetry(const CheckedNode& type_node, const std::string& typ
 }
 
 crystal::Mat6 parse_elasticity(const CheckedNode& node, const std::vector<SlipFamily>& families,
-                               std::string& type) {
+                               std::string& type, SceneValues& v) {
   node.expect_map();
   const CheckedNode type_node = node.required("type");
   type = type_node.as_choice({"cubic", "hexagonal", "isotropic"});
   check_elastic_symmetry(type_node, type, families);
   try {
-    return stiffness_of(node, type);
+    return stiffness_of(node, type, v);
   } catch (const std::invalid_argument& e) {
     node.fail(e.what());
   }
@@ -188,13 +190,15 @@ void parse_c_over_a(const CheckedNode& phase, crystal::PhaseDescription& d) {
 // The settings of one family: the phase settings with the family's overrides.
 crystal::SlipGroupSettings family_settings(const std::optional<CheckedNode>& node,
                                            const crystal::SlipGroupSettings& phase,
-                                           bool phase_initial_mu) {
+                                           bool phase_initial_mu, SceneValues& v) {
   crystal::SlipGroupSettings s = phase;
   bool own_initial_mu = phase_initial_mu;
   if (node) {
     node->allow_keys({"tau0", "initial_mu", "law"});
-    s.tau0 = node->get_double("tau0", phase.tau0, Range::positive());
-    if (auto l = node->optional("law")) s.law = parse_law_block(*l, phase.law, true);
+    if (auto tau0 = node->optional("tau0"))
+      s.tau0 = v.read_noted(*tau0, dimension::stress, Magnitude::tau0, Range::positive());
+    if (auto l = node->optional("law"))
+      s.law = parse_law_block(*l, crystal_law_units(v.units()), phase.law, true);
     if (auto mu = node->optional("initial_mu")) {
       s.initial_mu = mu->as_double(Range::positive());
       own_initial_mu = true;
@@ -206,7 +210,7 @@ crystal::SlipGroupSettings family_settings(const std::optional<CheckedNode>& nod
 }
 
 void parse_per_family(const CheckedNode& phase, const crystal::SlipGroupSettings& settings,
-                      bool phase_initial_mu, crystal::PhaseDescription& d) {
+                      bool phase_initial_mu, crystal::PhaseDescription& d, SceneValues& v) {
   const auto per_family = phase.optional("per_family");
   if (per_family && !d.custom_systems.empty())
     per_family->fail("per_family needs slip families; custom slip systems share the phase law");
@@ -215,13 +219,13 @@ void parse_per_family(const CheckedNode& phase, const crystal::SlipGroupSettings
   if (per_family) per_family->allow_keys(listed);
   for (SlipFamily f : d.families) {
     const auto node = per_family ? per_family->optional(crystal::to_string(f)) : std::nullopt;
-    d.family_settings.push_back(family_settings(node, settings, phase_initial_mu));
+    d.family_settings.push_back(family_settings(node, settings, phase_initial_mu, v));
   }
   if (!d.custom_systems.empty())
-    d.custom_settings = family_settings({}, settings, phase_initial_mu);
+    d.custom_settings = family_settings({}, settings, phase_initial_mu, v);
 }
 
-void parse_phase(const CheckedNode& node, CrystalCase& c) {
+void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
   node.allow_keys({"families", "slip_systems", "c_over_a", "elasticity", "tau0", "law",
                    "initial_mu", "per_family", "latent", "pressure_sensitive", "kinematics"});
   crystal::PhaseDescription& d = c.phase;
@@ -231,13 +235,13 @@ void parse_phase(const CheckedNode& node, CrystalCase& c) {
     d.custom_systems = parse_custom_systems(node.required("slip_systems"));
   }
   parse_c_over_a(node, d);
-  d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type);
+  d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type, v);
   crystal::SlipGroupSettings settings;
-  settings.tau0 = node.get_double("tau0", Range::positive());
-  settings.law = parse_law_block(node.required("law"), {}, false);
+  settings.tau0 = v.get_noted(node, "tau0", dimension::stress, Magnitude::tau0, Range::positive());
+  settings.law = parse_law_block(node.required("law"), crystal_law_units(v.units()), {}, false);
   const auto initial_mu = node.optional("initial_mu");
   if (initial_mu) settings.initial_mu = initial_mu->as_double(Range::positive());
-  parse_per_family(node, settings, initial_mu.has_value(), d);
+  parse_per_family(node, settings, initial_mu.has_value(), d, v);
   if (auto latent = node.optional("latent")) d.latent = parse_latent(*latent);
   if (auto p = node.optional("pressure_sensitive")) d.pressure_sensitive = p->as_bool();
   if (auto k = node.optional("kinematics")) {
@@ -347,7 +351,10 @@ bool is_free_marker(const CheckedNode& entry) {
   return entry.is_scalar() && entry.yaml().Scalar() == "x";
 }
 
-MatrixInput read_matrix(const CheckedNode& node) {
+// Entries in `d` (1/time for L, stress for stress targets); non-zero entries of a matrix of
+// kind `noted` are recorded for the plausibility warnings.
+MatrixInput read_matrix(const CheckedNode& node, Dimension d, SceneValues& v,
+                        std::optional<Magnitude> noted) {
   const char* shape = "expected 3 rows of 3 entries, [[a, b, c], [d, e, f], [g, h, i]]";
   if (!node.is_sequence() || node.size() != 3) node.fail(shape);
   MatrixInput m;
@@ -360,7 +367,8 @@ MatrixInput read_matrix(const CheckedNode& node) {
       if (is_free_marker(entry)) {
         m.free(i, j) = true;
       } else {
-        m.value(i, j) = entry.as_double();
+        m.value(i, j) = v.read(entry, d);
+        if (noted && m.value(i, j) != 0.0) v.note(entry, *noted, std::abs(m.value(i, j)));
       }
     }
   }
@@ -419,9 +427,10 @@ double driving_rate(const crystal::LoadSegment& seg) {
 
 // `duration`, or `strain`: the integral of the largest prescribed |L_ij| over the segment, so
 // that a swept rate keeps the amount of deformation (duration = strain / rate).
-void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg) {
+void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v) {
   if (*node.one_of({"duration", "strain"}, true) == "duration") {
-    seg.duration = node.get_double("duration", Range::positive());
+    seg.duration =
+        v.get_noted(node, "duration", dimension::time, Magnitude::duration, Range::positive());
     return;
   }
   const CheckedNode strain = node.required("strain");
@@ -434,32 +443,33 @@ void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg) {
     strain.fail("strain / rate is not a usable duration (over- or underflow)");
 }
 
-void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg) {
-  parse_duration(node, seg);
+void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v) {
+  parse_duration(node, seg, v);
   seg.increments = node.get_int("increments", Range::at_least(1));
   seg.growth = node.get_double("growth", 1.0, Range::positive());
   seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
   check_increment_lengths(node, seg.duration, seg.increments, seg.growth);
 }
 
-crystal::LoadSegment parse_segment(const CheckedNode& node) {
+crystal::LoadSegment parse_segment(const CheckedNode& node, SceneValues& v) {
   node.allow_keys({"L", "stress", "duration", "strain", "increments", "growth", "output_every"});
-  const MatrixInput l = read_matrix(node.required("L"));
+  const MatrixInput l =
+      read_matrix(node.required("L"), dimension::per_time, v, Magnitude::strain_rate);
   std::optional<MatrixInput> stress;
-  if (auto s = node.optional("stress")) stress = read_matrix(*s);
+  if (auto s = node.optional("stress")) stress = read_matrix(*s, dimension::stress, v, {});
   check_mixed_control(l, stress);
   crystal::LoadSegment seg;
   seg.velocity_gradient = l.value;
   seg.free = l.free;
   if (stress) seg.stress_target = stress->value;
-  parse_stepping(node, seg);
+  parse_stepping(node, seg, v);
   return seg;
 }
 
-std::vector<crystal::LoadSegment> parse_loading(const CheckedNode& node) {
+std::vector<crystal::LoadSegment> parse_loading(const CheckedNode& node, SceneValues& v) {
   if (node.size() == 0) node.fail("needs at least one segment");
   std::vector<crystal::LoadSegment> segments;
-  for (const CheckedNode& element : node.elements()) segments.push_back(parse_segment(element));
+  for (const CheckedNode& element : node.elements()) segments.push_back(parse_segment(element, v));
   return segments;
 }
 
@@ -545,7 +555,7 @@ CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
 // `output.at`, `output.grains_at`: output at chosen times or loading strains instead of at
 // increments, per-grain fields at those of grains_at only; the segments' steps end on all of
 // them (crystal::LoadSegment::output_times).
-void parse_output_at(const CheckedNode& root, CrystalCase& c) {
+void parse_output_at(const CheckedNode& root, CrystalCase& c, const Units& units) {
   const auto output = root.optional("output");
   const auto at = output ? output->optional("at") : std::nullopt;
   const auto grains_at = output ? output->optional("grains_at") : std::nullopt;
@@ -559,12 +569,15 @@ void parse_output_at(const CheckedNode& root, CrystalCase& c) {
       segments.push_back({clock == "time" ? 1.0 : driving_rate(s), s.duration});
     return segments;
   };
-  const OutputPoints macro = parse_output_points(*at, {"time", "strain"}, clock_of);
+  auto unit_of = [&](const std::string& clock) {
+    return units.unit(clock == "time" ? dimension::time : dimension::none);
+  };
+  const OutputPoints macro = parse_output_points(*at, {"time", "strain"}, clock_of, unit_of);
   const auto macro_times = segment_times(macro.values, clock_of(macro.clock));
   std::vector<std::vector<double>> grain_times(c.segments.size());
   if (grains_at) {
     if (c.output.grains.empty()) grains_at->fail("needs per-grain fields (output.grains)");
-    const OutputPoints g = parse_output_points(*grains_at, {"time", "strain"}, clock_of);
+    const OutputPoints g = parse_output_points(*grains_at, {"time", "strain"}, clock_of, unit_of);
     grain_times = segment_times(g.values, clock_of(g.clock));
   }
   std::vector<ClockSegment> durations;
@@ -591,18 +604,20 @@ void check_top_level(const CheckedNode& root) {
   root.get_choice("scene", {"crystal"});
 }
 
-CrystalCase parse_case(SweepCase swept) {
+CrystalCase parse_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
   check_top_level(root);
   CrystalCase c;
   c.name = std::move(swept.name);
   c.overrides = std::move(swept.overrides);
-  parse_phase(root.required("phase"), c);
+  SceneValues values(units);
+  parse_phase(root.required("phase"), c, values);
   c.orientations = parse_orientations(root.required("orientations"), c.orientation_source);
-  c.segments = parse_loading(root.required("loading"));
+  c.segments = parse_loading(root.required("loading"), values);
   c.options = parse_integrator(root.optional("integrator"), c.phase);
   c.output = parse_output(root.optional("output"));
-  parse_output_at(root, c);
+  parse_output_at(root, c, units);
+  c.magnitudes = values.take_magnitudes();
   return c;
 }
 
@@ -658,7 +673,10 @@ CrystalScene parse_crystal_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units_without_length(root.required("units"));
-  scene.cases = parse_sweep_cases(document, kCrystalSweepable, parse_case);
+  const Units& units = scene.units;
+  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units](SweepCase swept) {
+    return parse_case(std::move(swept), units);
+  });
   return scene;
 }
 

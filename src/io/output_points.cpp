@@ -21,22 +21,27 @@ std::string number(double v) {
   return buf;
 }
 
-std::string end_text(const std::string& clock, double end) {
-  return "the end of the loading (" + clock + " " + number(end) + ")";
+std::string end_text(const std::string& clock, double end, const Unit& unit) {
+  const bool with_unit = !unit.name.empty() && unit.name != "1";
+  return "the end of the loading (" + clock + " " + number(end) +
+         (with_unit ? " " + unit.name : std::string()) + ")";
 }
 
 // A point of the clock, checked against the end and made exactly the end when within slack.
-double within_end(const CheckedNode& at, double v, const std::string& clock, double end) {
+double within_end(const CheckedNode& at, double v, const std::string& clock, double end,
+                  const Unit& unit) {
   if (v > end * (1.0 + kEndSlack) + std::numeric_limits<double>::min())
-    at.fail(number(v) + " is beyond " + end_text(clock, end));
+    at.fail(number(v) + " is beyond " + end_text(clock, end, unit));
   return std::min(v, end);
 }
 
-std::vector<double> parse_list(const CheckedNode& value, const std::string& clock, double end) {
+std::vector<double> parse_list(const CheckedNode& value, const std::string& clock, double end,
+                               const Unit& unit) {
   if (value.size() == 0) value.fail("needs at least one point");
   std::vector<double> points;
   for (const CheckedNode& element : value.elements()) {
-    const double v = within_end(element, element.as_double(Range::non_negative()), clock, end);
+    const double v =
+        within_end(element, element.as_quantity(unit, Range::non_negative()), clock, end, unit);
     if (!points.empty() && !(v > points.back()))
       element.fail("must be larger than the point before it (" + number(points.back()) + ")");
     points.push_back(v);
@@ -44,14 +49,15 @@ std::vector<double> parse_list(const CheckedNode& value, const std::string& cloc
   return points;
 }
 
-std::vector<double> parse_spacing(const CheckedNode& value, const std::string& clock, double end) {
+std::vector<double> parse_spacing(const CheckedNode& value, const std::string& clock, double end,
+                                  const Unit& unit) {
   value.allow_keys({"every", "count", "from", "to", "spacing"});
   const std::string how = *value.one_of({"every", "count"}, true);
   const bool log = value.get_choice("spacing", "linear", {"linear", "log"}) == "log";
-  const double from = value.get_double("from", 0.0, Range::non_negative());
+  const double from = value.get_quantity("from", 0.0, unit, Range::non_negative());
   double to = end;
   if (auto t = value.optional("to"))
-    to = within_end(*t, t->as_double(Range::positive()), clock, end);
+    to = within_end(*t, t->as_quantity(unit, Range::positive()), clock, end, unit);
   if (auto f = value.optional("from")) {
     if (!(from < to)) f->fail("must be below 'to' (" + number(to) + ")");
   }
@@ -59,7 +65,7 @@ std::vector<double> parse_spacing(const CheckedNode& value, const std::string& c
   if (how == "every") {
     if (log) value.required("spacing").fail("log spacing needs 'count' ('every' is linear)");
     const CheckedNode every = value.required("every");
-    const double step = every.as_double(Range::positive());
+    const double step = every.as_quantity(unit, Range::positive());
     const double n = std::floor((to - from) / step);
     if (!(n < static_cast<double>(kMaxOutputPoints))) {
       every.fail("gives " + number(n) + " points from " + number(from) + " to " + number(to) +
@@ -94,12 +100,13 @@ std::vector<double> parse_spacing(const CheckedNode& value, const std::string& c
 
 }  // namespace
 
-std::vector<double> parse_points(const CheckedNode& value, const std::string& clock, double end) {
+std::vector<double> parse_points(const CheckedNode& value, const std::string& clock, double end,
+                                 const Unit& unit) {
   std::vector<double> points;
   if (value.is_sequence()) {
-    points = parse_list(value, clock, end);
+    points = parse_list(value, clock, end, unit);
   } else if (value.is_map()) {
-    points = parse_spacing(value, clock, end);
+    points = parse_spacing(value, clock, end, unit);
   } else {
     value.fail("must be a list of points or a spacing ({every: d} or {count: n}), got " +
                value.kind_name());

@@ -1,8 +1,10 @@
 #include "subslip/io/scene_common.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace subslip::io {
 
@@ -10,17 +12,51 @@ std::vector<std::pair<std::string, std::string>> Units::entries() const {
   return {{"stress", stress}, {"length", length}, {"time", time}};
 }
 
+Unit Units::unit(Dimension d) const {
+  Unit out{d, {}, "1"};
+  if (d == dimension::none) return out;
+  std::string num, den;
+  const std::array<std::pair<int, const std::string*>, 3> bases = {
+      {{d.stress, &stress}, {d.length, &length}, {d.time, &time}}};
+  for (const auto& [exponent, name] : bases) {
+    if (exponent == 0) continue;
+    const auto base = base_unit(*name);
+    if (!base) throw std::logic_error("Units::unit: no unit for " + describe(d));
+    std::string& side = exponent > 0 ? num : den;
+    if (!side.empty()) side += '*';
+    side += *name;
+    if (std::abs(exponent) != 1) side.append("^").append(std::to_string(std::abs(exponent)));
+    out.scale.pow10 += exponent * base->scale.pow10;
+    out.scale.pow60 += exponent * base->scale.pow60;
+  }
+  out.name = num.empty() ? "1" : num;
+  if (!den.empty()) out.name.append("/").append(den);
+  return out;
+}
+
+WrittenValue written_value(const CheckedNode& node, Magnitude kind, double value) {
+  WrittenValue w{kind, value, node.path(), node.line(), std::nullopt};
+  if (node.is_scalar()) w.bare_number = parse_number(node.yaml().Scalar());
+  return w;
+}
+
 namespace {
+
+// A base unit name of the kind of `key`, stored canonically ("um" for "µm").
+std::string read_unit_name(const CheckedNode& node, std::string_view key,
+                           const std::vector<std::string_view>& names) {
+  return base_unit(node.required(key).as_choice(names))->name;
+}
 
 // `length_required == false`: a missing length is left empty (scene kinds without lengths).
 Units read_units(const CheckedNode& node, bool length_required) {
   node.allow_keys({"stress", "length", "time"});
   Units u;
-  u.stress = node.get_choice("stress", {"Pa", "kPa", "MPa", "GPa"});
+  u.stress = read_unit_name(node, "stress", stress_unit_names());
   u.length = length_required || node.has("length")
-                 ? node.get_choice("length", {"m", "mm", "um", "nm"})
+                 ? read_unit_name(node, "length", length_unit_names())
                  : std::string();
-  u.time = node.get_choice("time", {"s", "ms", "min", "h"});
+  u.time = read_unit_name(node, "time", time_unit_names());
   return u;
 }
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <optional>
 #include <utility>
 
 #include "subslip/crystal/aggregate.hpp"
@@ -22,16 +23,17 @@ std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
 }
 
 // Warnings per case, merged: a sweep gives one line per distinct message listing its cases.
+// A warning about a written value carries its line ("FILE:LINE: KEY: ..."), as errors do.
 class Collector {
  public:
-  void add(const std::string& case_name, std::string message) {
-    auto [it, fresh] = index_.try_emplace(message, order_.size());
-    if (fresh) order_.push_back({std::move(message), {}});
-    order_[it->second].second.push_back(case_name);
+  void add(const std::string& case_name, std::string message, int line = 0) {
+    auto [it, fresh] = index_.try_emplace({line, message}, order_.size());
+    if (fresh) order_.push_back({line, std::move(message), {}});
+    order_[it->second].cases.push_back(case_name);
   }
   std::vector<std::string> lines(const std::string& file, std::size_t case_count) const {
     std::vector<std::string> out;
-    for (const auto& [message, cases] : order_) {
+    for (const auto& [line, message, cases] : order_) {
       std::string where;
       if (case_count > 1) {
         if (cases.size() == case_count) {
@@ -42,15 +44,134 @@ class Collector {
           where += ")";
         }
       }
-      out.push_back(file + ": " + message + where);
+      std::string text = file;
+      if (line > 0) text.append(":").append(std::to_string(line));
+      out.push_back(text.append(": ").append(message).append(where));
     }
     return out;
   }
 
  private:
-  std::map<std::string, std::size_t> index_;
-  std::vector<std::pair<std::string, std::vector<std::string>>> order_;
+  struct Entry {
+    int line;
+    std::string message;
+    std::vector<std::string> cases;
+  };
+  std::map<std::pair<int, std::string>, std::size_t> index_;
+  std::vector<Entry> order_;
 };
+
+// ---- magnitudes that look written in another unit
+
+struct MagnitudeKind {
+  const char* what;      // "the elastic constants of crystals"
+  Dimension dimension;   // of the value
+  const char* shown_in;  // the unit the plausible range is stated in
+  PlausibleRange WarningLimits::*range;
+  // A typical value in SI, for stresses (where Pa, kPa, MPa and GPa get mixed up): the unit
+  // suggested is the one that puts the written number nearest to it. 0: no suggestion (a
+  // duration or a speed far out of range says little about the unit meant).
+  double typical = 0.0;
+};
+
+MagnitudeKind kind_of(Magnitude m) {
+  switch (m) {
+    case Magnitude::elastic_constant:
+      return {"the elastic constants of crystals", dimension::stress, "GPa",
+              &WarningLimits::elastic_constant, 1e11};
+    case Magnitude::tau0:
+      return {"the reference stresses (CRSS) of slip systems", dimension::stress, "MPa",
+              &WarningLimits::tau0, 1e7};
+    case Magnitude::normal_traction:
+      return {"the normal tractions of frictional contacts", dimension::stress, "MPa",
+              &WarningLimits::normal_traction, 1e6};
+    case Magnitude::sliding_speed:
+      return {"the sliding speeds of friction tests", dimension::velocity, "m/s",
+              &WarningLimits::sliding_speed};
+    case Magnitude::strain_rate:
+      return {"the strain rates of deformation tests", dimension::per_time, "1/s",
+              &WarningLimits::strain_rate};
+    case Magnitude::duration:
+      return {"the durations of tests", dimension::time, "s", &WarningLimits::duration};
+  }
+  return {"?", dimension::none, "1", &WarningLimits::duration};
+}
+
+std::string number_text(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", x);
+  return buf;
+}
+
+// The unit of kind `k` in which `number` is plausible and nearest to the typical value, when
+// there is one other than `scene_unit`.
+std::optional<std::string> likely_unit(double number, const MagnitudeKind& k,
+                                       const std::string& scene_unit, PlausibleRange range) {
+  if (!(k.typical > 0.0)) return std::nullopt;
+  std::optional<std::string> best;
+  double best_distance = std::numeric_limits<double>::infinity();
+  for (const std::string& name : unit_names_of(k.dimension)) {
+    if (name == scene_unit) continue;
+    const double si = std::abs(to_si(number, parse_unit(name)->scale));
+    if (!(si >= range.lo && si <= range.hi)) continue;
+    const double distance = std::abs(std::log10(si / k.typical));
+    if (distance < best_distance) {
+      best = name;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
+void check_magnitude(Collector& w, const std::string& case_name, const WrittenValue& v,
+                     const Units& units, const WarningLimits& limits) {
+  const MagnitudeKind k = kind_of(v.kind);
+  const PlausibleRange range = limits.*k.range;
+  const Unit scene_unit = units.unit(k.dimension);
+  const double si = std::abs(to_si(v.value, scene_unit.scale));
+  if (si >= range.lo && si <= range.hi) return;
+  const Scale shown = parse_unit(k.shown_in)->scale;
+  std::string message = v.key + ": " + number_text(v.value) + " " + scene_unit.name;
+  if (scene_unit.name != k.shown_in)
+    message +=
+        " (" + number_text(convert(v.value, scene_unit.scale, shown)) + " " + k.shown_in + ")";
+  message += std::string(si < range.lo ? " is below " : " is above ") + k.what + " (" +
+             number_text(convert(range.lo, Scale{}, shown)) + " to " +
+             number_text(convert(range.hi, Scale{}, shown)) + " " + k.shown_in + ")";
+  const auto unit =
+      v.bare_number ? likely_unit(*v.bare_number, k, scene_unit.name, range) : std::nullopt;
+  if (unit) {
+    char written[32];
+    std::snprintf(written, sizeof written, "%.15g", *v.bare_number);
+    message += ": a number in " + *unit + " in a scene in " + scene_unit.name +
+               "? A bare number is in the scene's units; write '" + written + " " + *unit +
+               "' if that is meant";
+  } else {
+    message += ": check the number and its unit (a bare number is in the scene's units)";
+  }
+  w.add(case_name, message, v.line);
+}
+
+void check_magnitudes(Collector& w, const std::string& case_name,
+                      const std::vector<WrittenValue>& values, const Units& units,
+                      const WarningLimits& limits) {
+  // Elastic constants: every one against the upper limit, the largest of the phase against
+  // the lower one (C12 or C13 may be small or negative).
+  const WrittenValue* stiffest = nullptr;
+  for (const WrittenValue& v : values) {
+    if (v.kind != Magnitude::elastic_constant) {
+      check_magnitude(w, case_name, v, units, limits);
+      continue;
+    }
+    if (!stiffest || std::abs(v.value) > std::abs(stiffest->value)) stiffest = &v;
+    const double si = std::abs(to_si(v.value, units.unit(dimension::stress).scale));
+    if (si > limits.elastic_constant.hi) check_magnitude(w, case_name, v, units, limits);
+  }
+  if (stiffest) {
+    const double si = std::abs(to_si(stiffest->value, units.unit(dimension::stress).scale));
+    if (si < limits.elastic_constant.lo) check_magnitude(w, case_name, *stiffest, units, limits);
+  }
+}
 
 void check_law(Collector& w, const std::string& case_name, const std::string& key,
                const law::LawParameters& p, const WarningLimits& limits) {
@@ -125,8 +246,9 @@ void check_euler_units(Collector& w, const CrystalCase& c) {
                                static_cast<double>(c.orientations.size()), s.largest_euler_deg));
 }
 
-void check_crystal_case(Collector& w, const CrystalCase& c, bool checkpoints,
+void check_crystal_case(Collector& w, const CrystalCase& c, const Units& units, bool checkpoints,
                         const WarningLimits& limits) {
+  check_magnitudes(w, c.name, c.magnitudes, units, limits);
   check_euler_units(w, c);
   const auto& d = c.phase;
   const auto settings = distinct_settings(d);
@@ -209,7 +331,9 @@ void check_crystal_case(Collector& w, const CrystalCase& c, bool checkpoints,
 
 // ---- contact
 
-void check_contact_case(Collector& w, const ContactCase& c, const WarningLimits& limits) {
+void check_contact_case(Collector& w, const ContactCase& c, const Units& units,
+                        const WarningLimits& limits) {
+  check_magnitudes(w, c.name, c.magnitudes, units, limits);
   check_law(w, c.name, "law", c.model.law, limits);
   if (c.integrator.method != contact::Method::forward_euler) return;
   double fn = c.model.initial_normal_traction;
@@ -245,14 +369,14 @@ double forward_euler_step_limit(const law::LawParameters& p, double v, double st
 std::vector<std::string> crystal_scene_warnings(const CrystalScene& scene, bool checkpoints,
                                                 const WarningLimits& limits) {
   Collector w;
-  for (const auto& c : scene.cases) check_crystal_case(w, c, checkpoints, limits);
+  for (const auto& c : scene.cases) check_crystal_case(w, c, scene.units, checkpoints, limits);
   return w.lines(scene.file, scene.cases.size());
 }
 
 std::vector<std::string> contact_scene_warnings(const ContactScene& scene,
                                                 const WarningLimits& limits) {
   Collector w;
-  for (const auto& c : scene.cases) check_contact_case(w, c, limits);
+  for (const auto& c : scene.cases) check_contact_case(w, c, scene.units, limits);
   return w.lines(scene.file, scene.cases.size());
 }
 

@@ -21,6 +21,7 @@ namespace subslip::io {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr std::string_view kUnitOne = "1";
 
 std::string format_number(double x) {
   char buf[32];
@@ -115,15 +116,31 @@ bool out_of_double_range(std::string_view text) {
   return ec == std::errc::result_out_of_range && end == s.data() + s.size();
 }
 
-// "5.56 MPa", "1e-3 /s": a number followed by a unit. Scenes state their units once, in the
-// `units` block, so a unit on a value is refused with a hint rather than parsed or ignored.
-bool has_unit_suffix(std::string_view text) {
-  const std::string_view s = trim(text);
-  const std::size_t space = s.find_first_of(" \t");
-  if (space == std::string_view::npos || !parse_double(s.substr(0, space))) return false;
-  const std::string_view unit = trim(s.substr(space));
-  return !unit.empty() && (std::isalpha(static_cast<unsigned char>(unit.front())) ||
-                           unit.front() == '/' || unit.front() == '%');
+// "168.4 GPa", "1e-3 1/s", "60min": a number, then (after optional blanks) the rest of the text.
+struct NumberAndRest {
+  double number;
+  std::string_view rest;  // trimmed, non-empty
+};
+
+// nullopt when the text does not start with a number or has nothing after it; an out-of-range
+// number ("1e400 MPa") is reported through `out_of_range`.
+std::optional<NumberAndRest> split_number(std::string_view text, bool& out_of_range) {
+  const std::string_view s = without_plus(trim(text));
+  double value = 0.0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
+  if (end == s.data() || (ec != std::errc() && ec != std::errc::result_out_of_range))
+    return std::nullopt;
+  const std::string_view rest = trim(s.substr(static_cast<std::size_t>(end - s.data())));
+  if (rest.empty()) return std::nullopt;
+  out_of_range = ec == std::errc::result_out_of_range;
+  return NumberAndRest{value, rest};
+}
+
+// The rest of "5.56 MPa", "1e-3 1/s", "1e-3 /s", "2 %", "3 µm" looks like a unit (rather than
+// a typo in the number): it starts with a letter, '/', '%', "1/" or a non-ASCII character.
+bool looks_like_unit(std::string_view rest) {
+  const auto c = static_cast<unsigned char>(rest.front());
+  return std::isalpha(c) || c == '/' || c == '%' || c >= 0x80 || rest.starts_with("1/");
 }
 
 // The line that starts a second document in `text`, whose first document's content starts on
@@ -152,6 +169,10 @@ int second_document_line(std::string_view text, int first) {
 }
 
 }  // namespace
+
+std::optional<double> parse_number(std::string_view text) {
+  return parse_double(text);
+}
 
 // ---------------------------------------------------------------- Range
 
@@ -468,20 +489,56 @@ std::vector<CheckedNode> CheckedNode::elements() const {
 // ---------------------------------------------------------------- scalars
 
 double CheckedNode::as_double(const Range& range) const {
+  return as_quantity(Unit{dimension::none, {}, std::string(kUnitOne)}, range);
+}
+
+double CheckedNode::as_quantity(const Unit& unit, const Range& range) const {
   expect_scalar("a number");
-  const auto value = is_quoted(node_) ? std::nullopt : parse_double(node_.Scalar());
-  if (!value && !is_quoted(node_) && out_of_double_range(node_.Scalar()))
-    fail(node_.Scalar() + " is out of the range of double precision");
-  if (!value && !is_quoted(node_) && has_unit_suffix(node_.Scalar())) {
-    fail("expected a number, got " + kind_name() +
-         ": write the bare number; every value is in the units of the scene's 'units' block");
+  const std::string& text = node_.Scalar();
+  const bool quoted = is_quoted(node_);
+  std::optional<double> value = quoted ? std::nullopt : parse_double(text);
+  std::string converted;  // " (60 mm/min)" when a value was written in another unit
+  if (!value && !quoted && out_of_double_range(text))
+    fail(text + " is out of the range of double precision");
+  bool out_of_range = false;
+  const auto split = value || quoted ? std::nullopt : split_number(text, out_of_range);
+  if (split && looks_like_unit(split->rest)) {
+    const std::string rest(split->rest);
+    if (unit.dimension == dimension::none) {
+      fail("expected a bare number, got " + kind_name() +
+           ": this value is dimensionless (unit 1), write it without a unit");
+    }
+    const auto given = parse_unit(rest);
+    const std::string takes = "this value's dimension is " + describe(unit.dimension) +
+                              "; it takes " + units_for(unit.dimension);
+    if (!given) {
+      const auto names = unit_names_of(unit.dimension);
+      const std::vector<std::string_view> views(names.begin(), names.end());
+      const auto near = nearest_name(rest, views);
+      fail("unknown unit " + in_quotes(rest) + "; " +
+           (near ? "did you mean " + in_quotes(*near) + "? " : std::string()) + takes +
+           " (supported: " + supported_units() + ")");
+    }
+    if (given->dimension != unit.dimension) {
+      fail("'" + given->name + "' is a unit of " + describe(given->dimension) + ", but " + takes);
+    }
+    if (out_of_range) fail(text + " is out of the range of double precision");
+    if (!std::isfinite(split->number)) fail("must be a finite number, got " + text);
+    value = convert(split->number, given->scale, unit.scale);
+    if (!std::isfinite(*value) || (*value == 0.0) != (split->number == 0.0) ||
+        (split->number != 0.0 && std::abs(*value) < std::numeric_limits<double>::min())) {
+      fail(text + " is out of the range of double precision once converted to " + unit.name);
+    }
+    if (given->name != unit.name) converted = " (" + format_number(*value) + " " + unit.name + ")";
   }
   if (!value) {
-    fail("expected a number, got " + kind_name() +
-         (is_quoted(node_) ? " (remove the quotes)" : ""));
+    fail("expected a number, got " + kind_name() + (quoted ? " (remove the quotes)" : ""));
   }
-  if (!std::isfinite(*value)) fail("must be a finite number, got " + node_.Scalar());
-  if (!range.contains(*value)) fail("must be " + range.describe() + ", got " + node_.Scalar());
+  if (!std::isfinite(*value)) fail("must be a finite number, got " + text);
+  if (!range.contains(*value)) {
+    const std::string unit_text = split || unit.dimension == dimension::none ? "" : " " + unit.name;
+    fail("must be " + range.describe() + ", got " + text + unit_text + converted);
+  }
   return *value;
 }
 
@@ -543,6 +600,20 @@ std::vector<double> CheckedNode::as_doubles(const Range& range, std::size_t size
   return out;
 }
 
+std::vector<double> CheckedNode::as_quantities(const Unit& unit, const Range& range,
+                                               std::size_t size) const {
+  expect_sequence();
+  const std::size_t n = node_.size();
+  if (size > 0 && n != size) {
+    fail("expected " + std::to_string(size) + " numbers, got " + std::to_string(n));
+  }
+  if (n == 0) fail("expected at least one number, got an empty sequence");
+  std::vector<double> out;
+  out.reserve(n);
+  for (const auto& e : elements()) out.push_back(e.as_quantity(unit, range));
+  return out;
+}
+
 std::vector<std::string> CheckedNode::as_strings() const {
   std::vector<std::string> out;
   for (const auto& e : elements()) out.push_back(e.as_string());
@@ -558,6 +629,16 @@ double CheckedNode::get_double(std::string_view key, const Range& range) const {
 double CheckedNode::get_double(std::string_view key, double fallback, const Range& range) const {
   const auto found = optional(key);
   return found ? found->as_double(range) : fallback;
+}
+
+double CheckedNode::get_quantity(std::string_view key, const Unit& unit, const Range& range) const {
+  return required(key).as_quantity(unit, range);
+}
+
+double CheckedNode::get_quantity(std::string_view key, double fallback, const Unit& unit,
+                                 const Range& range) const {
+  const auto found = optional(key);
+  return found ? found->as_quantity(unit, range) : fallback;
 }
 
 int CheckedNode::get_int(std::string_view key, const Range& range) const {

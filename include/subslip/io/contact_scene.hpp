@@ -44,7 +44,8 @@ struct ContactCase {
   contact::ContactModel model;
   std::vector<contact::Segment> segments;
   contact::IntegratorOptions integrator;
-  std::vector<ContactField> fields;  // the requested output fields, in kAllContactFields order
+  std::vector<ContactField> fields;      // the requested output fields, in kAllContactFields order
+  std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
 };
 
 struct ContactScene {

@@ -61,13 +61,14 @@ struct CrystalCase {
   std::vector<crystal::LoadSegment> segments;
   crystal::AggregateOptions options;
   CrystalOutputSelection output;
+  std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
 };
 
 struct CrystalScene {
-  std::string file;                // as given
-  std::string text;                // the YAML text, verbatim
-  std::string title;               // "" when the scene has none
-  Units units;                     // stress and time; length is not used (slip is dimensionless)
+  std::string file;   // as given
+  std::string text;   // the YAML text, verbatim
+  std::string title;  // "" when the scene has none
+  Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
   std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
 };
 

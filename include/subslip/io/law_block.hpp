@@ -1,15 +1,28 @@
 // The `law:` block of a scene (friction, subloading, overstress), shared by every scene kind.
 #pragma once
 
+#include "subslip/io/scene_common.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 namespace subslip::io {
 
-// Reads a law block over `base`. A complete block (partial == false: a contact law or a phase
+// The units of the law's dimensional constants. The slip measure is a length for a contact
+// (kappa and u_tilde per length, eta_v time per length) and dimensionless for slip systems
+// (kappa and u_tilde per unit slip, eta_v a time); xi is per time in both.
+struct LawUnits {
+  Unit per_slip;       // kappa, u_tilde
+  Unit per_time;       // xi
+  Unit time_per_slip;  // eta_v
+};
+LawUnits contact_law_units(const Units& units);
+LawUnits crystal_law_units(const Units& units);
+
+// Reads a law block over `base`, each constant in `units` (a value written with a unit is
+// converted). A complete block (partial == false: a contact law or a phase
 // law) must give every key; a partial one (per-family overrides) replaces only the keys it gives
 // and inherits the rest from `base`.
-law::LawParameters parse_law_block(const CheckedNode& node, law::LawParameters base = {},
-                                   bool partial = false);
+law::LawParameters parse_law_block(const CheckedNode& node, const LawUnits& units,
+                                   law::LawParameters base = {}, bool partial = false);
 
 }  // namespace subslip::io

@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "subslip/io/units.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
 namespace subslip::io {
@@ -34,14 +35,16 @@ struct OutputPoints {
 // Reads `node` (`output.at`): a mapping with one of `clocks` as its key, whose value is a list
 // of points or a spacing {every: d} / {count: n} with optional from, to (default 0 and the end
 // of the loading) and spacing (linear, log). `clock_segments(clock)` gives the clock's rate in
-// every segment. Every problem is an InputError at its key.
-template <class ClockOf>
+// every segment, `unit_of(clock)` the scene's unit of it (points may be written with a unit of
+// the same dimension, "30 s", and are converted). Every problem is an InputError at its key.
+template <class ClockOf, class UnitOf>
 OutputPoints parse_output_points(const CheckedNode& node,
                                  std::initializer_list<std::string_view> clocks,
-                                 ClockOf&& clock_segments);
+                                 ClockOf&& clock_segments, UnitOf&& unit_of);
 
 // The parsing itself, for one clock already chosen (`value` is the node under the clock key).
-std::vector<double> parse_points(const CheckedNode& value, const std::string& clock, double end);
+std::vector<double> parse_points(const CheckedNode& value, const std::string& clock, double end,
+                                 const Unit& unit);
 
 // The clock at the end of the loading.
 double clock_end(const std::vector<ClockSegment>& segments);
@@ -62,15 +65,15 @@ MergedTimes merge_segment_times(const std::vector<std::vector<double>>& a,
                                 const std::vector<std::vector<double>>& b,
                                 const std::vector<ClockSegment>& segments);
 
-template <class ClockOf>
+template <class ClockOf, class UnitOf>
 OutputPoints parse_output_points(const CheckedNode& node,
                                  std::initializer_list<std::string_view> clocks,
-                                 ClockOf&& clock_segments) {
+                                 ClockOf&& clock_segments, UnitOf&& unit_of) {
   node.allow_keys(clocks);
   OutputPoints out;
   out.clock = *node.one_of(clocks, true);
-  out.values =
-      parse_points(node.required(out.clock), out.clock, clock_end(clock_segments(out.clock)));
+  out.values = parse_points(node.required(out.clock), out.clock,
+                            clock_end(clock_segments(out.clock)), unit_of(out.clock));
   return out;
 }
 

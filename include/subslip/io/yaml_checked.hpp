@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/units.hpp"
 
 namespace subslip::io {
 
@@ -59,6 +60,9 @@ std::optional<std::string_view> nearest_name(std::string_view word,
                                              std::span<const std::string_view> candidates);
 // "did you mean 'eta_v'?" or "expected one of: a, b, c".
 std::string suggestion(std::string_view word, std::span<const std::string_view> candidates);
+
+// A plain YAML number ("1.5", "-2e3", "+4", ".inf", ".nan"); nullopt for anything else.
+std::optional<double> parse_number(std::string_view text);
 
 class CheckedNode;
 
@@ -135,7 +139,13 @@ class CheckedNode {
   std::vector<CheckedNode> elements() const;
 
   // ---- scalars (type errors and range errors name the expected type / range)
+  // A dimensionless number (a unit written after it is refused).
   double as_double(const Range& range = Range::any()) const;
+  // A number in `unit`: bare, it is read in `unit`; followed by a unit of the same dimension
+  // ("168.4 GPa", "60 min", "1 mm/min"), it is converted into `unit`. The range applies to the
+  // converted value. An unknown unit or one of another dimension is an error naming the units
+  // this key takes; a dimensionless `unit` ("1") takes bare numbers only.
+  double as_quantity(const Unit& unit, const Range& range = Range::any()) const;
   int as_int(const Range& range = Range::any()) const;
   std::string as_string() const;  // any non-empty scalar, quoted or not
   bool as_bool() const;           // true / false
@@ -146,11 +156,18 @@ class CheckedNode {
   Enum as_enum(std::initializer_list<std::pair<std::string_view, Enum>> choices) const;
   // A sequence of numbers, each in `range`; `size` = required length (0: any non-empty).
   std::vector<double> as_doubles(const Range& range = Range::any(), std::size_t size = 0) const;
+  // The same with every element read by as_quantity.
+  std::vector<double> as_quantities(const Unit& unit, const Range& range = Range::any(),
+                                    std::size_t size = 0) const;
   std::vector<std::string> as_strings() const;
 
   // ---- key shorthands: required(key).as_X(...) or, with a fallback, optional.
   double get_double(std::string_view key, const Range& range = Range::any()) const;
   double get_double(std::string_view key, double fallback, const Range& range) const;
+  double get_quantity(std::string_view key, const Unit& unit,
+                      const Range& range = Range::any()) const;
+  double get_quantity(std::string_view key, double fallback, const Unit& unit,
+                      const Range& range) const;
   int get_int(std::string_view key, const Range& range = Range::any()) const;
   int get_int(std::string_view key, int fallback, const Range& range) const;
   std::string get_string(std::string_view key) const;
