@@ -405,7 +405,8 @@ inline constexpr const char* kTensorConvention =
     "3x3 tensor: [..., i, j] is the component ij (i the row, j the column); symmetric tensors "
     "are stored in full";
 
-// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); a finished file is
+// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); per-grain rows
+// counted apart (grains/row, /progress/grain_rows: output.grains_at); a finished file is
 // rewritten with exactly its rows (`finished` = 1); checkpoints in a separate restart file.
 // 2: the whole layout is written before the run (summary attributes as placeholders, `failed`
 // a fixed-length string, series keep their reservation, checkpoints in /checkpoint).
