@@ -105,6 +105,19 @@ void check_lengths(double duration, int increments, double growth) {
   FUZZ_REQUIRE(std::abs(total - duration) <= 1e-9 * duration);
 }
 
+// Output times of a segment (output.at): increasing, in (0, duration], and finite.
+void check_output_times(bool at_times, const std::vector<double>& times, double duration) {
+  if (!at_times) {
+    FUZZ_REQUIRE(times.empty());
+    return;
+  }
+  double before = 0.0;
+  for (double t : times) {
+    FUZZ_REQUIRE(std::isfinite(t) && t > before && t <= duration);
+    before = t;
+  }
+}
+
 void check_contact_case(const io::ContactCase& c) {
   check_law(c.model.law);
   FUZZ_REQUIRE(std::isfinite(c.model.stiffness.alpha_n) && c.model.stiffness.alpha_n > 0.0);
@@ -120,6 +133,7 @@ void check_contact_case(const io::ContactCase& c) {
     FUZZ_REQUIRE(s.increments >= 1 && s.output_every >= 1);
     FUZZ_REQUIRE(std::isfinite(s.growth) && s.growth > 0.0);
     check_lengths(s.duration, s.increments, s.growth);
+    check_output_times(s.output_at_times, s.output_times, s.duration);
   }
   FUZZ_REQUIRE(std::isfinite(c.integrator.residual_tolerance) &&
                c.integrator.residual_tolerance > 0.0);
@@ -183,7 +197,11 @@ void check_crystal_case(const io::CrystalCase& c) {
       for (int j = 0; j < 3; ++j)
         if (s.free(i, j)) FUZZ_REQUIRE(s.velocity_gradient(i, j) == 0.0);
     check_lengths(s.duration, s.increments, s.growth);
+    check_output_times(s.output_at_times, s.output_times, s.duration);
   }
+  // output.grains_at: a flag for every output row, or none.
+  if (!c.output.grain_rows.empty())
+    FUZZ_REQUIRE(c.output.grain_rows.size() == io::crystal_output_count(c.segments));
   FUZZ_REQUIRE(std::isfinite(c.options.grain.tolerance) && c.options.grain.tolerance > 0.0);
   FUZZ_REQUIRE(std::isfinite(c.options.stress_tolerance) && c.options.stress_tolerance > 0.0);
   FUZZ_REQUIRE(!c.output.macro.empty() && c.output.macro.front() == io::MacroField::time);

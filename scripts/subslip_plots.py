@@ -312,10 +312,11 @@ def system_families(case, count):
 def loading_strain(result, case):
     """The abscissa for grain fields: the loading strain component, else time."""
     ij = case.loading_component()
+    rows = case.grain_rows()  # the output rows that have grain fields (output.grains_at)
     if "macro/strain" in case and ij is not None:
         label = f"strain $\\varepsilon_{{{ij[0] + 1}{ij[1] + 1}}}$ [1]"
-        return case.series("macro/strain")[:, ij[0], ij[1]], label
-    return case.time(), f"time [{result.units.get('time', '')}]"
+        return case.series("macro/strain")[rows, ij[0], ij[1]], label
+    return case.time()[rows], f"time [{result.units.get('time', '')}]"
 
 
 def system_mean(case, field):

@@ -273,7 +273,7 @@ TEST(CrystalOutput, OnlyTheRequestedFieldsAreWritten) {
     const h5::Group c = file.root().open_group("cases").open_group("base");
     EXPECT_EQ(sorted(c.open_group("macro").members()), sorted({"time", "stress"}));
     EXPECT_EQ(sorted(c.open_group("grains").members()),
-              sorted({"weight", "initial_orientation", "slip_systems", "crss"}));
+              sorted({"weight", "initial_orientation", "slip_systems", "row", "crss"}));
   }
   run_into(kScene, dir / "macro_only.h5");
   const h5::File file = h5::File::open_read(dir / "macro_only.h5");

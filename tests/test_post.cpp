@@ -314,6 +314,39 @@ TEST(PostCsv, PerGrainTensorIsNineColumnsOfItsComponents) {
   }
 }
 
+// Per-grain rows at a coarser spacing (output.grains_at): the steps of a per-grain CSV are the
+// output rows its rows are at (grains/row), with their times; the summary shows each series
+// with its own valid rows.
+TEST(PostCsv, PerGrainRowsAtCoarserPointsCarryTheirOutputRowsAndTimes) {
+  const fs::path dir = scratch_dir();
+  const fs::path file = dir / "grains_at.h5";
+  {
+    const auto scene =
+        parse_crystal_scene(YamlDocument::from_file(kData / "crystal_grains_at.yaml"));
+    h5::File f = h5::File::create(file, true);
+    for (const auto& c : run_crystal_scene(scene, f, {})) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(f);
+  }
+  const auto written = post::export_csv(file, csv_options(dir, "base", {"grains/slip"}));
+  ASSERT_EQ(written.size(), 1u);
+  const Csv csv = read_csv(written[0]);
+  ASSERT_GE(csv.header.size(), 3u);
+  EXPECT_EQ(csv.header[1], "time [s]");
+  const auto time = read_dataset(file, "cases/base/macro/time");
+  ASSERT_EQ(time.size(), 21u);
+  const std::size_t grains = 8;
+  ASSERT_EQ(csv.rows.size(), 4 * grains);
+  const double steps[] = {0, 5, 10, 20};
+  for (std::size_t r = 0; r < csv.rows.size(); ++r) {
+    const double step = steps[r / grains];
+    EXPECT_EQ(number(csv.rows[r][0]), step);
+    EXPECT_EQ(number(csv.rows[r][1]), time[static_cast<std::size_t>(step)]);
+  }
+  const std::string s = summary(file, "base");
+  EXPECT_TRUE(contains(s, "macro/time                  [21]          [s]")) << s;
+  EXPECT_TRUE(contains(s, "grains/slip                 [4, 8, 12]    [1]")) << s;
+}
+
 TEST(PostCsv, PerGrainSeriesRoundTripInLongFormatAndForOneGrain) {
   const fs::path dir = scratch_dir();
   const std::string path = "cases/" + kCrystalCase + "/grains/";

@@ -177,6 +177,24 @@ TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
   }
 }
 
+// Output at chosen times: the split fixed increments and the adaptive steps shortened to the
+// points resume bit for bit, between points and right after one.
+TEST(Restart, RunWithOutputPointsContinuesBitwiseFromACheckpoint) {
+  for (const std::string& integrator :
+       std::vector<std::string>{"", "integrator: {method: implicit, tolerance: 1.0e-3}\n"}) {
+    SCOPED_TRACE(integrator.empty() ? "fixed" : "adaptive");
+    std::string text = crystal_scene(2, 10, integrator + "output: {at: {time: {every: 0.7}}}\n");
+    text.erase(text.find("    output_every: 3\n"), 19);  // output.at chooses the rows
+    const CrystalScene scene = scene_of(text);
+    const CrystalCase& c = scene.cases.at(0);
+    ASSERT_TRUE(c.segments[0].output_at_times);
+    for (long stop : {3L, 14L}) {
+      SCOPED_TRACE("stopped after increment " + std::to_string(stop));
+      check_resume_is_bitwise(c, stop);
+    }
+  }
+}
+
 TEST(Restart, RestoreRefusesAnotherAggregate) {
   const CrystalScene scene = scene_of(crystal_scene(3, 4));
   const CrystalCase& c = scene.cases.at(0);

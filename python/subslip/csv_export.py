@@ -14,6 +14,8 @@ import math
 import os
 import re
 
+import numpy as np
+
 from .tensors import TENSOR_CONVENTION
 
 TENSOR_COMPONENTS = ["11", "12", "13", "21", "22", "23", "31", "32", "33"]
@@ -126,6 +128,22 @@ def time_column(case, path, rows):
     return None
 
 
+def grain_times(case, path, rows):
+    """A per-grain series with a sibling `row` (format 3; `row` itself too): the output rows of
+    its rows and their times (macro/time at those rows), and the time unit; None otherwise."""
+    directory = path.rpartition("/")[0]
+    row_path = f"{directory}/row" if directory else "row"
+    if directory.rpartition("/")[2] != "grains" or row_path not in case \
+            or "macro/time" not in case:
+        return None
+    index = np.asarray(case.raw(row_path), dtype=np.int64)
+    macro_time = case.raw("macro/time")
+    if len(index) < rows or (len(index) and (index.min() < 0 or index.max() >= len(macro_time))):
+        return None
+    index = index[:rows]
+    return index, macro_time[index], _text(case.dataset("macro/time").attrs.get("unit", ""))
+
+
 def table_lines(case, path, grain=None):
     """The lines of one dataset's CSV (see the module text)."""
     d = case.dataset(path)
@@ -137,11 +155,17 @@ def table_lines(case, path, grain=None):
     name = path.rpartition("/")[2]
     unit = _text(d.attrs.get("unit", ""))
     header = ["step" if series else "row"]
-    time_path = time_column(case, path, rows) if series else None
-    time = case.raw(time_path) if time_path else None
-    if time is not None:
-        header.append(csv_field(headed("time", _text(case.dataset(time_path).attrs.get("unit",
-                                                                                    "")))))
+    per_grain = grain_times(case, path, rows) if series else None
+    steps = per_grain[0] if per_grain is not None else None
+    if per_grain is not None:  # the steps are the output rows these per-grain rows are at
+        time = per_grain[1]
+        header.append(csv_field(headed("time", per_grain[2])))
+    else:
+        time_path = time_column(case, path, rows) if series else None
+        time = case.raw(time_path) if time_path else None
+        if time is not None:
+            header.append(csv_field(headed("time", _text(case.dataset(time_path).attrs.get(
+                "unit", "")))))
     labels = [_text(x) for x in d.attrs.get("labels", [])] if not series else []
     if len(labels) != rows:
         labels = []
@@ -157,7 +181,8 @@ def table_lines(case, path, grain=None):
                    for c in component_names(case, path, shape[-1])]
     yield ",".join(header)
     for row in range(rows):
-        start = [csv_field(labels[row]) if labels else str(row)]
+        start = [csv_field(labels[row]) if labels
+                 else str(int(steps[row])) if steps is not None else str(row)]
         if time is not None:
             start.append(exact_number(time[row]))
         per_grain = values[row].reshape(-1, shape[-1] if len(shape) > 1 else 1)

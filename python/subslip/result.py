@@ -82,7 +82,7 @@ class Result:
         units = self.file.get("units")
         self.units = {k: decoded(v) for k, v in units.attrs.items()} if units else {}
         self.all_cases = self._case_names()
-        self._rows, self._states = self._progress()
+        self._rows, self._states, self._grain_rows = self._progress()
         self.cases = [n for n in self.all_cases if self.state(n) != "not_started"]
 
     def _case_names(self):
@@ -99,16 +99,22 @@ class Result:
         per case (as `subslip post` reads it)."""
         rows = {n: None for n in self.all_cases}
         states = {n: "unknown" for n in self.all_cases}
+        grain_rows = dict(rows)
         progress = self.file.get("progress")
         if progress is None or "rows" not in progress or "state" not in progress:
-            return rows, states
+            return rows, states, grain_rows
         counts, codes = progress["rows"][()], progress["state"][()]
         if not len(counts) == len(codes) == len(self.all_cases):
-            return rows, states
-        for name, count, code in zip(self.all_cases, counts, codes):
+            return rows, states, grain_rows
+        # Format 3 counts the per-grain rows apart (output.grains_at may write fewer).
+        grain_counts = progress["grain_rows"][()] if "grain_rows" in progress else counts
+        if len(grain_counts) != len(counts):
+            grain_counts = counts
+        for name, count, code, grain_count in zip(self.all_cases, counts, codes, grain_counts):
             rows[name] = int(count) if count >= 0 else None
+            grain_rows[name] = int(grain_count) if grain_count >= 0 else None
             states[name] = CASE_STATES.get(int(code), "unknown")
-        return rows, states
+        return rows, states, grain_rows
 
     def state(self, name):
         """"not_started", "running" (or killed), "completed", "failed"; "unknown" for a file
@@ -123,11 +129,16 @@ class Result:
         self._check_name(name)
         return 0 if self.state(name) == "not_started" else self._rows[name]
 
+    def valid_grain_rows(self, name):
+        """How many rows of the case's per-grain series (grains/...) are valid (None: all)."""
+        self._check_name(name)
+        return 0 if self.state(name) == "not_started" else self._grain_rows[name]
+
     def case(self, name):
         """The case `name`; a case the run never started has no rows (empty series)."""
         self._check_name(name)
         group = self.file["cases"].get(name)
-        return Case(self, name, group, self.valid_rows(name))
+        return Case(self, name, group, self.valid_rows(name), self.valid_grain_rows(name))
 
     def _check_name(self, name):
         if name not in self.all_cases:
@@ -156,11 +167,14 @@ class Result:
 class Case:
     """One case of a result: its series cut to the valid rows, tensors as (..., 3, 3)."""
 
-    def __init__(self, result, name, group, valid_rows):
+    def __init__(self, result, name, group, valid_rows, valid_grain_rows=None):
         self.result = result
         self.name = name
         self.group = group  # None: a case listed but never created (format version 1)
         self.valid_rows = valid_rows  # None: every row
+        # Per-grain series (grains/...) may have fewer rows (output.grains_at): format 3
+        # counts them apart.
+        self.valid_grain_rows = valid_rows if valid_grain_rows is None else valid_grain_rows
 
     # ------------------------------------------------------------ datasets and attributes
 
@@ -191,9 +205,17 @@ class Case:
     def raw(self, path):
         """The dataset as stored, a series cut to its valid rows (no reshaping)."""
         d = self.dataset(path)
-        if not self.is_series(path) or self.valid_rows is None:
+        rows = self.valid_grain_rows if path.startswith("grains/") else self.valid_rows
+        if not self.is_series(path) or rows is None:
             return d[()]
-        return d[: min(self.valid_rows, d.shape[0])]
+        return d[: min(rows, d.shape[0])]
+
+    def grain_rows(self):
+        """The output row (of macro/time and the other macro series) of every per-grain row:
+        grains/row (format 3; fewer rows with output.grains_at), else every row."""
+        if "grains/row" in self:
+            return np.asarray(self.raw("grains/row"), dtype=int)
+        return np.arange(len(self.time()))
 
     def series(self, path):
         """The dataset cut to its valid rows; a 3x3 tensor dataset as (n, 3, 3) (macro) or

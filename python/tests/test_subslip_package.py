@@ -340,7 +340,7 @@ class Runs(unittest.TestCase):
         cls.addClassCleanup(shutil.rmtree, cls.dir, ignore_errors=True)
         cls.files = {}
         for scene in ("crystal_small", "contact_small", "single_crystal_euler",
-                      "crystal_adaptive"):
+                      "crystal_adaptive", "crystal_grains_at"):
             cls.files[scene] = run_scene(os.path.join(POST_SCENES, scene + ".yaml"),
                                          os.path.join(cls.dir, scene + ".h5"))
 
@@ -383,14 +383,44 @@ class Runs(unittest.TestCase):
             self.assertNotIn(INT32_FILL, case.series("macro/segment"))
             self.assertEqual(case.time()[-1], case.attrs["final_time"])
 
+    def test_rows_at_strains_and_grain_rows_at_the_coarser_points(self):
+        with subslip.open(self.files["crystal_grains_at"]) as r:
+            case = r.case("base")
+            # Macro rows: the initial state and every 0.1 % of loading strain (1e-3 /s).
+            np.testing.assert_allclose(case.time(), np.arange(21) * 1.0, rtol=1e-13)
+            np.testing.assert_allclose(case.series("macro/strain")[:, 2, 2],
+                                       np.arange(21) * 1e-3, rtol=2e-6, atol=1e-18)
+            # Per-grain rows at 0.5 %, 1 %, 2 %, each the state of its output row.
+            np.testing.assert_array_equal(case.grain_rows(), [0, 5, 10, 20])
+            self.assertEqual(case.valid_grain_rows, 4)
+            self.assertEqual(case.grains("stress").shape, (4, 8, 3, 3))
+            weights = case.grain_weights()
+            mean = np.einsum("g,ngij->nij", weights, case.grains("stress"))
+            np.testing.assert_allclose(mean, case.series("macro/stress")[case.grain_rows()],
+                                       rtol=1e-12, atol=1e-9)
+            # Killed before its end, a working file counts its per-grain rows apart.
+            path = self.copy("crystal_grains_at", "grains_at_cut.h5")
+        with h5py.File(path, "r+") as f:
+            f.attrs["finished"] = 0
+            f["progress/rows"][0] = 12
+            f["progress/grain_rows"][0] = 3
+            f["progress/state"][0] = 1
+        with subslip.open(path) as r:
+            case = r.case("base")
+            self.assertEqual(len(case.time()), 12)
+            np.testing.assert_array_equal(case.grain_rows(), [0, 5, 10])
+            self.assertEqual(len(case.grains("slip")), 3)
+
     def test_truncated_progress_gives_only_its_rows(self):
         # A run killed in its first case after 5 rows, after a restart: the rows beyond are
         # finite left-overs, so only /progress can tell them from valid ones.
         path = self.copy("crystal_small", "truncated.h5")
         with h5py.File(path, "r+") as f:
             f["progress/rows"][:] = [5, 0]
+            f["progress/grain_rows"][:] = [5, 0]  # (format 3 counts per-grain rows apart)
             f["progress/state"][:] = [1, 0]
             f.attrs["completed"] = 0
+            f.attrs["finished"] = 0
         full = subslip.open(self.files["crystal_small"])
         self.addCleanup(full.close)
         first, second = full.cases
@@ -524,7 +554,7 @@ class Runs(unittest.TestCase):
     # ---- CSV
 
     def test_csv_is_what_subslip_post_writes(self):
-        for scene in ("crystal_small", "contact_small", "crystal_adaptive"):
+        for scene in ("crystal_small", "contact_small", "crystal_adaptive", "crystal_grains_at"):
             with self.subTest(scene=scene):
                 mine = os.path.join(self.dir, scene + "_csv_py")
                 with subslip.open(self.files[scene]) as r:

@@ -348,10 +348,12 @@ double local_error(const law::SubloadingFrictionLaw& law, const ContactStiffness
 // halved like a cutback.
 void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactModel& model,
                           const IntegratorOptions& opt, const Segment& seg, int index,
-                          ContactState& s, RunStats& stats, const OutputCallback& on_output) {
+                          double t_start, ContactState& s, RunStats& stats,
+                          const OutputCallback& on_output) {
   const ContactStiffness& c = model.stiffness;
   const double fn_start = s.traction_n;
   integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance);
+  if (seg.output_at_times) clock.set_stops(seg.output_times);
   for (;;) {
     const double h = clock.step();
     const Vec2 du = seg.velocity * h;
@@ -372,10 +374,17 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
     }
     const bool last = clock.last();
     s = a.state;
-    clock.accept(error);
+    const bool stop = clock.accept(error);
     ++stats.increments;
     ++stats.substeps;
-    if (last || clock.accepted() % seg.output_every == 0) on_output(s, index);
+    if (seg.output_at_times) {
+      if (stop) {
+        s.time = t_start + clock.time();  // exactly the output time (the sum of steps rounds)
+        on_output(s, index);
+      }
+    } else if (last || clock.accepted() % seg.output_every == 0) {
+      on_output(s, index);
+    }
     if (last) return;
   }
 }
@@ -390,23 +399,37 @@ RunStats run_history(const ContactModel& model, const std::vector<Segment>& segm
   ContactState s = initial_state(model);
   on_output(s, -1);
   const bool adaptive = opt.tolerance > 0.0 && opt.method == Method::implicit;
-  for (size_t k = 0; k < segments.size(); ++k) {
+  // Where each segment starts in time, from the durations (not the sum of the steps, which
+  // rounds): output times are that plus their time into the segment.
+  double t_start = 0.0;
+  for (size_t k = 0; k < segments.size(); t_start += segments[k++].duration) {
     const Segment& seg = segments[k];
     if (adaptive) {
-      run_segment_adaptive(law, model, opt, seg, static_cast<int>(k), s, stats, on_output);
+      run_segment_adaptive(law, model, opt, seg, static_cast<int>(k), t_start, s, stats, on_output);
       continue;
     }
     const double fn_start = s.traction_n;
     const auto dts = increment_lengths(seg);
+    const std::vector<double> none;
+    const auto steps =
+        integrators::fixed_steps(dts, seg.output_at_times ? seg.output_times : none, seg.duration);
     double t_local = 0.0;
-    for (size_t i = 0; i < dts.size(); ++i) {
+    for (const integrators::FixedStep& step : steps) {
       StepStats st;
-      s = advance(law, model.stiffness, opt, s, seg, fn_start, t_local, dts[i], st);
-      t_local += dts[i];
+      s = advance(law, model.stiffness, opt, s, seg, fn_start, t_local, step.length, st);
+      t_local = step.end;  // (the running sum of the increments where none is split)
       ++stats.increments;
       stats.substeps += st.substeps;
       stats.iterations += st.iterations;
       stats.cutbacks += st.cutbacks;
+      if (seg.output_at_times) {
+        if (step.output_time) {
+          s.time = t_start + step.end;  // exactly the output time (the sum of steps rounds)
+          on_output(s, static_cast<int>(k));
+        }
+        continue;
+      }
+      const auto i = static_cast<size_t>(step.increment - 1);
       const bool last = i + 1 == dts.size();
       if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) {
         on_output(s, static_cast<int>(k));

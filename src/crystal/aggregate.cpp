@@ -107,9 +107,14 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       wall_before_ = 0.0;
       observe(macro_, *this);
     }
+    // Where each segment starts in time, from the durations (not the sum of the steps, which
+    // rounds): output times are that plus their time into the segment, also after a restart.
+    double segment_start = 0.0;
+    for (size_t k = 0; k < first; ++k) segment_start += segments[k].duration;
     for (size_t k = first; k < segments.size(); ++k) {
-      run_segment(segments[k], k > 0 ? &segments[k - 1] : nullptr, static_cast<int>(k), opt,
-                  observe, control, k == first ? resume : nullptr);
+      run_segment(segments[k], k > 0 ? &segments[k - 1] : nullptr, static_cast<int>(k),
+                  segment_start, opt, observe, control, k == first ? resume : nullptr);
+      segment_start += segments[k].duration;
     }
     stats_.wall_seconds = wall_seconds();
     return stats_;
@@ -201,11 +206,11 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (control.after_increment) control.after_increment(cursor_.position, macro_);
   }
 
-  void run_segment(const LoadSegment& seg, const LoadSegment* previous, int index,
+  void run_segment(const LoadSegment& seg, const LoadSegment* previous, int index, double t_start,
                    const AggregateOptions& opt, const MacroObserver& observe,
                    const RunControl& control, const AggregateCheckpoint* resume) {
     if (opt.tolerance > 0.0 && opt.method == CrystalMethod::implicit) {
-      run_segment_adaptive(seg, previous, index, opt, observe, control, resume);
+      run_segment_adaptive(seg, previous, index, t_start, opt, observe, control, resume);
       return;
     }
     const auto fc = free_components(seg.free);
@@ -213,17 +218,29 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
+    const std::vector<double> none;
+    const auto steps =
+        integrators::fixed_steps(dts, seg.output_at_times ? seg.output_times : none, seg.duration);
     double t_local = resume != nullptr ? resume->position.segment_time : 0.0;
     const size_t first = resume != nullptr ? static_cast<size_t>(resume->position.increment) : 0;
-    for (size_t i = first; i < dts.size(); ++i) {
-      advance_increment(seg, fc, stress_start, t_local, dts[i], u, opt);
-      t_local += dts[i];
+    for (size_t k = first; k < steps.size(); ++k) {
+      const integrators::FixedStep& step = steps[k];
+      advance_increment(seg, fc, stress_start, t_local, step.length, u, opt);
+      t_local = step.end;  // (the running sum of the increments where none is split)
       ++stats_.increments;
       macro_.segment = index;
-      const bool last = i + 1 == dts.size();
+      const bool last = k + 1 == steps.size();
       macro_.segment_time = last ? seg.duration : t_local;
-      if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) observe(macro_, *this);
-      end_increment(index, static_cast<long>(i + 1), t_local, 0.0, control);
+      if (seg.output_at_times) {
+        if (step.output_time) {
+          macro_.time = t_start + step.end;  // exactly the output time (the sum of steps rounds)
+          observe(macro_, *this);
+        }
+      } else if (step.increment_end &&
+                 (last || step.increment % static_cast<long>(seg.output_every) == 0)) {
+        observe(macro_, *this);
+      }
+      end_increment(index, static_cast<long>(k + 1), t_local, 0.0, control);
     }
   }
 
@@ -231,8 +248,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // segment's first increment; then the step follows the error estimate, and a step that fails
   // (a grain or the mixed control does not converge) is halved like a cutback.
   void run_segment_adaptive(const LoadSegment& seg, const LoadSegment* previous, int index,
-                            const AggregateOptions& opt, const MacroObserver& observe,
-                            const RunControl& control, const AggregateCheckpoint* resume) {
+                            double t_start, const AggregateOptions& opt,
+                            const MacroObserver& observe, const RunControl& control,
+                            const AggregateCheckpoint* resume) {
     const auto fc = free_components(seg.free);
     start_segment(fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
@@ -246,6 +264,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
             : integrators::AdaptiveSegment(
                   seg.duration, increment_lengths(seg.duration, seg.increments, seg.growth).front(),
                   opt.tolerance);
+    if (seg.output_at_times) clock.set_stops(seg.output_times);
     for (;;) {
       const double h = clock.step();
       const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
@@ -269,12 +288,19 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const bool last = clock.last();
       u = u_try;
       commit(seg, fc, u, h);
-      clock.accept(error.value);
+      const bool stop = clock.accept(error.value);
       macro_.segment_time = clock.time();
       ++stats_.increments;
       ++stats_.substeps;
       macro_.segment = index;
-      if (last || clock.accepted() % seg.output_every == 0) observe(macro_, *this);
+      if (seg.output_at_times) {
+        if (stop) {
+          macro_.time = t_start + clock.time();  // exactly the output time
+          observe(macro_, *this);
+        }
+      } else if (last || clock.accepted() % seg.output_every == 0) {
+        observe(macro_, *this);
+      }
       end_increment(index, clock.accepted(), clock.time(), clock.planned_step(), control);
       if (last) return;
     }

@@ -1,6 +1,7 @@
 #include "subslip/io/contact_scene.hpp"
 
 #include "subslip/io/law_block.hpp"
+#include "subslip/io/output_points.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -150,7 +151,7 @@ contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
 std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
   const std::vector<ContactField> all(kAllContactFields.begin(), kAllContactFields.end());
   if (!node) return all;
-  node->allow_keys({"fields"});
+  node->allow_keys({"fields", "at"});
   const auto fields = node->optional("fields");
   if (!fields) return all;
   std::vector<std::string_view> names;
@@ -176,6 +177,33 @@ std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
   return out;
 }
 
+// `output.at`: output at chosen times or sliding distances instead of at increments; the
+// segments' steps end on them (contact::Segment::output_times).
+void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& segments,
+                     const Units& units) {
+  const auto output = root.optional("output");
+  const auto at = output ? output->optional("at") : std::nullopt;
+  if (!at) return;
+  auto clock_of = [&](const std::string& clock) {
+    std::vector<ClockSegment> c;
+    for (const auto& s : segments)
+      c.push_back({clock == "time" ? 1.0 : s.velocity.norm(), s.duration});
+    return c;
+  };
+  auto unit_of = [&](const std::string& clock) {
+    return units.unit(clock == "time" ? dimension::time : dimension::length);
+  };
+  const OutputPoints points = parse_output_points(*at, {"time", "distance"}, clock_of, unit_of);
+  const auto times = segment_times(points.values, clock_of(points.clock));
+  const CheckedNode loading = root.required("loading");
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    if (auto every = loading.element(k).optional("output_every"))
+      every->fail("output.at chooses the output points; drop output_every");
+    segments[k].output_at_times = true;
+    segments[k].output_times = times[k];
+  }
+}
+
 void check_top_level(const CheckedNode& root) {
   root.allow_keys({"scene", "title", "units", "law", "contact", "initial", "loading", "integrator",
                    "output", "sweep"});
@@ -195,6 +223,7 @@ ContactCase parse_case(SweepCase swept, const Units& units) {
   c.segments = parse_loading(root.required("loading"), c.model, values);
   c.integrator = parse_integrator(root.optional("integrator"));
   c.fields = parse_output(root.optional("output"));
+  parse_output_at(root, c.segments, units);
   c.magnitudes = values.take_magnitudes();
   return c;
 }

@@ -389,12 +389,24 @@ void lay_out_macro(const h5::Group& group, const CrystalCase& c, const Units& un
   }
 }
 
+// The per-grain rows among the first `rows` output rows (output.grains_at; else all of them).
+std::size_t grain_rows_of(const CrystalCase& c, std::size_t rows) {
+  const auto& mask = c.output.grain_rows;
+  if (mask.empty()) return rows;
+  return static_cast<std::size_t>(std::count(
+      mask.begin(), mask.begin() + static_cast<std::ptrdiff_t>(std::min(rows, mask.size())), true));
+}
+
 void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& units) {
   const h5::Group grains = group.create_group("grains");
   const auto systems = crystal::described_systems(c.phase);
   write_grain_statics(grains, c, systems);
   const std::size_t n_grains = c.orientations.size();
-  const std::size_t rows = crystal_output_count(c.segments);
+  const std::size_t rows = grain_rows_of(c, crystal_output_count(c.segments));
+  grains.create_series({"row", 0, h5::Type::int32, "index",
+                        "the output row (of macro/time and the other macro series) of each "
+                        "per-grain row",
+                        std::clamp<std::size_t>(rows, 16, 4096), kMacroBlockRows, rows});
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units, systems.size());
     const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
@@ -490,8 +502,11 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
                          "': the orientations differ from those the interrupted run used; "
                          "restore them or start a new run");
   }
-  // The count first: from here on, rows beyond `rows` are left-overs to be overwritten.
+  // The counts first: from here on, rows beyond them are left-overs to be overwritten.
+  const std::size_t grain_rows = grain_rows_of(c, rows);
   progress_.set_rows(index_, rows);
+  progress_.set_grain_rows(index_, grain_rows);
+  grain_mask_ = c.output.grain_rows;
   const h5::Group macro = group_.open_group("macro");
   for (MacroField f : c.output.macro) {
     const FieldSpec spec = macro_spec(f, units_);
@@ -500,14 +515,16 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   }
   if (c.output.grains.empty()) return;
   const h5::Group grains = group_.open_group("grains");
+  grain_row_.emplace(grains.open_series("row", h5::Type::int32, grain_rows, kMacroBlockRows));
   const std::size_t n_grains = c.orientations.size();
   const std::size_t slip_count = crystal::described_systems(c.phase).size();
   std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
     const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
-    grains_[static_cast<std::size_t>(f)].emplace(grains.open_series(
-        to_string(f), spec.type, rows, rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
+    grains_[static_cast<std::size_t>(f)].emplace(
+        grains.open_series(to_string(f), spec.type, grain_rows,
+                           rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
     grain_width_[static_cast<std::size_t>(f)] = n_grains * width_of(spec);
     widest = std::max(widest, width_of(spec));
   }
@@ -517,6 +534,7 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
 
 void CrystalCaseWriter::append(const crystal::MacroState& m, const crystal::GrainFields& grains) {
   last_ = m;
+  const std::size_t row = rows();  // the output row this state is
   for (std::size_t k = 0; k < macro_.size(); ++k) {
     if (!macro_[k]) continue;
     h5::Series& out = *macro_[k];
@@ -541,6 +559,9 @@ void CrystalCaseWriter::append(const crystal::MacroState& m, const crystal::Grai
         break;
     }
   }
+  if (!grain_row_ || !(grain_mask_.empty() || (row < grain_mask_.size() && grain_mask_[row])))
+    return;
+  grain_row_->append_int(static_cast<int>(row));
   for (std::size_t k = 0; k < grains_.size(); ++k) {
     if (!grains_[k]) continue;
     fill(kAllGrainFields[k], grains, matrices_, row_);
@@ -558,6 +579,12 @@ void CrystalCaseWriter::commit() {
   for (auto& s : grains_) {
     if (s) s->commit();
   }
+  if (grain_row_) {
+    grain_row_->commit();
+    progress_.set_grain_rows(index_, grain_row_->rows());
+  } else {
+    progress_.set_grain_rows(index_, rows);
+  }
   progress_.set_rows(index_, rows);  // after the rows it counts are in the file
 }
 
@@ -573,6 +600,7 @@ void CrystalCaseWriter::close_series() {
   for (auto& s : grains_) {
     if (s) s->finish();
   }
+  if (grain_row_) grain_row_->finish();
 }
 
 void CrystalCaseWriter::finish(const CrystalSummary& summary) {
@@ -768,7 +796,7 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
   cases.set_attribute("names", names);
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
-  h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+  h5::CaseProgress progress = h5::CaseProgress::create(root, names.size(), true);
   RunContext run{scene, file, std::move(cases), std::move(progress), options};
   // The restart file is complete before the result says its layout is.
   const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
@@ -829,8 +857,10 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
       grain_values += static_cast<double>(width_of(grain_spec(f, scene.units, slip_count)));
     // Grain series reserve whole chunks of up to kGrainChunkBytes each.
     const double chunk_slack = static_cast<double>(c.output.grains.size() * kGrainChunkBytes);
-    const double bytes = 8.0 * rows * (macro_values + grains * grain_values) + chunk_slack +
-                         8.0 * grains * 16.0 + kCaseOverheadBytes;
+    const double grain_rows = static_cast<double>(
+        grain_rows_of(c, static_cast<std::size_t>(crystal_output_count(c.segments))));
+    const double bytes = 8.0 * (rows * macro_values + grain_rows * grains * grain_values) +
+                         chunk_slack + 8.0 * grains * 16.0 + kCaseOverheadBytes;
     size.result_bytes += bytes;
     // The finished file, written before the working one goes: no reserved chunk space.
     size.finish_bytes += bytes - chunk_slack;

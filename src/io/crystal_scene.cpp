@@ -1,6 +1,7 @@
 #include "subslip/io/crystal_scene.hpp"
 
 #include "subslip/io/law_block.hpp"
+#include "subslip/io/output_points.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -537,7 +538,7 @@ CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
   CrystalOutputSelection out;
   out.macro.assign(kAllMacroFields.begin(), kAllMacroFields.end());
   if (!node) return out;
-  node->allow_keys({"macro", "grains", "checkpoint_every"});
+  node->allow_keys({"macro", "grains", "checkpoint_every", "at", "grains_at"});
   out.checkpoint_every = node->get_int("checkpoint_every", -1, Range::at_least(0));
   if (auto macro = node->optional("macro")) {
     if (macro->size() == 0) macro->fail("needs at least 'time'");
@@ -549,6 +550,50 @@ CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
     out.grains = parse_field_list(*grains, kAllGrainFields);
   }
   return out;
+}
+
+// `output.at`, `output.grains_at`: output at chosen times or loading strains instead of at
+// increments, per-grain fields at those of grains_at only; the segments' steps end on all of
+// them (crystal::LoadSegment::output_times).
+void parse_output_at(const CheckedNode& root, CrystalCase& c, const Units& units) {
+  const auto output = root.optional("output");
+  const auto at = output ? output->optional("at") : std::nullopt;
+  const auto grains_at = output ? output->optional("grains_at") : std::nullopt;
+  if (!at) {
+    if (grains_at) grains_at->fail("needs output.at (per-grain rows are at some of its points)");
+    return;
+  }
+  auto clock_of = [&](const std::string& clock) {
+    std::vector<ClockSegment> segments;
+    for (const auto& s : c.segments)
+      segments.push_back({clock == "time" ? 1.0 : driving_rate(s), s.duration});
+    return segments;
+  };
+  auto unit_of = [&](const std::string& clock) {
+    return units.unit(clock == "time" ? dimension::time : dimension::none);
+  };
+  const OutputPoints macro = parse_output_points(*at, {"time", "strain"}, clock_of, unit_of);
+  const auto macro_times = segment_times(macro.values, clock_of(macro.clock));
+  std::vector<std::vector<double>> grain_times(c.segments.size());
+  if (grains_at) {
+    if (c.output.grains.empty()) grains_at->fail("needs per-grain fields (output.grains)");
+    const OutputPoints g = parse_output_points(*grains_at, {"time", "strain"}, clock_of, unit_of);
+    grain_times = segment_times(g.values, clock_of(g.clock));
+  }
+  std::vector<ClockSegment> durations;
+  for (const auto& s : c.segments) durations.push_back({1.0, s.duration});
+  const MergedTimes merged = merge_segment_times(macro_times, grain_times, durations);
+  const CheckedNode loading = root.required("loading");
+  if (grains_at) c.output.grain_rows.push_back(true);  // the initial state
+  for (std::size_t k = 0; k < c.segments.size(); ++k) {
+    if (auto every = loading.element(k).optional("output_every"))
+      every->fail("output.at chooses the output points; drop output_every");
+    c.segments[k].output_at_times = true;
+    c.segments[k].output_times = merged.times[k];
+    if (grains_at) {
+      for (const bool g : merged.in_b[k]) c.output.grain_rows.push_back(g);
+    }
+  }
 }
 
 // ---------------------------------------------------------------- the scene
@@ -571,6 +616,7 @@ CrystalCase parse_case(SweepCase swept, const Units& units) {
   c.segments = parse_loading(root.required("loading"), values);
   c.options = parse_integrator(root.optional("integrator"), c.phase);
   c.output = parse_output(root.optional("output"));
+  parse_output_at(root, c, units);
   c.magnitudes = values.take_magnitudes();
   return c;
 }

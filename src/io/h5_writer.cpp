@@ -976,7 +976,7 @@ CaseProgress::CaseProgress(Dataset rows, Dataset state, std::vector<long long> r
       rows_(std::move(r)),
       state_(std::move(s)) {}
 
-CaseProgress CaseProgress::create(const Group& root, std::size_t cases) {
+CaseProgress CaseProgress::create(const Group& root, std::size_t cases, bool grain_rows) {
   const Group g = root.create_group("progress");
   g.set_attribute("description",
                   "how far each case got, in /cases names order; updated as the run goes");
@@ -991,7 +991,17 @@ CaseProgress CaseProgress::create(const Group& root, std::size_t cases) {
   std::vector<long long> zeros(cases, 0);
   rows.write(zeros);
   state.write(zeros);
-  return CaseProgress(std::move(rows), std::move(state), zeros, zeros);
+  CaseProgress progress(std::move(rows), std::move(state), zeros, zeros);
+  if (grain_rows) {
+    Dataset d = g.create_fixed("grain_rows", shape, Type::int64,
+                               "valid rows of the case's per-grain series (grains/...), written "
+                               "after the rows it counts");
+    d.set_attribute("unit", "1");
+    d.write(zeros);
+    progress.grain_rows_ds_.emplace(std::move(d));
+    progress.grain_rows_ = zeros;
+  }
+  return progress;
 }
 
 CaseProgress CaseProgress::open(const Group& root) {
@@ -1001,7 +1011,15 @@ CaseProgress CaseProgress::open(const Group& root) {
   auto r = rows.read_ints();
   auto s = state.read_ints();
   if (r.size() != s.size()) throw Error("HDF5: /progress/rows and /progress/state differ in size");
-  return CaseProgress(std::move(rows), std::move(state), std::move(r), std::move(s));
+  CaseProgress progress(std::move(rows), std::move(state), std::move(r), std::move(s));
+  if (g.has("grain_rows")) {
+    Dataset d = g.open_dataset("grain_rows");
+    progress.grain_rows_ = d.read_ints();
+    if (progress.grain_rows_.size() != progress.rows_.size())
+      throw Error("HDF5: /progress/grain_rows and /progress/rows differ in size");
+    progress.grain_rows_ds_.emplace(std::move(d));
+  }
+  return progress;
 }
 
 void CaseProgress::write_element(const Dataset& d, std::size_t index, long long value) const {
@@ -1018,6 +1036,12 @@ void CaseProgress::write_element(const Dataset& d, std::size_t index, long long 
 void CaseProgress::set_rows(std::size_t index, std::size_t rows) {
   rows_.at(index) = static_cast<long long>(rows);
   write_element(rows_ds_, index, rows_[index]);
+}
+
+void CaseProgress::set_grain_rows(std::size_t index, std::size_t rows) {
+  if (!grain_rows_ds_) return;
+  grain_rows_.at(index) = static_cast<long long>(rows);
+  write_element(*grain_rows_ds_, index, grain_rows_[index]);
 }
 
 void CaseProgress::set_state(std::size_t index, CaseState state) {

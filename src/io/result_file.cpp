@@ -63,16 +63,22 @@ bool finish_result(const fs::path& result) {
       const h5::Group root = source.root();
       const auto names = root.open_group("cases").attribute_strings("names");
       const h5::CaseProgress progress = h5::CaseProgress::open(root);
-      std::map<std::string, std::size_t> rows;  // "/cases/<name>/" -> its valid rows
+      // "/cases/<name>/" -> its valid rows, "/cases/<name>/grains/" -> its per-grain ones
+      std::map<std::string, std::size_t> rows;
       for (std::size_t k = 0; k < names.size() && k < progress.size(); ++k) {
         rows["/cases/" + names[k] + "/"] = static_cast<std::size_t>(progress.rows(k));
+        rows["/cases/" + names[k] + "/grains/"] = static_cast<std::size_t>(progress.grain_rows(k));
         completed = completed && progress.state(k) == h5::CaseState::completed;
       }
       h5::File target = h5::File::create(temporary, true);
       h5::write_exact_copy(source, target, [&](const std::string& path) {
-        std::optional<std::size_t> keep;
+        std::optional<std::size_t> keep;  // the longest prefix that matches
+        std::size_t longest = 0;
         for (const auto& [prefix, n] : rows) {
-          if (path.compare(0, prefix.size(), prefix) == 0) keep = n;
+          if (prefix.size() > longest && path.compare(0, prefix.size(), prefix) == 0) {
+            keep = n;
+            longest = prefix.size();
+          }
         }
         return keep;
       });

@@ -32,9 +32,10 @@ struct ResultFile {
   std::string name;  // the path as given, for messages
   h5::File file;
   h5::Group root;
-  std::vector<std::string> cases;  // run order
-  std::vector<long long> rows;     // /progress/rows, in `cases` order; empty without it
-  std::vector<long long> states;   // /progress/state
+  std::vector<std::string> cases;     // run order
+  std::vector<long long> rows;        // /progress/rows, in `cases` order; empty without it
+  std::vector<long long> states;      // /progress/state
+  std::vector<long long> grain_rows;  // /progress/grain_rows (format 3, crystal); may be empty
 
   std::optional<std::size_t> index(const std::string& c) const {
     const auto it = std::find(cases.begin(), cases.end(), c);
@@ -46,6 +47,15 @@ struct ResultFile {
     const auto i = index(c);
     if (!i || *i >= rows.size() || rows[*i] < 0) return std::nullopt;
     return static_cast<std::size_t>(rows[*i]);
+  }
+  // The valid rows of the series at `path` (relative to the case): per-grain series under
+  // grains/ have their own count (output.grains_at).
+  std::optional<std::size_t> valid_rows(const std::string& c, const std::string& path) const {
+    const auto i = index(c);
+    const bool per_grain = path.rfind("grains/", 0) == 0;
+    if (per_grain && i && *i < grain_rows.size() && grain_rows[*i] >= 0)
+      return static_cast<std::size_t>(grain_rows[*i]);
+    return valid_rows(c);
   }
   CaseState state(const std::string& c) const {
     const auto i = index(c);
@@ -84,6 +94,10 @@ void read_progress(ResultFile& r) {
   if (rows.size() != r.cases.size() || states.size() != r.cases.size()) return;
   r.rows = std::move(rows);
   r.states = std::move(states);
+  if (g.has("grain_rows")) {
+    auto grain_rows = g.open_dataset("grain_rows").read_ints();
+    if (grain_rows.size() == r.cases.size()) r.grain_rows = std::move(grain_rows);
+  }
 }
 
 ResultFile open_result(const fs::path& path) {
@@ -102,7 +116,7 @@ ResultFile open_result(const fs::path& path) {
     throw InputError(name, 0, "format",
                      "not a subslip result file (no root attribute format = \"subslip\")");
   }
-  ResultFile r{name, std::move(*file), std::move(root), {}, {}, {}};
+  ResultFile r{name, std::move(*file), std::move(root), {}, {}, {}, {}};
   r.cases = case_names(r.root);
   read_progress(r);
   return r;
@@ -310,7 +324,8 @@ std::size_t usable_rows(const h5::Dataset& d, const std::vector<std::size_t>& sh
   return std::min(shape[0], *valid);
 }
 
-void print_case_datasets(std::ostream& out, const h5::Group& g, std::optional<std::size_t> valid) {
+void print_case_datasets(std::ostream& out, const h5::Group& g, const ResultFile& r,
+                         const std::string& c) {
   std::vector<std::string> paths;
   collect_datasets(g, "", paths);
   struct Row {
@@ -322,7 +337,7 @@ void print_case_datasets(std::ostream& out, const h5::Group& g, std::optional<st
     const h5::Dataset d = g.open_dataset(p);
     const bool text = d.value_class() == h5::ValueClass::string;
     auto shape = d.shape();
-    if (!shape.empty()) shape[0] = usable_rows(d, shape, valid);
+    if (!shape.empty()) shape[0] = usable_rows(d, shape, r.valid_rows(c, p));
     Row row{p, text ? "text" : shape_text(shape), "[" + attribute_or(d, "unit", "-") + "]",
             attribute_or(d, "description", "")};
     w_path = std::max(w_path, row.path.size());
@@ -480,6 +495,35 @@ std::optional<std::string> time_column(const h5::Group& base, const std::string&
   return std::nullopt;
 }
 
+// A per-grain series whose sibling `row` gives the output row of each of its rows (format 3;
+// `row` itself too): those rows of the case's macro/time, and the rows themselves (for the
+// step column).
+struct GrainTimes {
+  std::vector<double> time;
+  std::vector<long long> row;
+  std::string unit;
+};
+std::optional<GrainTimes> grain_times(const h5::Group& base, const std::string& path,
+                                      std::size_t rows) {
+  const std::string dir = parent(path);
+  const std::string row_path = dir.empty() ? "row" : dir + "/row";
+  if (leaf(dir) != "grains" || node_kind(base, row_path) != NodeKind::dataset ||
+      node_kind(base, "macro/time") != NodeKind::dataset)
+    return std::nullopt;
+  const auto row = base.open_dataset(row_path).read_ints();
+  const h5::Dataset t = base.open_dataset("macro/time");
+  const auto macro_time = t.read_doubles();
+  if (row.size() < rows) return std::nullopt;
+  GrainTimes out{{},
+                 {row.begin(), row.begin() + static_cast<std::ptrdiff_t>(rows)},
+                 attribute_or(t, "unit", "")};
+  for (long long k : out.row) {
+    if (k < 0 || static_cast<std::size_t>(k) >= macro_time.size()) return std::nullopt;
+    out.time.push_back(macro_time[static_cast<std::size_t>(k)]);
+  }
+  return out;
+}
+
 std::string headed(const std::string& name, const std::string& unit) {
   return unit.empty() ? name : name + " [" + unit + "]";
 }
@@ -510,10 +554,14 @@ void write_table(std::ostream& out, const h5::Group& base, const std::string& pa
   const std::string name = leaf(path);
 
   std::vector<std::string> header{series ? "step" : "row"};
+  const std::optional<GrainTimes> per_grain = series ? grain_times(base, path, rows) : std::nullopt;
   std::optional<std::string> time_path =
-      series ? time_column(base, path, rows, valid) : std::nullopt;
+      series && !per_grain ? time_column(base, path, rows, valid) : std::nullopt;
   std::vector<double> time;
-  if (time_path) {
+  if (per_grain) {  // the steps are the output rows these per-grain rows are at
+    time = per_grain->time;
+    header.push_back(csv_field(headed("time", per_grain->unit)));
+  } else if (time_path) {
     const h5::Dataset t = base.open_dataset(*time_path);
     time = t.read_doubles();
     header.push_back(csv_field(headed("time", attribute_or(t, "unit", ""))));
@@ -536,7 +584,9 @@ void write_table(std::ostream& out, const h5::Group& base, const std::string& pa
 
   std::string line;
   const auto emit = [&](std::size_t row, std::size_t g, bool with_grain) {
-    line = labels.empty() ? std::to_string(row) : csv_field(labels[row]);
+    line = !labels.empty() ? csv_field(labels[row])
+           : per_grain     ? std::to_string(per_grain->row[row])
+                           : std::to_string(row);
     // append(): GCC 12 gives a false -Wrestrict warning on "literal" + std::string&&.
     if (!time.empty()) line.append(",").append(exact_number(time[row]));
     if (with_grain) line.append(",").append(std::to_string(g));
@@ -670,7 +720,7 @@ class Planner {
     for (int n = 2; !names_.insert(file).second; ++n) {
       file = stem + "_" + std::to_string(n) + ".csv";  // two names made the same by file_safe
     }
-    const auto valid = c.empty() ? std::nullopt : r_.valid_rows(c);
+    const auto valid = c.empty() ? std::nullopt : r_.valid_rows(c, path);
     exports_.push_back({group, path, o_.directory / file, per_grain, valid});
   }
 
@@ -708,7 +758,7 @@ void print_summary(std::ostream& out, const fs::path& file, const std::string& c
     if (g.has_attribute("index")) out << " (index " << attribute_text(g, "index") << ")";
     out << case_state_text(r, c, g) << "\n";
     print_case_attributes(out, g);
-    print_case_datasets(out, g, r.valid_rows(c));
+    print_case_datasets(out, g, r, c);
   }
   for (const auto& c : all) {
     if (std::find(selected.begin(), selected.end(), c) == selected.end() && case_name.empty()) {

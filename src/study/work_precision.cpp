@@ -32,6 +32,8 @@ void refine_segment(Segment& s, double factor, bool uniform, bool every_step) {
   }
   if (every_step) {
     s.output_every = 1;
+    s.output_at_times = false;  // (output.at: the errors are measured at every step instead)
+    s.output_times.clear();
   } else {
     // Keep the scene's output points: every (output_every f)-th refined increment.
     s.output_every = static_cast<int>(
@@ -46,7 +48,11 @@ void refine_segment(Segment& s, double factor, bool uniform, bool every_step) {
 template <class Segment>
 std::vector<Segment> outputs_for(std::vector<Segment> segments, Report report) {
   if (report == Report::every_step) {
-    for (auto& s : segments) s.output_every = 1;
+    for (auto& s : segments) {
+      s.output_every = 1;
+      s.output_at_times = false;  // (output.at: every step instead)
+      s.output_times.clear();
+    }
   }
   return segments;
 }

@@ -39,6 +39,11 @@ struct Segment {
   int increments = 1;            // number of increments in the segment
   double growth = 1.0;           // ratio of successive increment lengths (1: uniform)
   int output_every = 1;          // write every k-th increment (and always the last)
+  // Output at chosen times instead (output_at_times): only at these times into the segment
+  // (increasing, in (0, duration]), which the steps end on exactly: a fixed increment is split,
+  // an adaptive step shortened. None: no output in this segment.
+  bool output_at_times = false;
+  std::vector<double> output_times;
 };
 
 // The increment lengths of a segment: `increments` lengths in geometric progression with ratio

@@ -31,6 +31,11 @@ struct LoadSegment {
   int increments = 1;
   double growth = 1.0;  // ratio of successive increments
   int output_every = 1;
+  // Output at chosen times instead (output_at_times): only at these times into the segment
+  // (increasing, in (0, duration]), which the steps end on exactly: a fixed increment is split,
+  // an adaptive step shortened. None: no output in this segment.
+  bool output_at_times = false;
+  std::vector<double> output_times;
 };
 
 // The increment lengths of a segment: geometric progression summing to the duration exactly.

@@ -9,7 +9,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <span>
 #include <string>
+#include <vector>
 
 namespace subslip::integrators {
 
@@ -43,9 +46,56 @@ inline constexpr int kMaxRefusedAttempts = 200;
 // resolved no better than the Newton tolerance), and no shorter step will meet the tolerance.
 inline constexpr double kFloorShrink = 1e3;
 
+// An output time within this fraction of the segment's duration of an increment's end is that
+// end (no step of round-off length is made to reach it).
+inline constexpr double kSameTime = 8.0 * std::numeric_limits<double>::epsilon();
+
+// One step of a segment with fixed increments: the increments, each split at the output times
+// that fall strictly inside it, so that a step ends on every output time.
+struct FixedStep {
+  double length = 0.0;         // of the step
+  double end = 0.0;            // time into the segment at its end (exactly the output time)
+  long increment = 0;          // the increment it belongs to (1-based)
+  bool increment_end = false;  // it ends that increment
+  bool output_time = false;    // it ends on an output time
+};
+
+// The steps of a segment of `increments` lengths (summing to `duration`) that must end on every
+// `output_times` (increasing, in (0, duration]). The ends of unsplit increments are the running
+// sum of their lengths, as a driver without output times accumulates them.
+inline std::vector<FixedStep> fixed_steps(std::span<const double> increments,
+                                          std::span<const double> output_times, double duration) {
+  std::vector<FixedStep> steps;
+  steps.reserve(increments.size() + output_times.size());
+  const double same = kSameTime * duration;
+  std::size_t next = 0;  // the first output time not reached yet
+  double t = 0.0;
+  for (std::size_t i = 0; i < increments.size(); ++i) {
+    const bool last = i + 1 == increments.size();
+    const double end = last ? duration : t + increments[i];
+    double start = t;
+    while (next < output_times.size() && output_times[next] < end - same) {
+      if (output_times[next] > start + same) {
+        steps.push_back({output_times[next] - start, output_times[next], static_cast<long>(i) + 1,
+                         false, true});
+        start = output_times[next];
+      }
+      ++next;
+    }
+    const bool at_output = next < output_times.size() && output_times[next] <= end + same;
+    if (at_output) ++next;
+    // (The last increment's length, as the driver has always taken it: from the increments.)
+    steps.push_back({start == t ? increments[i] : end - start, last ? duration : t + increments[i],
+                     static_cast<long>(i) + 1, true, at_output});
+    t += increments[i];
+  }
+  return steps;
+}
+
 // The clock of one segment [0, duration] walked with adaptive steps: which step to try next,
 // and how an accepted, rejected (error too large) or failed (no solution) attempt moves it. The
-// last step ends exactly on the segment end.
+// last step ends exactly on the segment end, and with stops (output times) a step that would
+// pass one is shortened to end exactly on it.
 class AdaptiveSegment {
  public:
   AdaptiveSegment(double duration, double first_step, double tolerance)
@@ -55,23 +105,48 @@ class AdaptiveSegment {
   AdaptiveSegment(double duration, double next_step, double tolerance, double time, long accepted)
       : duration_(duration), dt_(next_step), tolerance_(tolerance), t_(time), accepted_(accepted) {}
 
-  bool last() const { return dt_ >= duration_ - t_; }
-  // The step to try now: the planned one, or what is left of the segment.
-  double step() const { return last() ? duration_ - t_ : dt_; }
+  // Times into the segment (increasing, in (0, duration]) that steps must end on; those up to
+  // the current time are passed already.
+  void set_stops(std::span<const double> stops) {
+    stops_ = stops;
+    next_stop_ = 0;
+    while (next_stop_ < stops_.size() && stops_[next_stop_] <= t_) ++next_stop_;
+  }
+
+  // The step tried now ends on the next stop.
+  bool at_stop() const { return next_stop_ < stops_.size() && dt_ >= stops_[next_stop_] - t_; }
+  bool last() const { return at_stop() ? stops_[next_stop_] >= duration_ : dt_ >= duration_ - t_; }
+  // The step to try now: the planned one, or what is left to the next stop or the segment end.
+  double step() const {
+    if (at_stop()) return std::min(stops_[next_stop_], duration_) - t_;
+    return last() ? duration_ - t_ : dt_;
+  }
   // Time into the segment at the end of the step tried now.
-  double end_time() const { return last() ? duration_ : t_ + dt_; }
+  double end_time() const {
+    if (at_stop()) return std::min(stops_[next_stop_], duration_);
+    return last() ? duration_ : t_ + dt_;
+  }
   double time() const { return t_; }
   // The step planned after the last accepted one (what a checkpoint records to resume with).
   double planned_step() const { return dt_; }
   long accepted() const { return accepted_; }
   int refusals() const { return refusals_; }
 
-  void accept(double error) {
+  // Returns whether the accepted step ended on a stop. A step shortened to a stop does not
+  // shorten the next one unless its error asks for that.
+  bool accept(double error) {
     const double h = step();
+    const bool stop = at_stop();
+    const bool shortened = stop && !last() && h < dt_;
+    const double planned = dt_;
     t_ = end_time();
+    if (stop) ++next_stop_;
     ++accepted_;
     refusals_ = 0;
-    dt_ = h * step_factor(error, tolerance_, kAfterAccepted);
+    const double factor = step_factor(error, tolerance_, kAfterAccepted);
+    dt_ = h * factor;
+    if (shortened && factor >= 1.0) dt_ = std::max(dt_, planned);
+    return stop;
   }
   // A refused attempt shortens the step: by the error estimate when it was too large, by half
   // when the step failed outright. False when the driver should give up: too many refusals in
@@ -108,6 +183,8 @@ class AdaptiveSegment {
   double duration_;
   double dt_;
   double tolerance_;
+  std::span<const double> stops_;
+  std::size_t next_stop_ = 0;
   double t_ = 0.0;
   long accepted_ = 0;
   int refusals_ = 0;

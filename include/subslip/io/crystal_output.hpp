@@ -84,8 +84,10 @@ class CrystalCaseWriter {
   std::array<std::optional<h5::Series>, kAllMacroFields.size()> macro_;
   std::array<std::optional<h5::Series>, kAllGrainFields.size()> grains_;
   std::array<std::size_t, kAllGrainFields.size()> grain_width_{};  // values per step
-  std::vector<double> matrices_;  // the orientation matrices of one step, before conversion
-  std::vector<double> row_;       // one step of a per-grain field
+  std::optional<h5::Series> grain_row_;  // grains/row: the output row of each per-grain row
+  std::vector<bool> grain_mask_;         // output.grains_at: the output rows with grain rows
+  std::vector<double> matrices_;         // the orientation matrices of one step, before conversion
+  std::vector<double> row_;              // one step of a per-grain field
   crystal::MacroState last_;
 };
 

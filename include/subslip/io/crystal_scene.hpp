@@ -38,6 +38,9 @@ struct CrystalOutputSelection {
   std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
   std::vector<GrainField> grains;  // in kAllGrainFields order; empty: no /grains group
   int checkpoint_every = -1;       // output.checkpoint_every: increments, 0 none, -1 not given
+  // output.grains_at: for every output row (the initial state first), whether it has per-grain
+  // rows; empty: every row has them.
+  std::vector<bool> grain_rows;
 };
 
 // How the orientations were given, for the case attributes.

@@ -323,21 +323,29 @@ class WritePacer {
 // run's file says which rows are valid). `rows` [cases] int64: the valid rows of every series
 // of the case; `state` [cases] int64: CaseState. Cases in /cases `names` order.
 enum class CaseState : long long { not_started = 0, running = 1, completed = 2, failed = 3 };
+// With `grain_rows` (crystal runs), also `grain_rows` [cases] int64: the valid rows of the
+// case's per-grain series (grains/...), which may be fewer than `rows` (output.grains_at).
 class CaseProgress {
  public:
-  static CaseProgress create(const Group& root, std::size_t cases);
+  static CaseProgress create(const Group& root, std::size_t cases, bool grain_rows = false);
   static CaseProgress open(const Group& root);  // throws Error when the file has none
   std::size_t size() const { return rows_.size(); }
   long long rows(std::size_t index) const { return rows_[index]; }
+  // The valid per-grain rows (rows() when the file does not count them apart).
+  long long grain_rows(std::size_t index) const {
+    return grain_rows_.empty() ? rows_[index] : grain_rows_[index];
+  }
   CaseState state(std::size_t index) const { return static_cast<CaseState>(state_[index]); }
   void set_rows(std::size_t index, std::size_t rows);
+  void set_grain_rows(std::size_t index, std::size_t rows);  // (no-op without grain_rows)
   void set_state(std::size_t index, CaseState state);
 
  private:
   CaseProgress(Dataset rows, Dataset state, std::vector<long long> r, std::vector<long long> s);
   void write_element(const Dataset& d, std::size_t index, long long value) const;
   Dataset rows_ds_, state_ds_;
-  std::vector<long long> rows_, state_;
+  std::optional<Dataset> grain_rows_ds_;
+  std::vector<long long> rows_, state_, grain_rows_;
 };
 
 // A case group's `failed` attribute: reserved at layout time (this many bytes, UTF-8), written
@@ -397,7 +405,8 @@ inline constexpr const char* kTensorConvention =
     "3x3 tensor: [..., i, j] is the component ij (i the row, j the column); symmetric tensors "
     "are stored in full";
 
-// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); a finished file is
+// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); per-grain rows
+// counted apart (grains/row, /progress/grain_rows: output.grains_at); a finished file is
 // rewritten with exactly its rows (`finished` = 1); checkpoints in a separate restart file.
 // 2: the whole layout is written before the run (summary attributes as placeholders, `failed`
 // a fixed-length string, series keep their reservation, checkpoints in /checkpoint).

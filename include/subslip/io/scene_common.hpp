@@ -112,12 +112,16 @@ void check_increment_lengths(const CheckedNode& segment, double duration, int in
                              double growth);
 
 // How many states a loading history writes: the initial one, then every `output_every`-th
-// increment of each segment and always its last (for any segment type with `increments` and
-// `output_every`).
+// increment of each segment and always its last, or one per output time when the segment
+// lists them (for any segment type with `increments`, `output_every` and output times).
 template <class Segment>
 std::size_t count_output_states(const std::vector<Segment>& segments) {
   std::size_t n = 1;  // the initial state
   for (const auto& s : segments) {
+    if (s.output_at_times) {
+      n += s.output_times.size();
+      continue;
+    }
     const auto inc = static_cast<std::size_t>(s.increments);
     const auto every = static_cast<std::size_t>(s.output_every);
     n += inc / every + (inc % every != 0 ? 1 : 0);
