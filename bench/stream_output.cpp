@@ -1,4 +1,4 @@
-// The cost of streaming results (README "Streaming, kills and restarts"): CPU time of the main
+// The cost of streaming results (docs/internals.md, "Streaming, kills and restarts"): CPU time of the main
 // job (inputs/default.yaml) and of one 2000-step contact case (inputs/contact_default.yaml)
 // without output, with every output step written, as run (WritePacer), and with rows written at
 // the end only. The variants are interleaved and the minimum over the repetitions is kept (the
