@@ -587,7 +587,8 @@ std::string CheckedNode::as_choice(std::initializer_list<std::string_view> choic
   return as_choice(std::span<const std::string_view>(choices.begin(), choices.size()));
 }
 
-std::vector<double> CheckedNode::as_doubles(const Range& range, std::size_t size) const {
+template <typename Read>
+std::vector<double> CheckedNode::numbers(std::size_t size, Read read) const {
   expect_sequence();
   const std::size_t n = node_.size();
   if (size > 0 && n != size) {
@@ -596,22 +597,17 @@ std::vector<double> CheckedNode::as_doubles(const Range& range, std::size_t size
   if (n == 0) fail("expected at least one number, got an empty sequence");
   std::vector<double> out;
   out.reserve(n);
-  for (const auto& e : elements()) out.push_back(e.as_double(range));
+  for (const auto& e : elements()) out.push_back(read(e));
   return out;
+}
+
+std::vector<double> CheckedNode::as_doubles(const Range& range, std::size_t size) const {
+  return numbers(size, [&](const CheckedNode& e) { return e.as_double(range); });
 }
 
 std::vector<double> CheckedNode::as_quantities(const Unit& unit, const Range& range,
                                                std::size_t size) const {
-  expect_sequence();
-  const std::size_t n = node_.size();
-  if (size > 0 && n != size) {
-    fail("expected " + std::to_string(size) + " numbers, got " + std::to_string(n));
-  }
-  if (n == 0) fail("expected at least one number, got an empty sequence");
-  std::vector<double> out;
-  out.reserve(n);
-  for (const auto& e : elements()) out.push_back(e.as_quantity(unit, range));
-  return out;
+  return numbers(size, [&](const CheckedNode& e) { return e.as_quantity(unit, range); });
 }
 
 std::vector<std::string> CheckedNode::as_strings() const {

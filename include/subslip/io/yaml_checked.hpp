@@ -181,6 +181,9 @@ class CheckedNode {
   CheckedNode child(const YAML::Node& key, const YAML::Node& value) const;
   std::string child_path(std::string_view key) const;
   void expect_scalar(std::string_view expected) const;
+  // A sequence of `size` numbers (any count >= 1 when 0), each read by `read`.
+  template <typename Read>
+  std::vector<double> numbers(std::size_t size, Read read) const;
 
   YAML::Node node_;
   std::shared_ptr<const std::string> file_;
