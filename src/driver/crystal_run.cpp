@@ -104,11 +104,26 @@ double loading_time(const io::CrystalCase& c) {
 
 // Whether case `c` writes checkpoints: its policy says so and the sink can hold them (a store
 // too small for it comes from a run that had none for it).
-bool writes_checkpoints(const io::CrystalCase& c, const CrystalSink& sink,
-                        std::optional<long> command_line) {
+bool writes_checkpoints(const CheckpointPolicy& policy, const io::CrystalCase& c,
+                        const CrystalSink& sink) {
   const std::size_t capacity = sink.checkpoint_capacity();
-  return checkpoint_policy(c, command_line).enabled() && capacity > 0 &&
-         capacity >= checkpoint_values(c);
+  return policy.enabled() && capacity > 0 && capacity >= checkpoint_values(c);
+}
+
+// Ends the running case in the sink: completed, or failed for `failure` (the rows it reached
+// stay). The summary is of the last state written.
+CrystalCaseResult end_case(const io::CrystalCase& c, CrystalSink& sink,
+                           const crystal::MacroState& last_output,
+                           const crystal::AggregateStats& stats,
+                           const std::optional<std::string>& failure) {
+  CrystalCaseResult result{c.name, summarise(c, last_output, stats), {}};
+  if (!failure) {
+    sink.complete_case(result.summary);
+    return result;
+  }
+  result.failure = case_failure(c, *failure);
+  sink.fail_case(result.summary, *failure);
+  return result;
 }
 
 // Runs case `index` into the sink; `resuming`: an interrupted case, continued from the sink's
@@ -118,12 +133,13 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
   const io::CrystalCase& c = scene.cases[index];
   std::optional<ResumePoint> resume;
   if (resuming) resume = sink.latest_checkpoint(index);
-  const bool checkpoints = writes_checkpoints(c, sink, options.checkpoint_every);
+  const CheckpointPolicy policy = checkpoint_policy(c, options.checkpoint_every);
+  const bool checkpoints = writes_checkpoints(policy, c, sink);
   sink.begin_case(index, resume ? &*resume : nullptr);
   // The summary and the checkpoints name the last state written, which a resumed case has
   // from its checkpoint until it writes the next.
   crystal::MacroState last_output = resume ? resume->last_output : crystal::MacroState{};
-  CheckpointClock clock(checkpoint_policy(c, options.checkpoint_every));
+  CheckpointClock clock(policy);
   const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
   const GrainRange grains{0, c.orientations.size(), c.orientations.size()};
   const double duration = loading_time(c);
@@ -142,21 +158,14 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
     sink.write_state(m, GrainBlock{grains, g});
     if (options.on_state) options.on_state(index, m, g);
   };
-  crystal::AggregateStats stats;
+  crystal::AggregateStats stats;  // none when the case fails
   std::optional<std::string> failure;
   try {
     stats = aggregate->run(c.segments, c.options, observe, control);
   } catch (const crystal::CrystalStepFailure& e) {
-    failure = e.what();  // the rows reached stay; the case ends as failed
+    failure = e.what();
   }
-  CrystalCaseResult result{c.name, summarise(c, last_output, stats), {}};
-  if (!failure) {
-    sink.complete_case(result.summary);
-    return result;
-  }
-  result.failure = case_failure(c, *failure);
-  sink.fail_case(result.summary, *failure);
-  return result;
+  return end_case(c, sink, last_output, stats, failure);
 }
 
 bool ended(CaseStatus s) {
