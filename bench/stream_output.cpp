@@ -1,8 +1,8 @@
-// The cost of streaming results (docs/internals.md, "Streaming, kills and restarts"): CPU time of the main
-// job (inputs/default.yaml) and of one 2000-step contact case (inputs/contact_default.yaml)
-// without output, with every output step written, as run (WritePacer), and with rows written at
-// the end only. The variants are interleaved and the minimum over the repetitions is kept (the
-// machine may be shared); CPU time, not wall time.
+// The cost of streaming results (docs/internals.md, "Streaming, kills and restarts"): CPU time of
+// the main job (inputs/default.yaml) and of one 2000-step contact case
+// (inputs/contact_default.yaml) without output, with every output step written, as run
+// (WritePacer), and with rows written at the end only. The variants are interleaved and the minimum
+// over the repetitions is kept (the machine may be shared); CPU time, not wall time.
 //
 //   OMP_NUM_THREADS=1 build/bench/subslip_stream_bench [REPETITIONS] [crystal|contact|both]
 #include <sys/resource.h>
@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "subslip/driver/contact_run.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -58,10 +60,10 @@ void bench_crystal(int reps, const std::string& path) {
   auto written = [&](double ratio) {
     return [&, ratio] {
       io::h5::File f = io::h5::File::create(path, true);
-      io::CrystalRunOptions o;
+      io::CrystalSinkOptions o;  // no restart file: no checkpoints
       o.write_cost_ratio = ratio;
-      o.checkpoint_every = 0;
-      io::run_crystal_scene(scene, f, o);
+      io::CrystalResultSink sink(scene, f, o);
+      driver::run_crystal_scene(scene, sink);
     };
   };
   const auto t = interleaved(reps, {none, written(kEveryStep),
@@ -86,10 +88,12 @@ void bench_contact(int reps, const std::string& path) {
     return [&, ratio] {
       for (int i = 0; i < inner; ++i) {
         io::h5::File f = io::h5::File::create(path, true);
-        io::ContactRunOptions o;
-        o.threads = 1;
+        io::ContactSinkOptions o;
         o.write_cost_ratio = ratio;
-        io::run_contact_scene(scene, f, o);
+        io::ContactResultSink sink(scene, f, o);
+        driver::ContactRunOptions run;
+        run.threads = 1;
+        driver::run_contact_scene(scene, sink, run);
       }
     };
   };

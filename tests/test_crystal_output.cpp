@@ -17,6 +17,7 @@
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
@@ -91,11 +92,12 @@ std::vector<Reported> run_into(const std::string& text, const fs::path& out) {
   const CrystalScene scene = parse_crystal_scene(YamlDocument::from_string(text, "tiny.yaml"));
   h5::File file = h5::File::create(out, true);
   std::vector<Reported> seen;
-  CrystalRunOptions options;
+  driver::CrystalRunOptions options;
   options.on_state = [&](std::size_t, const crystal::MacroState& m, const crystal::GrainFields& g) {
     seen.push_back(copy_of(m, g));
   };
-  const auto results = run_crystal_scene(scene, file, options);
+  CrystalResultSink sink(scene, file, {});
+  const auto results = driver::run_crystal_scene(scene, sink, options);
   EXPECT_EQ(results.size(), 1u);
   EXPECT_TRUE(results[0].failure.empty()) << results[0].failure;
   close_and_finish(file);
@@ -254,7 +256,7 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
   EXPECT_EQ(c.attribute_doubles("final_stress"), row_major(seen.back().macro.stress));  // [3, 3]
   EXPECT_EQ(c.attribute_size("stiffness_mandel"), 36u);
   EXPECT_NEAR(c.attribute_double("final_von_mises_stress"),
-              von_mises_stress(seen.back().macro.stress), 1e-12);
+              driver::von_mises_stress(seen.back().macro.stress), 1e-12);
   EXPECT_EQ(c.attribute_doubles("tau0"), std::vector<double>(systems, 10.0));
   EXPECT_EQ(c.attribute_string("tau0.unit"), "MPa");
   EXPECT_EQ(c.attribute_string("eta_v.unit"), "s");
@@ -287,12 +289,12 @@ TEST(CrystalOutput, LoadingComponentAndVonMises) {
   s.velocity_gradient(0, 1) = 2.0;
   s.velocity_gradient(2, 2) = 1.0;
   s.free(2, 2) = true;  // a free component does not drive the case
-  EXPECT_EQ(loading_component({s}), (std::pair<int, int>{0, 1}));
+  EXPECT_EQ(driver::loading_component({s}), (std::pair<int, int>{0, 1}));
   Eigen::Matrix3d uniaxial = Eigen::Matrix3d::Zero();
   uniaxial(2, 2) = 100.0;
-  EXPECT_NEAR(von_mises_stress(uniaxial), 100.0, 1e-12);
+  EXPECT_NEAR(driver::von_mises_stress(uniaxial), 100.0, 1e-12);
   Eigen::Matrix3d strain = Eigen::Vector3d(-0.5, -0.5, 1.0).asDiagonal();
-  EXPECT_NEAR(von_mises_strain(strain * 0.01), 0.01, 1e-15);
+  EXPECT_NEAR(driver::von_mises_strain(strain * 0.01), 0.01, 1e-15);
 }
 
 // ---------------------------------------------------------------- the command line

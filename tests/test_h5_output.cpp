@@ -14,6 +14,9 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/driver/checkpoint_policy.hpp"
+#include "subslip/driver/contact_run.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
@@ -66,9 +69,10 @@ ContactScene scene_of(const std::string& text) {
 
 fs::path write_run(const ContactScene& scene, const fs::path& path, int threads) {
   h5::File file = h5::File::create(path, false);
-  ContactRunOptions options;
+  driver::ContactRunOptions options;
   options.threads = threads;
-  const auto results = run_contact_scene(scene, file, options);
+  ContactResultSink sink(scene, file, {});
+  const auto results = driver::run_contact_scene(scene, sink, options);
   for (const auto& r : results) EXPECT_TRUE(r.failure.empty()) << r.failure;
   close_and_finish(file);
   return path;
@@ -510,22 +514,17 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
   {
     const fs::path path = dir / "crystal.h5";
     h5::File file = h5::File::create(path, false);
-    CrystalRunOptions options;
-    options.on_header_written = [&] {
-      at_layout = fs::file_size(path);
-      orders = attribute_orders(file);
-    };
+    const CrystalScene scene =
+        parse_crystal_scene(YamlDocument::from_string(kCrystalKillScene, "kill.yaml"));
     // Checkpoints go to the restart file, which does not grow either.
+    CrystalSinkOptions options;
     options.restart_file = restart_file_for(path);
-    std::uintmax_t restart_at_layout = 0;
-    const auto on_layout = options.on_header_written;
-    options.on_header_written = [&] {
-      on_layout();
-      restart_at_layout = fs::file_size(options.restart_file);
-    };
-    const auto results = run_crystal_scene(
-        parse_crystal_scene(YamlDocument::from_string(kCrystalKillScene, "kill.yaml")), file,
-        options);
+    options.checkpoint_capacity = driver::checkpoint_capacity(scene, std::nullopt);
+    CrystalResultSink sink(scene, file, options);  // the layout
+    at_layout = fs::file_size(path);
+    orders = attribute_orders(file);
+    const std::uintmax_t restart_at_layout = fs::file_size(options.restart_file);
+    const auto results = driver::run_crystal_scene(scene, sink);
     ASSERT_EQ(results.size(), 2u);
     EXPECT_EQ(attribute_orders(file), orders);
     file.close();
@@ -552,13 +551,13 @@ TEST(H5Output, RunAllocatesNothingAfterItsLayout) {
         "integrator: {method: implicit, max_cutbacks: 0}\n"
         "sweep:\n  \"integrator.method\": [implicit, forward_euler]\n";
     h5::File file = h5::File::create(path, false);
-    ContactRunOptions options;
+    const ContactScene scene = scene_of(text);
+    ContactResultSink sink(scene, file, {});  // the layout
+    at_layout = fs::file_size(path);
+    orders = attribute_orders(file);
+    driver::ContactRunOptions options;
     options.threads = 1;
-    options.on_header_written = [&] {
-      at_layout = fs::file_size(path);
-      orders = attribute_orders(file);
-    };
-    const auto results = run_contact_scene(scene_of(text), file, options);
+    const auto results = driver::run_contact_scene(scene, sink, options);
     ASSERT_EQ(results.size(), 2u);
     EXPECT_TRUE(results[0].failure.empty()) << results[0].failure;
     EXPECT_FALSE(results[1].failure.empty());

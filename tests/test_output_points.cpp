@@ -16,6 +16,7 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/integrators/step_control.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
@@ -83,7 +84,8 @@ CrystalScene parsed(const std::string& text) {
 // Runs a crystal scene into a finished file.
 fs::path run_crystal(const CrystalScene& scene, const fs::path& path) {
   h5::File file = h5::File::create(path, true);
-  for (const auto& r : run_crystal_scene(scene, file, {}))
+  CrystalResultSink sink(scene, file, {});
+  for (const auto& r : driver::run_crystal_scene(scene, sink))
     EXPECT_TRUE(r.failure.empty()) << r.failure;
   close_and_finish(file);
   return path;

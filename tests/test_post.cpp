@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "shell_command.hpp"
+#include "subslip/driver/contact_run.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -51,7 +53,8 @@ const fs::path& contact_result() {
     const fs::path out = ScratchRoot::path() / "contact.h5";
     const auto scene = parse_contact_scene(YamlDocument::from_file(kData / "contact_small.yaml"));
     h5::File file = h5::File::create(out, true);
-    for (const auto& c : run_contact_scene(scene, file)) EXPECT_TRUE(c.failure.empty());
+    ContactResultSink sink(scene, file, {});
+    for (const auto& c : driver::run_contact_scene(scene, sink)) EXPECT_TRUE(c.failure.empty());
     close_and_finish(file);
     return out;
   }();
@@ -64,7 +67,8 @@ const fs::path& crystal_result() {
     const fs::path out = ScratchRoot::path() / "crystal.h5";
     const auto scene = parse_crystal_scene(YamlDocument::from_file(kData / "crystal_small.yaml"));
     h5::File file = h5::File::create(out, true);
-    for (const auto& c : run_crystal_scene(scene, file, {})) EXPECT_TRUE(c.failure.empty());
+    CrystalResultSink sink(scene, file, {});
+    for (const auto& c : driver::run_crystal_scene(scene, sink)) EXPECT_TRUE(c.failure.empty());
     close_and_finish(file);
     return out;
   }();
@@ -324,7 +328,8 @@ TEST(PostCsv, PerGrainRowsAtCoarserPointsCarryTheirOutputRowsAndTimes) {
     const auto scene =
         parse_crystal_scene(YamlDocument::from_file(kData / "crystal_grains_at.yaml"));
     h5::File f = h5::File::create(file, true);
-    for (const auto& c : run_crystal_scene(scene, f, {})) EXPECT_TRUE(c.failure.empty());
+    CrystalResultSink sink(scene, f, {});
+    for (const auto& c : driver::run_crystal_scene(scene, sink)) EXPECT_TRUE(c.failure.empty());
     close_and_finish(f);
   }
   const auto written = post::export_csv(file, csv_options(dir, "base", {"grains/slip"}));

@@ -14,6 +14,7 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/driver/contact_run.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
@@ -148,7 +149,8 @@ TEST(FinishedFile, FinishingDropsTheReservationAndKeepsTheRows) {
   const fs::path path = dir / "working.h5";
   {
     h5::File file = h5::File::create(path, false);
-    const auto results = run_contact_scene(scene, file);
+    ContactResultSink sink(scene, file, {});
+    const auto results = driver::run_contact_scene(scene, sink);
     ASSERT_TRUE(results.at(0).failure.empty());
     file.close();
   }

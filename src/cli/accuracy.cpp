@@ -11,9 +11,9 @@
 #include <filesystem>
 #include <memory>
 
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/accuracy_output.hpp"
 #include "subslip/io/contact_scene.hpp"
-#include "subslip/io/crystal_output.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/text_layout.hpp"
@@ -150,7 +150,7 @@ std::vector<StudyCase> crystal_cases(const AccuracyArgs& a, const io::YamlDocume
     out.push_back(
         {c.name, scene.units.stress,
          std::make_unique<study::CrystalProblem>(c.phase, c.orientations, c.segments, c.options,
-                                                 io::loading_component(c.segments))});
+                                                 driver::loading_component(c.segments))});
   }
   return out;
 }

@@ -31,6 +31,9 @@
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/driver/checkpoint_policy.hpp"
+#include "subslip/driver/contact_run.hpp"
+#include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -311,7 +314,7 @@ constexpr const char* kContactLegend =
     "increments; newton: iterations per increment; cuts: cutbacks)";
 
 void print_contact_table(const io::ContactScene& scene,
-                         const std::vector<io::ContactCaseResult>& results) {
+                         const std::vector<driver::ContactCaseResult>& results) {
   const text::Table t = contact_table(scene);
   std::printf("%s\n", t.header().c_str());
   for (const auto& r : results) {
@@ -342,7 +345,7 @@ void add_case_counters(cli::RunTotals& t, const CaseResult& r) {
   t.compute_seconds += st.wall_seconds;
 }
 
-cli::RunTotals contact_totals(const std::vector<io::ContactCaseResult>& results) {
+cli::RunTotals contact_totals(const std::vector<driver::ContactCaseResult>& results) {
   cli::RunTotals t;
   for (const auto& r : results) {
     add_case_counters(t, r);
@@ -368,15 +371,18 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document,
   for (const auto& c : scene.cases)
     work.push_back(static_cast<double>(io::output_count(c.segments)));
   cli::ProgressReporter progress(progress_mode(a), stderr, work);
-  io::ContactRunOptions options;
+  io::ContactSinkOptions to_file;
+  to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
+  to_file.restart = output.restart();
+  driver::ContactRunOptions options;
   options.threads = a.threads;
-  options.flush_interval = std::chrono::duration<double>(a.flush_interval);
-  options.restart = output.restart();
-  options.on_header_written = [&] { output.header_written(); };
   options.on_case_done = [&](std::size_t k, const io::ContactCase& c,
-                             const io::ContactCaseResult&) { progress.update(k, c.name, 1.0); };
-  const auto results =
-      output.write([&] { return io::run_contact_scene(scene, output.file, options); });
+                             const driver::ContactCaseResult&) { progress.update(k, c.name, 1.0); };
+  const auto results = output.write([&] {
+    io::ContactResultSink sink(scene, output.file, to_file);
+    if (!output.restart()) output.header_written();
+    return driver::run_contact_scene(scene, sink, options);
+  });
   progress.clear();
   if (!a.quiet) {
     print_contact_table(scene, results);
@@ -399,7 +405,7 @@ std::string component_label(std::pair<int, int> ij) {
 // Compact headers (explained by crystal_legend) so that the table fits 80 columns; strain and
 // stress along the loading component.
 text::Table crystal_table(const io::CrystalScene& scene) {
-  const std::string ij = component_label(io::loading_component(scene.cases.front().segments));
+  const std::string ij = component_label(driver::loading_component(scene.cases.front().segments));
   const std::string stress_unit = "[" + scene.units.stress + "]";
   text::Table t({{"case", 0, true},
                  {"strain_" + ij, 9},
@@ -414,13 +420,13 @@ text::Table crystal_table(const io::CrystalScene& scene) {
 }
 
 std::string crystal_legend(const io::CrystalScene& scene) {
-  const std::string ij = component_label(io::loading_component(scene.cases.front().segments));
+  const std::string ij = component_label(driver::loading_component(scene.cases.front().segments));
   return "(final values, strain and stress along " + ij +
          "; mises: von Mises; gsteps/s: grain-steps per second; newton: iterations per grain "
          "solve; cuts: cutbacks)";
 }
 
-void print_crystal_row(const text::Table& t, const io::CrystalCaseResult& r) {
+void print_crystal_row(const text::Table& t, const driver::CrystalCaseResult& r) {
   const auto& s = r.summary;
   const auto [i, j] = s.axis;
   std::printf(
@@ -445,7 +451,7 @@ void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
   std::fflush(stdout);
 }
 
-cli::RunTotals crystal_totals(const std::vector<io::CrystalCaseResult>& results) {
+cli::RunTotals crystal_totals(const std::vector<driver::CrystalCaseResult>& results) {
   cli::RunTotals t;
   for (const auto& r : results) {
     add_case_counters(t, r);
@@ -484,7 +490,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
       a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
   bool checkpoints = true, any_checkpoints = false;
   for (const auto& c : scene.cases) {
-    const bool on = io::checkpoint_policy(c, checkpoint_every).enabled();
+    const bool on = driver::checkpoint_policy(c, checkpoint_every).enabled();
     checkpoints = checkpoints && on;
     any_checkpoints = any_checkpoints || on;
   }
@@ -500,13 +506,15 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
     std::printf("%s\n", table.header().c_str());
   }
   cli::ProgressReporter progress(progress_mode(a), stderr, crystal_work(scene));
-  io::CrystalRunOptions options;
-  options.flush_interval = std::chrono::duration<double>(a.flush_interval);
-  options.restart = output.restart();
+  io::CrystalSinkOptions to_file;
+  to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
+  to_file.restart = output.restart();
+  to_file.restart_file = output.restart_file();
+  to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+  driver::CrystalRunOptions options;
   options.checkpoint_every = checkpoint_every;
-  options.restart_file = output.restart_file();
-  options.on_header_written = [&] { output.header_written(); };
-  options.on_case_done = [&](std::size_t, const io::CrystalCase&, const io::CrystalCaseResult& r) {
+  options.on_case_done = [&](std::size_t, const io::CrystalCase&,
+                             const driver::CrystalCaseResult& r) {
     progress.clear();
     if (!a.quiet) print_crystal_row(table, r);
   };
@@ -514,8 +522,11 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
     if (resumed) progress.set_done_before(k, fraction);
     progress.update(k, scene.cases[k].name, fraction);
   };
-  const auto results =
-      output.write([&] { return io::run_crystal_scene(scene, output.file, options); });
+  const auto results = output.write([&] {
+    io::CrystalResultSink sink(scene, output.file, to_file);
+    if (!output.restart()) output.header_written();
+    return driver::run_crystal_scene(scene, sink, options);
+  });
   progress.clear();
   if (!a.quiet) {
     print_wrapped(crystal_legend(scene), " ");

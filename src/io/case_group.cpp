@@ -103,4 +103,18 @@ h5::Group create_case_group(const h5::Group& cases, const std::string& name, int
   return group;
 }
 
+driver::CaseStatus case_status(h5::CaseState s) {
+  switch (s) {
+    case h5::CaseState::running:
+      return driver::CaseStatus::interrupted;
+    case h5::CaseState::completed:
+      return driver::CaseStatus::completed;
+    case h5::CaseState::failed:
+      return driver::CaseStatus::failed;
+    case h5::CaseState::not_started:
+      break;
+  }
+  return driver::CaseStatus::pending;
+}
+
 }  // namespace subslip::io

@@ -1,15 +1,14 @@
 #include "subslip/io/contact_output.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
-#include <exception>
 #include <utility>
 
 #include "subslip/io/case_group.hpp"
 
 namespace subslip::io {
+
+using driver::ContactSummary;
 
 namespace {
 
@@ -88,199 +87,7 @@ void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) 
   g.set_attribute("max_cutbacks", c.integrator.max_cutbacks);
 }
 
-// ---- the two ways of running cases
-
-struct Recording {
-  struct Row {
-    contact::ContactState state;
-    int segment;
-  };
-  std::vector<Row> rows;
-  contact::RunStats stats;
-  std::string failure;       // a numerical failure: recorded, the case is written as failed
-  std::exception_ptr error;  // anything else: rethrown when the case is written
-};
-
-std::string case_failure(const ContactCase& c, const contact::StepFailure& e) {
-  return "case '" + c.name + "': " + e.what();
-}
-
-// What every way of running a case shares: the scene, the open file and its /progress.
-struct RunContext {
-  const ContactScene& scene;
-  h5::File& file;
-  h5::Group cases;
-  h5::CaseProgress progress;
-  const ContactRunOptions& options;
-};
-
-// Writes the outcome of a case that ran to its end (or failed) and marks it in /progress.
-ContactCaseResult close_case(RunContext& run, std::size_t index, ContactCaseWriter& writer,
-                             const contact::RunStats& stats, const std::string& failure) {
-  const ContactCase& c = run.scene.cases[index];
-  ContactCaseResult result{c.name, writer.tracker().result(c, stats), failure};
-  if (failure.empty()) {
-    writer.finish(result.summary);
-  } else {
-    writer.mark_failed(result.summary, failure);
-  }
-  run.file.flush();  // the summary attributes first: the state says they are complete
-  run.progress.set_state(index, failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
-  return result;
-}
-
-// Streams one case: every output step goes to the file as it is computed (see WritePacer).
-ContactCaseResult stream_case(RunContext& run, std::size_t index) {
-  const ContactCase& c = run.scene.cases[index];
-  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress);
-  run.progress.set_state(index, h5::CaseState::running);
-  h5::WritePacer pacer(run.options.flush_interval, run.options.write_cost_ratio);
-  contact::RunStats stats;
-  std::string failure;
-  try {
-    stats = contact::run_history(c.model, c.segments, c.integrator,
-                                 [&](const contact::ContactState& s, int segment) {
-                                   writer.append(s, segment);
-                                   if (pacer.due()) pacer.commit([&] { writer.commit(); });
-                                 });
-  } catch (const contact::StepFailure& e) {
-    failure = case_failure(c, e);
-    stats = {};
-  }
-  return close_case(run, index, writer, stats, failure);
-}
-
-Recording record_case(const ContactCase& c) {
-  Recording rec;
-  rec.rows.reserve(output_count(c.segments));
-  try {
-    rec.stats = contact::run_history(c.model, c.segments, c.integrator,
-                                     [&](const contact::ContactState& s, int segment) {
-                                       rec.rows.push_back({s, segment});
-                                     });
-  } catch (const contact::StepFailure& e) {
-    rec.failure = case_failure(c, e);
-  } catch (...) {
-    // Exceptions must not leave an OpenMP region; the writer rethrows it in case order.
-    rec.error = std::current_exception();
-  }
-  return rec;
-}
-
-ContactCaseResult write_recorded(RunContext& run, std::size_t index, const Recording& rec) {
-  if (rec.error) std::rethrow_exception(rec.error);
-  const ContactCase& c = run.scene.cases[index];
-  ContactCaseWriter writer(run.cases, c, static_cast<int>(index), run.scene.units, run.progress);
-  run.progress.set_state(index, h5::CaseState::running);
-  for (const auto& row : rec.rows) writer.append(row.state, row.segment);
-  return close_case(run, index, writer, rec.stats, rec.failure);
-}
-
-void report_done(const RunContext& run, std::size_t index, const ContactCaseResult& result) {
-  if (run.options.on_case_done) run.options.on_case_done(index, run.scene.cases[index], result);
-}
-
-void run_serial(RunContext& run, const std::vector<std::size_t>& todo,
-                std::vector<ContactCaseResult>& results) {
-  for (std::size_t k : todo) {
-    results[k] = stream_case(run, k);
-    report_done(run, k, results[k]);
-  }
-}
-
-// Cases are computed in parallel and written by whichever thread completes the next case in
-// order, so the file is laid out exactly as in a serial run. HDF5 calls never overlap: they
-// all happen inside the one critical section.
-void run_parallel(RunContext& run, const std::vector<std::size_t>& todo,
-                  std::vector<ContactCaseResult>& results, int threads) {
-  const std::size_t n = todo.size();
-  std::vector<std::optional<Recording>> pending(n);
-  std::exception_ptr write_error;
-  std::size_t next = 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (std::size_t k = 0; k < n; ++k) {
-    Recording rec = record_case(run.scene.cases[todo[k]]);
-#pragma omp critical(subslip_h5_output)
-    {
-      pending[k] = std::move(rec);
-      try {
-        while (!write_error && next < n && pending[next]) {
-          const std::size_t index = todo[next];
-          results[index] = write_recorded(run, index, *pending[next]);
-          report_done(run, index, results[index]);
-          pending[next].reset();
-          ++next;
-        }
-      } catch (...) {
-        write_error = std::current_exception();
-      }
-    }
-  }
-  if (write_error) std::rethrow_exception(write_error);
-}
-
-// The summary of a case an earlier run finished, read back from its attributes.
-ContactCaseResult stored_result(const h5::Group& cases, const ContactCase& c) {
-  const h5::Group g = cases.open_group(c.name);
-  ContactCaseResult r{c.name, {}, {}};
-  auto number = [&](const char* name) {
-    return g.has_attribute(name) ? g.attribute_double(name) : ContactSummary::kNone;
-  };
-  auto count = [&](const char* name) {
-    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
-  };
-  r.summary.peak_ratio = number("peak_ratio");
-  r.summary.slip_at_peak = number("slip_at_peak");
-  r.summary.bottom_ratio = number("bottom_ratio");
-  r.summary.final_ratio = number("final_ratio");
-  r.summary.steady_ratio_analytical = number("steady_ratio_analytical");
-  r.summary.steady_speed = number("steady_speed");
-  r.summary.stats.increments = count("increments");
-  r.summary.stats.substeps = count("substeps");
-  r.summary.stats.iterations = count("newton_iterations");
-  r.summary.stats.cutbacks = count("cutbacks");
-  r.summary.stats.rejected = count("rejected_steps");
-  r.summary.stats.wall_seconds = number("wall_seconds");
-  const std::string why = h5::failure_message(g);
-  if (!why.empty()) r.failure = "case '" + c.name + "': " + why;
-  return r;
-}
-
 }  // namespace
-
-// ---------------------------------------------------------------- summary
-
-void SummaryTracker::add(const contact::ContactState& s) {
-  const double ratio = s.traction_ratio();
-  if (ratio > peak_) {
-    peak_ = ratio;
-    slip_at_peak_ = s.slip_path;
-    bottom_ = ContactSummary::kNone;  // the bottom is looked for after the peak only
-  } else if (!(ratio >= bottom_)) {   // also true while bottom_ is NaN
-    bottom_ = ratio;
-  }
-  final_ = ratio;
-}
-
-ContactSummary SummaryTracker::result(const ContactCase& c, const contact::RunStats& stats) const {
-  ContactSummary out;
-  if (peak_ >= 0.0) {
-    out.peak_ratio = peak_;
-    out.slip_at_peak = slip_at_peak_;
-  }
-  out.bottom_ratio = bottom_;
-  out.final_ratio = final_;
-  out.steady_speed = last_sliding_speed(c.segments);
-  out.steady_ratio_analytical = steady_ratio_analytical(c);
-  out.stats = stats;
-  return out;
-}
-
-double steady_ratio_analytical(const ContactCase& c) {
-  const double v = last_sliding_speed(c.segments);
-  if (!(v > 0.0)) return ContactSummary::kNone;
-  return law::SubloadingFrictionLaw(c.model.law).steady_state(v).ratio;
-}
 
 // ---------------------------------------------------------------- ContactCaseWriter
 
@@ -356,7 +163,6 @@ ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& 
 }
 
 void ContactCaseWriter::append(const contact::ContactState& s, int segment) {
-  tracker_.add(s);
   for (std::size_t k = 0; k < series_.size(); ++k) {
     if (!series_[k]) continue;
     h5::Series& out = *series_[k];
@@ -429,7 +235,106 @@ void ContactCaseWriter::mark_failed(const ContactSummary& summary, const std::st
   group_.write_reserved_string("failed", why);
 }
 
-// ---------------------------------------------------------------- the run
+// ---------------------------------------------------------------- the sink
+
+namespace {
+
+// The whole layout before any computation (h5_writer.hpp, crash safety).
+ContactRunFiles lay_out(const ContactScene& scene, h5::File& file) {
+  const h5::Group root = file.root();
+  h5::write_result_header(file,
+                          {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
+  h5::Group cases = root.create_group("cases");
+  std::vector<std::string> names;
+  for (const auto& c : scene.cases) names.push_back(c.name);
+  cases.set_attribute("names", names);
+  for (std::size_t k = 0; k < scene.cases.size(); ++k)
+    ContactCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
+  h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
+  h5::mark_layout_complete(file);
+  return {std::move(cases), std::move(progress)};
+}
+
+ContactRunFiles reopen(h5::File& file) {
+  h5::mark_running(file);
+  const h5::Group root = file.root();
+  return {root.open_group("cases"), h5::CaseProgress::open(root)};
+}
+
+}  // namespace
+
+ContactResultSink::ContactResultSink(const ContactScene& scene, h5::File& file,
+                                     const ContactSinkOptions& options)
+    : scene_(scene),
+      file_(file),
+      options_(options),
+      run_(options.restart ? reopen(file) : lay_out(scene, file)) {}
+
+driver::CaseStatus ContactResultSink::status(std::size_t index) const {
+  return case_status(run_.progress.state(index));
+}
+
+// Read back from the case's summary attributes.
+driver::StoredContactCase ContactResultSink::stored_case(std::size_t index) const {
+  const h5::Group g = run_.cases.open_group(scene_.cases[index].name);
+  auto number = [&](const char* name) {
+    return g.has_attribute(name) ? g.attribute_double(name) : ContactSummary::kNone;
+  };
+  auto count = [&](const char* name) {
+    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
+  };
+  driver::StoredContactCase r;
+  r.summary.peak_ratio = number("peak_ratio");
+  r.summary.slip_at_peak = number("slip_at_peak");
+  r.summary.bottom_ratio = number("bottom_ratio");
+  r.summary.final_ratio = number("final_ratio");
+  r.summary.steady_ratio_analytical = number("steady_ratio_analytical");
+  r.summary.steady_speed = number("steady_speed");
+  r.summary.stats.increments = count("increments");
+  r.summary.stats.substeps = count("substeps");
+  r.summary.stats.iterations = count("newton_iterations");
+  r.summary.stats.cutbacks = count("cutbacks");
+  r.summary.stats.rejected = count("rejected_steps");
+  r.summary.stats.wall_seconds = number("wall_seconds");
+  r.failure = h5::failure_message(g);
+  return r;
+}
+
+void ContactResultSink::begin_case(std::size_t index) {
+  index_ = index;
+  writer_.emplace(run_.cases, scene_.cases[index], static_cast<int>(index), scene_.units,
+                  run_.progress);
+  run_.progress.set_state(index, h5::CaseState::running);
+  pacer_.emplace(options_.flush_interval, options_.write_cost_ratio);
+}
+
+void ContactResultSink::write_state(const contact::ContactState& state, int segment) {
+  writer_->append(state, segment);
+  if (pacer_->due()) pacer_->commit([&] { writer_->commit(); });
+}
+
+void ContactResultSink::write_states(std::span<const driver::ContactRow> rows) {
+  for (const auto& row : rows) writer_->append(row.state, row.segment);
+}
+
+void ContactResultSink::complete_case(const driver::ContactSummary& summary) {
+  writer_->finish(summary);
+  end_case(h5::CaseState::completed);
+}
+
+void ContactResultSink::fail_case(const driver::ContactSummary& summary, const std::string& why) {
+  writer_->mark_failed(summary, why);
+  end_case(h5::CaseState::failed);
+}
+
+void ContactResultSink::end_case(h5::CaseState state) {
+  file_.flush();  // the summary attributes first: the state says they are complete
+  run_.progress.set_state(index_, state);
+  writer_.reset();
+  pacer_.reset();
+}
+
+// ---------------------------------------------------------------- the run size
 
 RunSize estimate_contact_run(const ContactScene& scene) {
   constexpr double kCaseOverheadBytes = 32e3;  // attributes, headers, B-trees of a case group
@@ -458,50 +363,6 @@ RunSize estimate_contact_run(const ContactScene& scene) {
     }
   }
   return size;
-}
-
-std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
-                                                 const ContactRunOptions& options) {
-  const h5::Group root = file.root();
-  std::optional<RunContext> run;
-  std::vector<ContactCaseResult> results(scene.cases.size());
-  std::vector<std::size_t> todo;
-  if (options.restart) {
-    h5::mark_running(file);
-    run.emplace(
-        RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
-    for (std::size_t k = 0; k < scene.cases.size(); ++k) {
-      const h5::CaseState state = run->progress.state(k);
-      if (state == h5::CaseState::completed || state == h5::CaseState::failed) {
-        results[k] = stored_result(run->cases, scene.cases[k]);
-        report_done(*run, k, results[k]);
-      } else {
-        todo.push_back(k);
-      }
-    }
-  } else {
-    // The whole layout before any computation (h5_writer.hpp, crash safety).
-    h5::write_result_header(
-        file, {"contact", scene.file, scene.text, scene.title, scene.units.entries()});
-    h5::Group cases = root.create_group("cases");
-    std::vector<std::string> names;
-    for (const auto& c : scene.cases) names.push_back(c.name);
-    cases.set_attribute("names", names);
-    for (std::size_t k = 0; k < scene.cases.size(); ++k)
-      ContactCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
-    h5::CaseProgress progress = h5::CaseProgress::create(root, names.size());
-    h5::mark_layout_complete(file);
-    run.emplace(RunContext{scene, file, std::move(cases), std::move(progress), options});
-    if (options.on_header_written) options.on_header_written();
-    for (std::size_t k = 0; k < scene.cases.size(); ++k) todo.push_back(k);
-  }
-  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
-  if (threads > 1 && todo.size() > 1) {
-    run_parallel(*run, todo, results, threads);
-  } else {
-    run_serial(*run, todo, results);
-  }
-  return results;
 }
 
 }  // namespace subslip::io

@@ -7,13 +7,18 @@
 #include <cstring>
 #include <optional>
 #include <span>
+#include <stdexcept>
+#include <utility>
 
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/input_error.hpp"
 
 namespace subslip::io {
+
+using driver::CrystalSummary;
 
 namespace {
 
@@ -341,37 +346,6 @@ void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matr
 
 }  // namespace
 
-// ---------------------------------------------------------------- summary helpers
-
-std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& segments) {
-  std::pair<int, int> best{2, 2};
-  double largest = 0.0;
-  for (const auto& s : segments) {
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) {
-        const double v = s.free(i, j) ? 0.0 : std::abs(s.velocity_gradient(i, j));
-        if (v > largest) {
-          largest = v;
-          best = {i, j};
-        }
-      }
-    }
-  }
-  return best;
-}
-
-double von_mises_stress(const Eigen::Matrix3d& stress) {
-  const Mat3 sym = 0.5 * (stress + stress.transpose());
-  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
-  return std::sqrt(1.5 * dev.squaredNorm());
-}
-
-double von_mises_strain(const Eigen::Matrix3d& strain) {
-  const Mat3 sym = 0.5 * (strain + strain.transpose());
-  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
-  return std::sqrt(2.0 / 3.0 * dev.squaredNorm());
-}
-
 // ---------------------------------------------------------------- CrystalCaseWriter
 
 namespace {
@@ -533,7 +507,6 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
 }
 
 void CrystalCaseWriter::append(const crystal::MacroState& m, const crystal::GrainFields& grains) {
-  last_ = m;
   const std::size_t row = rows();  // the output row this state is
   for (std::size_t k = 0; k < macro_.size(); ++k) {
     if (!macro_[k]) continue;
@@ -613,26 +586,9 @@ void CrystalCaseWriter::mark_failed(const CrystalSummary& summary, const std::st
   group_.write_reserved_string("failed", why);
 }
 
-// ---------------------------------------------------------------- the run
+// ---------------------------------------------------------------- the sink
 
 namespace {
-
-CrystalSummary summarise(const CrystalCase& c, const crystal::MacroState& last,
-                         const crystal::AggregateStats& stats) {
-  CrystalSummary s;
-  s.final_state = last;
-  s.axis = loading_component(c.segments);
-  s.final_von_mises_stress = von_mises_stress(last.stress);
-  s.final_von_mises_strain = von_mises_strain(last.strain);
-  s.stats = stats;
-  if (stats.wall_seconds > 0.0)
-    s.grain_steps_per_second = static_cast<double>(stats.grain_steps) / stats.wall_seconds;
-  if (stats.grain_solves > 0) {
-    s.newton_per_grain_solve =
-        static_cast<double>(stats.newton_iterations) / static_cast<double>(stats.grain_solves);
-  }
-  return s;
-}
 
 Mat3 matrix_attribute(const h5::Group& g, const char* name) {
   const auto v = g.attribute_doubles(name);
@@ -642,151 +598,10 @@ Mat3 matrix_attribute(const h5::Group& g, const char* name) {
   return m;
 }
 
-// The result of a case an earlier run finished, read back from its attributes.
-CrystalCaseResult stored_result(const h5::Group& cases, const CrystalCase& c) {
-  const h5::Group g = cases.open_group(c.name);
-  CrystalCaseResult r{c.name, {}, {}};
-  auto count = [&](const char* name) {
-    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
-  };
-  crystal::AggregateStats st;
-  st.increments = count("increments");
-  st.substeps = count("substeps");
-  st.grain_steps = count("grain_steps");
-  st.grain_solves = count("grain_solves");
-  st.newton_iterations = count("newton_iterations");
-  st.cutbacks = count("cutbacks");
-  st.rejected = count("rejected_steps");
-  st.mixed_iterations = count("mixed_iterations");
-  st.wall_seconds = g.has_attribute("wall_seconds") ? g.attribute_double("wall_seconds") : 0.0;
-  crystal::MacroState last;
-  if (g.has_attribute("final_time")) {
-    last.time = g.attribute_double("final_time");
-    last.stress = matrix_attribute(g, "final_stress");
-    last.strain = matrix_attribute(g, "final_strain");
-  }
-  r.summary = summarise(c, last, st);
-  const std::string why = h5::failure_message(g);
-  if (!why.empty()) r.failure = "case '" + c.name + "': " + why;
-  return r;
-}
-
-struct RunContext {
-  const CrystalScene& scene;
-  h5::File& file;
-  h5::Group cases;
-  h5::CaseProgress progress;
-  const CrystalRunOptions& options;
-  std::optional<h5::File> restart_file = {};  // the checkpoint store's file, when there is one
-};
-
-// The writer of case `index`, continued after `resume_rows` valid rows (0: from the start).
-CrystalCaseWriter open_writer(RunContext& run, std::size_t index, std::size_t resume_rows) {
-  CrystalCaseWriter writer(run.cases, run.scene.cases[index], static_cast<int>(index),
-                           run.scene.units, run.progress, resume_rows);
-  run.progress.set_state(index, h5::CaseState::running);
-  return writer;
-}
-
-// Decides after each increment whether a checkpoint is due.
-class CheckpointClock {
- public:
-  explicit CheckpointClock(const CheckpointPolicy& p) : policy_(p) {}
-  bool due() {
-    ++increments_;
-    const auto now = std::chrono::steady_clock::now();
-    const bool by_count = policy_.every_increments > 0 && increments_ >= policy_.every_increments;
-    const bool by_time =
-        policy_.every_seconds > 0.0 &&
-        std::chrono::duration<double>(now - last_).count() >= policy_.every_seconds;
-    if (!by_count && !by_time) return false;
-    increments_ = 0;
-    last_ = now;
-    return true;
-  }
-
- private:
-  CheckpointPolicy policy_;
-  long increments_ = 0;
-  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
-};
-
-double loading_time(const CrystalCase& c) {
-  double t = 0.0;
-  for (const auto& s : c.segments) t += s.duration;
-  return t;
-}
-
-// Runs case `index` into its group; `resuming`: the group of an interrupted run, continued
-// from its latest checkpoint (or from the start when it has none).
-CrystalCaseResult run_case(RunContext& run, std::size_t index, bool resuming) {
-  const CrystalCase& c = run.scene.cases[index];
-  const CheckpointPolicy policy = checkpoint_policy(c, run.options.checkpoint_every);
-  std::optional<CheckpointStore> checkpoints;
-  if (run.restart_file) checkpoints.emplace(run.restart_file->root());
-  std::optional<StoredCheckpoint> resume;
-  if (resuming && checkpoints) resume = checkpoints->latest(index);
-  // (A store too small for this case, from a run that had none for it: no new checkpoints.)
-  const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
-  const std::size_t values =
-      c.orientations.size() *
-      static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
-  if (checkpoints && (!policy.enabled() || checkpoints->capacity() < values)) checkpoints.reset();
-  CrystalCaseWriter writer = open_writer(run, index, resume ? resume->rows : 0);
-  if (resume) writer.set_last_state(resume->last_output);
-  CheckpointClock clock(policy);
-  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
-  const double duration = loading_time(c);
-  const auto& on_progress = run.options.on_progress;
-  if (on_progress && resume) on_progress(index, resume->state.macro.time / duration, true);
-  CrystalCaseResult result{c.name, {}, {}};
-  h5::WritePacer pacer(run.options.flush_interval, run.options.write_cost_ratio);
-  crystal::RunControl control;
-  if (resume) control.resume = &resume->state;
-  control.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState& m) {
-    if (on_progress) on_progress(index, m.time / duration, false);
-    if (!checkpoints || !clock.due()) return;
-    pacer.commit([&] { writer.commit(); });  // the rows a checkpoint counts come first
-    checkpoints->write(index, aggregate->checkpoint(), writer.rows(), writer.last_state());
-  };
-  try {
-    const auto stats = aggregate->run(
-        c.segments, c.options,
-        [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
-          writer.append(m, g);
-          if (run.options.on_state) run.options.on_state(index, m, g);
-          if (pacer.due()) pacer.commit([&] { writer.commit(); });
-        },
-        control);
-    result.summary = summarise(c, writer.last_state(), stats);
-    writer.finish(result.summary);
-  } catch (const crystal::CrystalStepFailure& e) {
-    result.failure = "case '" + c.name + "': " + e.what();
-    result.summary = summarise(c, writer.last_state(), {});
-    writer.mark_failed(result.summary, e.what());
-  }
-  run.file.flush();  // the summary attributes first: the state says they are complete
-  run.progress.set_state(index,
-                         result.failure.empty() ? h5::CaseState::completed : h5::CaseState::failed);
-  return result;
-}
-
-// The largest checkpoint of the scene's cases that write checkpoints (grain values); 0: none.
-std::size_t checkpoint_capacity(const CrystalScene& scene, std::optional<long> command_line) {
-  std::size_t most = 0;
-  for (const auto& c : scene.cases) {
-    if (!checkpoint_policy(c, command_line).enabled()) continue;
-    const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
-    most = std::max(most,
-                    c.orientations.size() *
-                        static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count)));
-  }
-  return most;
-}
-
 // Everything the run will write into, before it computes anything (h5_writer.hpp, crash
 // safety): the header, every case group, /progress and the checkpoint store.
-RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOptions& options) {
+CrystalRunFiles lay_out(const CrystalScene& scene, h5::File& file,
+                        const CrystalSinkOptions& options) {
   const h5::Group root = file.root();
   h5::write_result_header(
       file, {"crystal", scene.file, scene.text, scene.title, crystal_units(scene.units)});
@@ -797,12 +612,11 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
   h5::CaseProgress progress = h5::CaseProgress::create(root, names.size(), true);
-  RunContext run{scene, file, std::move(cases), std::move(progress), options};
+  CrystalRunFiles run{std::move(cases), std::move(progress)};
   // The restart file is complete before the result says its layout is.
-  const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
-  if (capacity > 0 && !options.restart_file.empty()) {
-    run.restart_file.emplace(
-        create_restart_file(options.restart_file, root.attribute_string("run_id"), capacity));
+  if (options.checkpoint_capacity > 0 && !options.restart_file.empty()) {
+    run.restart_file.emplace(create_restart_file(
+        options.restart_file, root.attribute_string("run_id"), options.checkpoint_capacity));
   }
   h5::mark_layout_complete(file);
   return run;
@@ -810,17 +624,120 @@ RunContext lay_out(const CrystalScene& scene, h5::File& file, const CrystalRunOp
 
 // A restart: the run's restart file, or a new one when it has none (deleted, or checkpoints
 // were off) and a case now writes checkpoints.
-std::optional<h5::File> reopen_restart_file(const CrystalScene& scene, const h5::File& file,
-                                            const CrystalRunOptions& options) {
+std::optional<h5::File> reopen_restart_file(const h5::File& file,
+                                            const CrystalSinkOptions& options) {
   if (options.restart_file.empty()) return std::nullopt;
   const std::string run_id = file.root().attribute_string("run_id");
   if (auto existing = open_restart_file(options.restart_file, run_id)) return existing;
-  const std::size_t capacity = checkpoint_capacity(scene, options.checkpoint_every);
-  if (capacity == 0) return std::nullopt;
-  return create_restart_file(options.restart_file, run_id, capacity);
+  if (options.checkpoint_capacity == 0) return std::nullopt;
+  return create_restart_file(options.restart_file, run_id, options.checkpoint_capacity);
+}
+
+CrystalRunFiles reopen(h5::File& file, const CrystalSinkOptions& options) {
+  h5::mark_running(file);
+  const h5::Group root = file.root();
+  return {root.open_group("cases"), h5::CaseProgress::open(root),
+          reopen_restart_file(file, options)};
 }
 
 }  // namespace
+
+CrystalResultSink::CrystalResultSink(const CrystalScene& scene, h5::File& file,
+                                     const CrystalSinkOptions& options)
+    : scene_(scene),
+      file_(file),
+      options_(options),
+      run_(options.restart ? reopen(file, options) : lay_out(scene, file, options)) {}
+
+driver::CaseStatus CrystalResultSink::status(std::size_t index) const {
+  return case_status(run_.progress.state(index));
+}
+
+// Read back from the case's summary attributes.
+driver::StoredCrystalCase CrystalResultSink::stored_case(std::size_t index) const {
+  const h5::Group g = run_.cases.open_group(scene_.cases[index].name);
+  auto count = [&](const char* name) {
+    return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
+  };
+  driver::StoredCrystalCase stored;
+  crystal::AggregateStats& st = stored.stats;
+  st.increments = count("increments");
+  st.substeps = count("substeps");
+  st.grain_steps = count("grain_steps");
+  st.grain_solves = count("grain_solves");
+  st.newton_iterations = count("newton_iterations");
+  st.cutbacks = count("cutbacks");
+  st.rejected = count("rejected_steps");
+  st.mixed_iterations = count("mixed_iterations");
+  st.wall_seconds = g.has_attribute("wall_seconds") ? g.attribute_double("wall_seconds") : 0.0;
+  if (g.has_attribute("final_time")) {
+    stored.final_state.time = g.attribute_double("final_time");
+    stored.final_state.stress = matrix_attribute(g, "final_stress");
+    stored.final_state.strain = matrix_attribute(g, "final_strain");
+  }
+  stored.failure = h5::failure_message(g);
+  return stored;
+}
+
+std::optional<driver::ResumePoint> CrystalResultSink::latest_checkpoint(std::size_t index) const {
+  if (!run_.restart_file) return std::nullopt;
+  auto latest = CheckpointStore(run_.restart_file->root()).latest(index);
+  if (!latest) return std::nullopt;
+  return driver::ResumePoint{std::move(latest->state), latest->rows, latest->last_output};
+}
+
+std::size_t CrystalResultSink::checkpoint_capacity() const {
+  return run_.restart_file ? CheckpointStore(run_.restart_file->root()).capacity() : 0;
+}
+
+void CrystalResultSink::begin_case(std::size_t index, const driver::ResumePoint* resume) {
+  index_ = index;
+  checkpoints_.reset();
+  if (run_.restart_file) checkpoints_.emplace(run_.restart_file->root());
+  writer_.emplace(run_.cases, scene_.cases[index], static_cast<int>(index), scene_.units,
+                  run_.progress, resume ? resume->rows : 0);
+  run_.progress.set_state(index, h5::CaseState::running);
+  pacer_.emplace(options_.flush_interval, options_.write_cost_ratio);
+}
+
+void CrystalResultSink::write_state(const crystal::MacroState& state,
+                                    const driver::GrainBlock& grains) {
+  // One process, one block: the blocks of several (MPI ranks) need collective writes.
+  if (!grains.range.whole())
+    throw std::logic_error("CrystalResultSink: writes whole aggregates only");
+  writer_->append(state, grains.fields);
+  if (pacer_->due()) pacer_->commit([&] { writer_->commit(); });
+}
+
+void CrystalResultSink::write_checkpoint(const driver::CheckpointBlock& checkpoint,
+                                         const crystal::MacroState& last_output) {
+  if (!checkpoint.range.whole() || !checkpoints_)
+    throw std::logic_error("CrystalResultSink: no store for this checkpoint");
+  pacer_->commit([&] { writer_->commit(); });  // the rows a checkpoint counts come first
+  checkpoints_->write(index_, checkpoint.state, writer_->rows(), last_output);
+}
+
+void CrystalResultSink::complete_case(const driver::CrystalSummary& summary) {
+  writer_->finish(summary);
+  end_case(h5::CaseState::completed);
+}
+
+void CrystalResultSink::fail_case(const driver::CrystalSummary& summary, const std::string& why) {
+  writer_->mark_failed(summary, why);
+  end_case(h5::CaseState::failed);
+}
+
+void CrystalResultSink::end_case(h5::CaseState state) {
+  file_.flush();  // the summary attributes first: the state says they are complete
+  run_.progress.set_state(index_, state);
+  writer_.reset();
+  checkpoints_.reset();
+  pacer_.reset();
+}
+
+void CrystalResultSink::end_run() {
+  if (run_.restart_file) run_.restart_file->close();
+}
 
 namespace {
 
@@ -882,50 +799,9 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
   }
   // Two slots, each of the largest case's grain values (in the restart file).
   size.checkpoint_bytes =
-      2.0 * 8.0 * static_cast<double>(checkpoint_capacity(scene, checkpoint_every));
+      2.0 * 8.0 * static_cast<double>(driver::checkpoint_capacity(scene, checkpoint_every));
   size.result_bytes += size.checkpoint_bytes;
   return size;
-}
-
-CheckpointPolicy checkpoint_policy(const CrystalCase& c, std::optional<long> command_line) {
-  CheckpointPolicy p;
-  if (command_line) {
-    p.every_increments = *command_line;
-  } else if (c.output.checkpoint_every >= 0) {
-    p.every_increments = c.output.checkpoint_every;
-  } else {
-    p.every_seconds = kDefaultCheckpointSeconds;
-  }
-  return p;
-}
-
-std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,
-                                                 const CrystalRunOptions& options) {
-  const h5::Group root = file.root();
-  std::optional<RunContext> run;
-  if (options.restart) {
-    h5::mark_running(file);
-    run.emplace(
-        RunContext{scene, file, root.open_group("cases"), h5::CaseProgress::open(root), options});
-    run->restart_file = reopen_restart_file(scene, file, options);
-  } else {
-    run.emplace(lay_out(scene, file, options));
-    if (options.on_header_written) options.on_header_written();
-  }
-  std::vector<CrystalCaseResult> results;
-  for (std::size_t k = 0; k < scene.cases.size(); ++k) {
-    const h5::CaseState state = run->progress.state(k);
-    if (options.restart && (state == h5::CaseState::completed || state == h5::CaseState::failed)) {
-      results.push_back(stored_result(run->cases, scene.cases[k]));
-      if (options.on_progress) options.on_progress(k, 1.0, true);
-    } else {
-      // A case the interrupted run had started continues from its latest checkpoint.
-      results.push_back(run_case(*run, k, options.restart && state == h5::CaseState::running));
-    }
-    if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
-  }
-  if (run->restart_file) run->restart_file->close();
-  return results;
 }
 
 }  // namespace subslip::io

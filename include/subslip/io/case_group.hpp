@@ -5,6 +5,7 @@
 #include <string>
 #include <string_view>
 
+#include "subslip/driver/case_status.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
@@ -34,5 +35,8 @@ void set_with_unit(const h5::Group& g, const std::string& name, const Value& val
   g.set_attribute(name, value);
   g.set_attribute(name + ".unit", unit);
 }
+
+// What a case's /progress state tells the driver.
+driver::CaseStatus case_status(h5::CaseState state);
 
 }  // namespace subslip::io

@@ -1,4 +1,4 @@
-// Running a contact scene into a result file (layout in docs/scenes.md, "Output"):
+// The result file of a contact run (layout in docs/scenes.md, "Output"):
 //
 //   /                  format, format_version, program_version, scene_kind = "contact", ...
 //   /scene             the scene YAML, verbatim
@@ -11,44 +11,18 @@
 #include <array>
 #include <chrono>
 #include <cstddef>
-#include <functional>
-#include <limits>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "subslip/contact/contact_point.hpp"
+#include "subslip/driver/contact_sink.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/run_size.hpp"
 
 namespace subslip::io {
-
-struct ContactSummary {
-  static constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
-  double peak_ratio = kNone;    // max f_t/f_n over the output states
-  double slip_at_peak = kNone;  // slip_path at that state
-  double bottom_ratio = kNone;  // min f_t/f_n after the peak (NaN when the peak is the last state)
-  double final_ratio = kNone;
-  double steady_ratio_analytical = kNone;  // steady state at the last sliding segment's speed
-  double steady_speed = 0.0;               // that speed
-  contact::RunStats stats;
-};
-
-// Peak, bottom and final ratio, updated state by state without storing the history.
-class SummaryTracker {
- public:
-  void add(const contact::ContactState& s);
-  // Completes the summary with the run's statistics and the analytical steady state.
-  ContactSummary result(const ContactCase& c, const contact::RunStats& stats) const;
-
- private:
-  double peak_ = -1.0, slip_at_peak_ = ContactSummary::kNone;
-  double bottom_ = ContactSummary::kNone, final_ = ContactSummary::kNone;
-};
-
-// The steady f_t/f_n of the case's law at the last sliding segment's speed (NaN if none slides).
-double steady_ratio_analytical(const ContactCase& c);
 
 // One /cases/<name> group: datasets for the requested fields and the case's attributes.
 // A group left by an earlier (killed) run under the same name is replaced.
@@ -67,10 +41,9 @@ class ContactCaseWriter {
   // Writes the rows gathered so far and then their number to /progress.
   void commit();
   // Commits and writes the summary attributes (in place).
-  void finish(const ContactSummary& summary);
+  void finish(const driver::ContactSummary& summary);
   // finish(), and records why the case stopped in the reserved `failed` attribute.
-  void mark_failed(const ContactSummary& summary, const std::string& why);
-  const SummaryTracker& tracker() const { return tracker_; }
+  void mark_failed(const driver::ContactSummary& summary, const std::string& why);
 
  private:
   void close_series();
@@ -80,44 +53,59 @@ class ContactCaseWriter {
   h5::CaseProgress& progress_;
   std::size_t index_;
   std::array<std::optional<h5::Series>, kAllContactFields.size()> series_;
-  SummaryTracker tracker_;
 };
 
-struct ContactCaseResult {
-  std::string name;
-  ContactSummary summary;
-  std::string failure;  // non-empty when the case stopped on a contact::StepFailure
-};
-
-struct ContactRunOptions {
-  int threads = 0;  // cases run in parallel on this many threads (0: OpenMP's default)
+struct ContactSinkOptions {
   // Rows are committed after every output step unless that costs more than ~5 % (WritePacer);
   // never more often than this.
   std::chrono::duration<double> flush_interval{0.0};
   double write_cost_ratio = h5::WritePacer::kCostRatio;  // 0: every output step (benchmarks)
-  // Continue the run whose file this is (header, /cases and /progress exist): cases marked
-  // completed or failed are kept, every other case is run again from its start.
+  // Continue the run whose file this is (header, /cases and /progress exist) instead of laying
+  // out a new one.
   bool restart = false;
-  // Called once the file holds its whole layout (not on a restart): the
-  // command line writes to a temporary name and renames it here, so that the result path never
-  // names a file that is not a readable result file.
-  std::function<void()> on_header_written;
-  // Called (serially, in case order) as each case is written or found done.
-  std::function<void(std::size_t index, const ContactCase&, const ContactCaseResult&)> on_case_done;
 };
 
-// Writes the result header and runs every case into /cases; the file stays a working file
-// (completed = 0, rows reserved), which the caller closes and, when every case ended, finishes
-// (io/result_file.hpp, finish_result). One thread streams each output step to the file;
-// several threads compute cases in memory and write them in case order, so the file's data do
-// not depend on the thread count. /progress records each case's valid rows and state as the
-// run goes. A case that fails numerically (contact::StepFailure) keeps the rows it reached,
-// writes its `failed` attribute and gets a result with `failure` set; the other cases still
-// run (the finished file then says completed = 0). Other errors (HDF5) are thrown.
+// The groups a contact run writes into, laid out or reopened by ContactResultSink.
+struct ContactRunFiles {
+  h5::Group cases;
+  h5::CaseProgress progress;
+};
+
+// The result file of a contact run, as the driver's sink (driver/contact_sink.hpp). States
+// handed over one by one are streamed (committed as WritePacer says); a case handed over whole
+// is written at once. /progress records each case's valid rows and state as the run goes. The
+// file stays a working file (completed = 0, rows reserved), which the caller closes and, when
+// every case ended, finishes (io/result_file.hpp, finish_result). Errors (HDF5) are thrown.
+class ContactResultSink final : public driver::ContactSink {
+ public:
+  // A new run: writes the result header and the whole layout before anything is computed; the
+  // file then says layout_complete. A restart: marks the file running.
+  ContactResultSink(const ContactScene& scene, h5::File& file, const ContactSinkOptions& options);
+  ContactResultSink(const ContactResultSink&) = delete;  // the case writer refers to run_
+  ContactResultSink& operator=(const ContactResultSink&) = delete;
+
+  driver::CaseStatus status(std::size_t index) const override;
+  driver::StoredContactCase stored_case(std::size_t index) const override;
+  void begin_case(std::size_t index) override;
+  void write_state(const contact::ContactState& state, int segment) override;
+  void write_states(std::span<const driver::ContactRow> rows) override;
+  void complete_case(const driver::ContactSummary& summary) override;
+  void fail_case(const driver::ContactSummary& summary, const std::string& why) override;
+
+ private:
+  void end_case(h5::CaseState state);
+
+  const ContactScene& scene_;
+  h5::File& file_;
+  ContactSinkOptions options_;
+  ContactRunFiles run_;
+  // The running case.
+  std::size_t index_ = 0;
+  std::optional<ContactCaseWriter> writer_;
+  std::optional<h5::WritePacer> pacer_;
+};
+
 // The result size of the scene's layout (adaptive cases: their planned rows).
 RunSize estimate_contact_run(const ContactScene& scene);
-
-std::vector<ContactCaseResult> run_contact_scene(const ContactScene& scene, h5::File& file,
-                                                 const ContactRunOptions& options = {});
 
 }  // namespace subslip::io

@@ -1,4 +1,4 @@
-// Running a crystal scene into a result file (layout in docs/scenes.md, "Crystal result files"):
+// The result file of a crystal run (layout in docs/scenes.md, "Crystal result files"):
 //
 //   /                         format, format_version, program_version, scene_kind = "crystal", ...
 //   /scene                    the scene YAML, verbatim
@@ -11,43 +11,23 @@
 //                             per-grain series as 3-D datasets [n, G, k]
 #pragma once
 
-#include <Eigen/Core>
 #include <array>
 #include <chrono>
 #include <cstddef>
 #include <filesystem>
-#include <functional>
 #include <optional>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/driver/crystal_sink.hpp"
+#include "subslip/io/checkpoint.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/run_size.hpp"
 
 namespace subslip::io {
-
-// The component (i, j) of L that drives a case: the largest prescribed |L_ij| over its
-// segments (the tension axis, the shear component, ...). The summary reports strain and stress
-// along it.
-std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& segments);
-
-// sqrt(3/2 s:s) of the deviator s of sym(t); for a strain, sqrt(2/3 e:e).
-double von_mises_stress(const Eigen::Matrix3d& stress);
-double von_mises_strain(const Eigen::Matrix3d& strain);
-
-struct CrystalSummary {
-  crystal::MacroState final_state;  // the last state the aggregate reported
-  std::pair<int, int> axis{2, 2};   // loading_component of the case
-  double final_von_mises_stress = 0.0;
-  double final_von_mises_strain = 0.0;
-  double grain_steps_per_second = 0.0;
-  double newton_per_grain_solve = 0.0;
-  crystal::AggregateStats stats;
-};
 
 // One /cases/<name> group: datasets for the requested fields and the case's attributes.
 // The case's valid rows are counted in /progress (index `index`).
@@ -66,12 +46,10 @@ class CrystalCaseWriter {
   // Writes the rows gathered so far and then their number to /progress.
   void commit();
   // Commits and writes the summary attributes (in place).
-  void finish(const CrystalSummary& summary);
+  void finish(const driver::CrystalSummary& summary);
   // finish(), and records why the case stopped in the reserved `failed` attribute.
-  void mark_failed(const CrystalSummary& summary, const std::string& why);
-  const crystal::MacroState& last_state() const { return last_; }
-  void set_last_state(const crystal::MacroState& m) { last_ = m; }  // a restart
-  std::size_t rows() const;                                         // appended so far
+  void mark_failed(const driver::CrystalSummary& summary, const std::string& why);
+  std::size_t rows() const;  // appended so far
   const h5::Group& group() const { return group_; }
 
  private:
@@ -88,72 +66,74 @@ class CrystalCaseWriter {
   std::vector<bool> grain_mask_;         // output.grains_at: the output rows with grain rows
   std::vector<double> matrices_;         // the orientation matrices of one step, before conversion
   std::vector<double> row_;              // one step of a per-grain field
-  crystal::MacroState last_;
 };
 
-struct CrystalCaseResult {
-  std::string name;
-  CrystalSummary summary;
-  std::string failure;  // non-empty when the case stopped on a crystal::CrystalStepFailure
-};
-
-// When a crystal case writes a checkpoint (io/checkpoint.hpp): every `every_increments`
-// increments and/or whenever `every_seconds` of wall time have passed since the last one (after
-// the increment that crosses it); neither set: no checkpoints.
-struct CheckpointPolicy {
-  long every_increments = 0;
-  double every_seconds = 0.0;
-  bool enabled() const { return every_increments > 0 || every_seconds > 0.0; }
-};
-
-// The default when neither the scene (output.checkpoint_every) nor the command line says: a
-// checkpoint about once a minute, which costs nothing noticeable and loses at most a minute.
-inline constexpr double kDefaultCheckpointSeconds = 60.0;
-
-// The policy of a case: `command_line` (--checkpoint-every N, N increments, 0 none) if given,
-// else the scene's output.checkpoint_every, else every kDefaultCheckpointSeconds.
-CheckpointPolicy checkpoint_policy(const CrystalCase& c, std::optional<long> command_line);
-
-struct CrystalRunOptions {
+struct CrystalSinkOptions {
   // Rows are committed after every output step unless that costs more than ~5 % (WritePacer);
   // never more often than this.
   std::chrono::duration<double> flush_interval{0.0};
   double write_cost_ratio = h5::WritePacer::kCostRatio;  // 0: every output step (benchmarks)
-  // Continue the run whose file this is (header, /cases and /progress exist): completed and
-  // failed cases are kept, an interrupted case continues, the others run.
+  // Continue the run whose file this is (header, /cases and /progress exist) instead of laying
+  // out a new one.
   bool restart = false;
-  // --checkpoint-every: overrides every case's checkpoint_policy.
-  std::optional<long> checkpoint_every;
   // Where checkpoints go (io/result_file.hpp: restart_file_for(result)); empty: nowhere, so
-  // no checkpoints. Created with the layout when a case writes checkpoints; on a restart, the
+  // no checkpoints. Created with the layout when checkpoint_capacity > 0; on a restart, the
   // existing one of the same run_id is continued (else a new one is created).
   std::filesystem::path restart_file;
-  // Called once the file holds its whole layout (not on a restart): the
-  // command line writes to a temporary name and renames it here, so that the result path never
-  // names a file that is not a readable result file.
-  std::function<void()> on_header_written;
-  // Called as each case is written.
-  std::function<void(std::size_t index, const CrystalCase&, const CrystalCaseResult&)> on_case_done;
-  // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
-  // restart continues from (work done before this session), and completed cases it skips.
-  std::function<void(std::size_t index, double fraction, bool resumed)> on_progress;
-  // Called with every state the aggregate reports, after it is written (tests, progress).
-  std::function<void(std::size_t index, const crystal::MacroState&, const crystal::GrainFields&)>
-      on_state;
+  // Grain values of the largest checkpoint the run writes (driver::checkpoint_capacity); 0:
+  // the run writes none.
+  std::size_t checkpoint_capacity = 0;
 };
 
-// Writes the result header, runs every case in order (the grains of a case run in parallel
-// inside the aggregate) into /cases. Each output step is streamed to the file as it is
-// computed. The file stays a working file (completed = 0, rows reserved): the caller closes it
-// and, when every case ended, finishes it (io/result_file.hpp, finish_result). A case that fails
-// numerically (crystal::CrystalStepFailure) keeps the rows it reached, writes its `failed`
-// attribute and gets a result with `failure` set; the other cases still run and the file stays
-// completed = 0. Other errors (HDF5) are thrown. The result size (checkpoints with
-// `checkpoint_every`, as run_crystal_scene would write them) and the memory of the largest case,
-// from the layout the run would write.
-RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> checkpoint_every);
+// The groups and files a crystal run writes into, laid out or reopened by CrystalResultSink.
+struct CrystalRunFiles {
+  h5::Group cases;
+  h5::CaseProgress progress;
+  std::optional<h5::File> restart_file = {};  // the checkpoint store's file, when there is one
+};
 
-std::vector<CrystalCaseResult> run_crystal_scene(const CrystalScene& scene, h5::File& file,
-                                                 const CrystalRunOptions& options = {});
+// The result file of a crystal run, as the driver's sink (driver/crystal_sink.hpp). Each
+// output step is streamed to the file as it is computed. The file stays a working file
+// (completed = 0, rows reserved): the caller closes it and, when every case ended, finishes it
+// (io/result_file.hpp, finish_result). A failed case keeps the rows it reached and writes its
+// `failed` attribute. Errors (HDF5) are thrown.
+class CrystalResultSink final : public driver::CrystalSink {
+ public:
+  // A new run: writes the result header and the whole layout (and the restart file) before
+  // anything is computed; the file then says layout_complete. A restart: marks the file
+  // running and reopens its restart file.
+  CrystalResultSink(const CrystalScene& scene, h5::File& file, const CrystalSinkOptions& options);
+  CrystalResultSink(const CrystalResultSink&) = delete;  // the case writer refers to run_
+  CrystalResultSink& operator=(const CrystalResultSink&) = delete;
+
+  driver::CaseStatus status(std::size_t index) const override;
+  driver::StoredCrystalCase stored_case(std::size_t index) const override;
+  std::optional<driver::ResumePoint> latest_checkpoint(std::size_t index) const override;
+  std::size_t checkpoint_capacity() const override;
+  void begin_case(std::size_t index, const driver::ResumePoint* resume) override;
+  void write_state(const crystal::MacroState& state, const driver::GrainBlock& grains) override;
+  void write_checkpoint(const driver::CheckpointBlock& checkpoint,
+                        const crystal::MacroState& last_output) override;
+  void complete_case(const driver::CrystalSummary& summary) override;
+  void fail_case(const driver::CrystalSummary& summary, const std::string& why) override;
+  void end_run() override;
+
+ private:
+  void end_case(h5::CaseState state);
+
+  const CrystalScene& scene_;
+  h5::File& file_;
+  CrystalSinkOptions options_;
+  CrystalRunFiles run_;
+  // The running case.
+  std::size_t index_ = 0;
+  std::optional<CrystalCaseWriter> writer_;
+  std::optional<CheckpointStore> checkpoints_;
+  std::optional<h5::WritePacer> pacer_;
+};
+
+// The result size (checkpoints with `checkpoint_every`, as the driver would write them) and
+// the memory of the largest case, from the layout the run would write.
+RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> checkpoint_every);
 
 }  // namespace subslip::io

@@ -1,0 +1,51 @@
+// How a crystal scene runs: its cases one after the other (the grains of a case in parallel
+// inside the Taylor aggregate), each from its start or, in a restart, from its latest
+// checkpoint; checkpoints when the policy says; every output state handed to the sink as it is
+// computed. No file is touched here: the sink (driver/crystal_sink.hpp) does that.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "subslip/crystal/aggregate.hpp"
+#include "subslip/driver/crystal_sink.hpp"
+#include "subslip/io/crystal_scene.hpp"
+
+namespace subslip::driver {
+
+// The component (i, j) of L that drives a case: the largest prescribed |L_ij| over its
+// segments (the tension axis, the shear component, ...). The summary reports strain and stress
+// along it.
+std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& segments);
+
+// sqrt(3/2 s:s) of the deviator s of sym(t); for a strain, sqrt(2/3 e:e).
+double von_mises_stress(const Eigen::Matrix3d& stress);
+double von_mises_strain(const Eigen::Matrix3d& strain);
+
+struct CrystalRunOptions {
+  // --checkpoint-every: overrides every case's checkpoint_policy (driver/checkpoint_policy.hpp).
+  std::optional<long> checkpoint_every;
+  // Called as each case ends or is found ended by an earlier session.
+  std::function<void(std::size_t index, const io::CrystalCase&, const CrystalCaseResult&)>
+      on_case_done;
+  // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
+  // restart continues from (work done before this session), and completed cases it skips.
+  std::function<void(std::size_t index, double fraction, bool resumed)> on_progress;
+  // Called with every state the aggregate reports, after the sink has it (tests, progress).
+  std::function<void(std::size_t index, const crystal::MacroState&, const crystal::GrainFields&)>
+      on_state;
+};
+
+// Runs every case of `scene` in order into `sink`: cases the sink reports ended are kept (their
+// stored results returned), an interrupted one continues from the sink's latest checkpoint of
+// it, the others start. A case that fails numerically (crystal::CrystalStepFailure) is ended
+// with fail_case and gets a result with `failure` set; the other cases still run. Other errors
+// (the sink's) are thrown.
+std::vector<CrystalCaseResult> run_crystal_scene(const io::CrystalScene& scene, CrystalSink& sink,
+                                                 const CrystalRunOptions& options = {});
+
+}  // namespace subslip::driver
