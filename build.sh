@@ -13,7 +13,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev libcli11-dev
-          libgtest-dev
+          libgtest-dev libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
           python3-h5py python3-matplotlib python3-numpy)  # scripts/subslip_plots.py and its test
 # The sanitizer and fuzz stages of `test` build the fuzz targets with clang (libFuzzer, OpenMP).
 if [ "${1:-}" = test ] && [ "${2:-}" != --quick ]; then
@@ -81,7 +81,8 @@ run_fuzzer() {
 fuzz_tests() {
   local start=$SECONDS
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DSUBSLIP_FUZZ=ON -DSUBSLIP_BUILD_TESTS=OFF -DSUBSLIP_WITH_CVODE=OFF > /dev/null
+    -DSUBSLIP_FUZZ=ON -DSUBSLIP_BUILD_TESTS=OFF -DSUBSLIP_WITH_CVODE=OFF -DSUBSLIP_WITH_MPI=OFF \
+    > /dev/null
   cmake --build build-fuzz -j"$(nproc)" --target scene_fuzzer orientation_fuzzer
   run_fuzzer scene_fuzzer 8192 fuzz/seeds/scene inputs tests/data/scenes tests/data/crystal_scenes \
     tests/data/bad

@@ -28,10 +28,10 @@ namespace subslip::testing {
 
 namespace fs = std::filesystem;
 
-// Starts `SUBSLIP_BINARY args...` in `dir` with stdout and stderr to `log`; returns its pid.
-// `in_child` runs in the child before exec (resource limits, signal dispositions).
-inline pid_t spawn_subslip(const fs::path& dir, const std::vector<std::string>& args,
-                           const fs::path& log, const std::function<void()>& in_child = {}) {
+// Starts `command...` (command[0] a path) in `dir` with stdout and stderr to `log`; returns its
+// pid. `in_child` runs in the child before exec (resource limits, signal dispositions).
+inline pid_t spawn_program(const fs::path& dir, std::vector<std::string> all, const fs::path& log,
+                           const std::function<void()>& in_child = {}) {
   const pid_t pid = ::fork();
   if (pid != 0) return pid;
   if (in_child) in_child();
@@ -42,13 +42,19 @@ inline pid_t spawn_subslip(const fs::path& dir, const std::vector<std::string>& 
     ::dup2(fd, 2);
     ::close(fd);
   }
-  std::vector<std::string> all{SUBSLIP_BINARY};
-  all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& a : all) argv.push_back(a.data());
   argv.push_back(nullptr);
   ::execv(argv[0], argv.data());
   ::_exit(127);
+}
+
+// Starts `SUBSLIP_BINARY args...` (as spawn_program).
+inline pid_t spawn_subslip(const fs::path& dir, const std::vector<std::string>& args,
+                           const fs::path& log, const std::function<void()>& in_child = {}) {
+  std::vector<std::string> all{SUBSLIP_BINARY};
+  all.insert(all.end(), args.begin(), args.end());
+  return spawn_program(dir, all, log, in_child);
 }
 
 // Waits for the child; its exit code, or 128 + signal.

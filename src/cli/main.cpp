@@ -34,6 +34,7 @@
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
+#include "subslip/driver/team_crystal_sink.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -47,6 +48,7 @@
 #include "subslip/io/scene_warnings.hpp"
 #include "subslip/io/text_layout.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
@@ -83,6 +85,25 @@ long long rows_in(const fs::path& file) {
     return rows;
   } catch (const io::h5::Error&) {
     return 0;
+  }
+}
+
+// The exit status of a failure: 2 bad input or output path, 3 a numerical failure, 1 others.
+int exit_code_of(const std::exception_ptr& failure) {
+  try {
+    std::rethrow_exception(failure);
+  } catch (const InputError&) {
+    return 2;
+  } catch (const io::h5::OutputPathError&) {
+    return 2;
+  } catch (const contact::StepFailure&) {
+    return 3;
+  } catch (const crystal::CrystalStepFailure&) {
+    return 3;
+  } catch (const parallel::StoppedByRoot& e) {
+    return e.exit_code;
+  } catch (...) {
+    return 1;
   }
 }
 
@@ -441,13 +462,15 @@ void print_crystal_row(const text::Table& t, const driver::CrystalCaseResult& r)
   std::fflush(stdout);
 }
 
-void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene) {
+void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene, int ranks) {
   const io::CrystalCase& first = scene.cases.front();
   print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
-  std::printf("  %zu grain%s, %zu slip systems, %d thread%s\n", first.orientations.size(),
+  const std::string over_ranks =
+      ranks > 1 ? " in each of " + std::to_string(ranks) + " MPI ranks" : "";
+  std::printf("  %zu grain%s, %zu slip systems, %d thread%s%s\n", first.orientations.size(),
               first.orientations.size() == 1 ? "" : "s",
               crystal::described_systems(first.phase).size(), omp_get_max_threads(),
-              omp_get_max_threads() == 1 ? "" : "s");
+              omp_get_max_threads() == 1 ? "" : "s", over_ranks.c_str());
   std::fflush(stdout);
 }
 
@@ -481,8 +504,12 @@ std::vector<fs::path> input_files(const RunArgs& a, const io::CrystalScene& scen
   return files;
 }
 
-int run_crystal(const RunArgs& a, const io::YamlDocument& document,
-                const io::RestartInfo* restart) {
+// A crystal run over the ranks of `team` (MPI; a serial run is a team of one): every rank
+// parses the scene and computes its block of each case's grains; the root alone checks and
+// writes the result file (the ranks' blocks reach it through a driver::TeamCrystalSink) and
+// prints.
+int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::RestartInfo* restart,
+                const parallel::Team& team) {
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
   const io::CrystalScene scene = io::parse_crystal_scene(document);
@@ -494,45 +521,68 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
     checkpoints = checkpoints && on;
     any_checkpoints = any_checkpoints || on;
   }
-  RunOutput output =
-      open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
-                  io::estimate_crystal_run(scene, checkpoint_every), any_checkpoints);
-  print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
+  std::optional<RunOutput> output;  // the root's
+  parallel::on_root(
+      team,
+      [&] {
+        output.emplace(
+            open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
+                        io::estimate_crystal_run(scene, checkpoint_every), any_checkpoints));
+        print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
+      },
+      exit_code_of);
   // Crystal cases run one after the other; the threads go to the grains of a case.
   if (a.threads > 0) omp_set_num_threads(a.threads);
+  const bool speaks = team.is_root() && !a.quiet;
   const text::Table table = crystal_table(scene);
-  if (!a.quiet) {
-    print_crystal_intro(a, scene);
+  if (speaks) {
+    print_crystal_intro(a, scene, team.size());
     std::printf("%s\n", table.header().c_str());
   }
-  cli::ProgressReporter progress(progress_mode(a), stderr, crystal_work(scene));
-  io::CrystalSinkOptions to_file;
-  to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
-  to_file.restart = output.restart();
-  to_file.restart_file = output.restart_file();
-  to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+  cli::ProgressReporter progress(team.is_root() ? progress_mode(a) : cli::ProgressMode::none,
+                                 stderr, crystal_work(scene));
   driver::CrystalRunOptions options;
+  options.team = &team;
   options.checkpoint_every = checkpoint_every;
   options.on_case_done = [&](std::size_t, const io::CrystalCase&,
                              const driver::CrystalCaseResult& r) {
     progress.clear();
-    if (!a.quiet) print_crystal_row(table, r);
+    if (speaks) print_crystal_row(table, r);
   };
   options.on_progress = [&](std::size_t k, double fraction, bool resumed) {
     if (resumed) progress.set_done_before(k, fraction);
     progress.update(k, scene.cases[k].name, fraction);
   };
-  const auto results = output.write([&] {
-    io::CrystalResultSink sink(scene, output.file, to_file);
-    if (!output.restart()) output.header_written();
-    return driver::run_crystal_scene(scene, sink, options);
-  });
+  // The sink every rank runs against: the file's own in a run of one rank.
+  const auto run = [&](driver::CrystalSink* root_sink) {
+    driver::TeamCrystalSink shared(team, root_sink);
+    return driver::run_crystal_scene(scene, team.size() > 1 ? shared : *root_sink, options);
+  };
+  std::vector<driver::CrystalCaseResult> results;
+  if (team.is_root()) {
+    results = output->write([&] {
+      std::optional<io::CrystalResultSink> sink;
+      parallel::on_root(team, [&] {
+        io::CrystalSinkOptions to_file;
+        to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
+        to_file.restart = output->restart();
+        to_file.restart_file = output->restart_file();
+        to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+        sink.emplace(scene, output->file, to_file);
+        if (!output->restart()) output->header_written();
+      });
+      return run(&*sink);
+    });
+  } else {
+    parallel::on_root(team, [] {});
+    results = run(nullptr);
+  }
   progress.clear();
-  if (!a.quiet) {
+  if (speaks) {
     print_wrapped(crystal_legend(scene), " ");
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
-    std::printf("%s\n", cli::summary_text(crystal_totals(results), wall, output.path).c_str());
+    std::printf("%s\n", cli::summary_text(crystal_totals(results), wall, output->path).c_str());
   }
   for (const auto& r : results) {
     if (!r.failure.empty()) throw crystal::CrystalStepFailure(r.failure);
@@ -543,7 +593,10 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document,
 // The dispatch on `scene:`. A new scene kind adds its name to the list and a branch here.
 // With --restart the scene is the one stored in the file (/scene); a scene file named as well
 // must have the same text.
-int run_scene(const RunArgs& a) {
+// Run over MPI ranks, every rank runs this: the scene file is read by each; a restart file is
+// inspected by the root, which shares the scene it holds. Only crystal scenes share their work
+// among the ranks; a contact scene runs on the root.
+int run_scene(const RunArgs& a, const parallel::Team& team) {
   io::h5::print_error_stacks(a.verbose);
   std::optional<io::YamlDocument> given;
   if (!a.scene.empty()) given.emplace(io::YamlDocument::from_file(a.scene));
@@ -551,8 +604,16 @@ int run_scene(const RunArgs& a) {
   if (!a.restart.empty()) {
     if (!a.output.empty() || a.force)
       throw InputError(a.restart, 0, "--restart", "continues FILE in place: drop -o and --force");
-    restart = io::inspect_for_restart(
-        a.restart, given ? std::optional<std::string>(given->text()) : std::nullopt);
+    parallel::on_root(
+        team,
+        [&] {
+          restart = io::inspect_for_restart(
+              a.restart, given ? std::optional<std::string>(given->text()) : std::nullopt);
+        },
+        exit_code_of);
+    if (!restart) restart.emplace();
+    for (std::string* text : {&restart->scene_kind, &restart->scene_file, &restart->scene_text})
+      team.broadcast(*text, 0);
   } else if (!given) {
     throw InputError("run", 0, "", "give a scene file (or --restart FILE)");
   }
@@ -563,8 +624,8 @@ int run_scene(const RunArgs& a) {
   if (restart && kind != restart->scene_kind)
     throw InputError(a.restart, 0, "scene_kind",
                      "cannot restart: /scene is not a " + kind + " scene");
-  if (kind == "contact") return run_contact(a, document, info);
-  if (kind == "crystal") return run_crystal(a, document, info);
+  if (kind == "contact") return team.is_root() ? run_contact(a, document, info) : 0;
+  if (kind == "crystal") return run_crystal(a, document, info, team);
   throw InputError(document.file(), 0, "scene", "no runner for scene kind '" + kind + "'");
 }
 
@@ -665,9 +726,30 @@ int report(const char* message, int code) {
   return code;
 }
 
+// What the run stopped on, reported once (by the root) with its exit status. Over MPI ranks, a
+// failure every rank meets alike (bad input, a failed grain: the ranks agree on it, or the
+// root's, shared by parallel::on_root) ends each rank with the same status; any other failure
+// on a rank stops them all (MPI_Abort), since the others would wait for it forever.
+int stop_on(const std::exception& e, const parallel::Team& team) {
+  const std::exception_ptr failure = std::current_exception();
+  const int code = exit_code_of(failure);
+  if (team.size() == 1) return report(e.what(), code);
+  const bool shared = code != 1 || dynamic_cast<const parallel::StoppedByRoot*>(&e) != nullptr ||
+                      (team.is_root() && parallel::root_failure_shared());
+  if (team.is_root()) report(e.what(), code);
+  if (shared) return code;
+  if (!team.is_root())
+    std::fprintf(stderr, "subslip: error on MPI rank %d: %s\n", team.rank(), e.what());
+  team.abort(code);
+  return code;  // (not reached)
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Before anything else: MPI may take its own arguments. Without mpirun this is one rank.
+  const parallel::Session session(argc, argv);
+  const parallel::Team& team = session.team();
   CLI::App app{"subslip: subloading-overstress friction on contacts and crystal slip systems"};
   app.require_subcommand(1);
   app.set_version_flag("--version", SUBSLIP_VERSION);
@@ -686,27 +768,22 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    if (!team.is_root()) return 2;
     if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
     // Usage errors are input errors, reported like every other error (one line, exit 2).
     std::fprintf(stderr, "subslip: error: %s (subslip --help lists the options)\n", e.what());
     return 2;
   }
   try {
-    if (app.got_subcommand("run")) return run_scene(run_args);
+    if (app.got_subcommand("run")) return run_scene(run_args, team);
+    // The other commands are one process's work: over MPI ranks the root does it.
+    if (!team.is_root()) return 0;
     if (app.got_subcommand("orientations")) return run_orientations(orientation_args);
     if (app.got_subcommand("bench")) return cli::run_bench(bench_args);
     if (app.got_subcommand("accuracy")) return cli::run_accuracy(accuracy_args);
     if (app.got_subcommand("post")) return cli::run_post(post_args);
-  } catch (const InputError& e) {
-    return report(e.what(), 2);
-  } catch (const io::h5::OutputPathError& e) {
-    return report(e.what(), 2);
-  } catch (const contact::StepFailure& e) {
-    return report(e.what(), 3);
-  } catch (const crystal::CrystalStepFailure& e) {
-    return report(e.what(), 3);
   } catch (const std::exception& e) {
-    return report(e.what(), 1);
+    return stop_on(e, team);
   }
   return 0;
 }

@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -72,17 +73,23 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   using VecN = typename SlipTypes<N>::VecN;
 
   TaylorAggregate(Phase<N> phase, const std::vector<Mat3>& orientations,
-                  const std::vector<double>& weights, const VecN& initial_mu)
-      : phase_(std::move(phase)) {
+                  const std::vector<double>& weights, const VecN& initial_mu,
+                  const GrainShare& share)
+      : phase_(std::move(phase)),
+        team_(*share.team),
+        offset_(share.offset),
+        total_(share.total > 0 ? share.total : orientations.size()) {
     const size_t n = orientations.size();
     committed_.resize(n);
     trial_.resize(n);
     tangents_.resize(n);
     reports_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
-    double total = 0.0;
-    for (double w : weights_) total += w;
-    for (double& w : weights_) w /= total;
+    std::array<parallel::ExactSum, 1> total;
+    for (double w : weights_) total[0].add(w);
+    team_.sum(total);
+    const double sum = total[0].value();
+    for (double& w : weights_) w /= sum;
     for (size_t g = 0; g < n; ++g)
       committed_[g].reset(phase_.slip_count, orientations[g], initial_mu);
   }
@@ -316,17 +323,28 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // slip system, dt/2 |A (gdot_end - gdot_start)| over the CRSS mu tau0, the largest of all.
   // The start rates are the committed end rates of the previous (backward Euler) step. A NaN
   // wins, so that a broken step is never accepted.
+  // The first NaN, else the first of the largest, in grain order: per rank, then over the
+  // ranks in rank order (the same estimate at any rank count).
   ErrorEstimate local_error(double dt) const {
     ErrorEstimate worst;
+    const auto keep_worse = [&worst](double value, size_t grain, int system) {
+      if (!std::isnan(worst.value) && (std::isnan(value) || value > worst.value))
+        worst = {value, grain, system};
+    };
     for (size_t g = 0; g < committed_.size(); ++g) {
       const VecN rate_change = trial_[g].rate - committed_[g].rate;
       const VecN crss = committed_[g].mu.cwiseProduct(phase_.tau0);
       const VecN error =
           (0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(crss);
-      for (int a = 0; a < phase_.slip_count; ++a) {
-        if (!(error(a) <= worst.value)) worst = {error(a), g, a};
-      }
+      for (int a = 0; a < phase_.slip_count; ++a) keep_worse(error(a), offset_ + g, a);
     }
+    if (team_.size() == 1) return worst;
+    const double mine[3] = {worst.value, static_cast<double>(worst.grain),
+                            static_cast<double>(worst.system)};
+    const std::vector<double> all = team_.all_gather(mine);
+    worst = {};
+    for (size_t r = 0; r < all.size(); r += 3)
+      keep_worse(all[r], static_cast<size_t>(all[r + 1]), static_cast<int>(all[r + 2]));
     return worst;
   }
 
@@ -383,23 +401,33 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
               ? implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t)
               : explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
     }
-    stats_.grain_solves += n;
-    for (size_t g = 0; g < committed_.size();
-         ++g) {  // serial: the first failure, deterministically
-      stats_.newton_iterations += reports_[g].iterations;
-      if (!reports_[g].ok) {
-        why = describe_failure(g, reports_[g]);
-        return false;
-      }
+    stats_.grain_solves += static_cast<long>(total_);
+    // Serial, then over the ranks: the iterations, and the first failing grain (by index).
+    constexpr auto kNone = std::numeric_limits<std::int64_t>::max();
+    std::array<std::int64_t, 1> iterations{0}, failed{kNone};
+    for (size_t g = 0; g < committed_.size(); ++g) {
+      iterations[0] += reports_[g].iterations;
+      if (!reports_[g].ok && failed[0] == kNone) failed[0] = static_cast<std::int64_t>(g + offset_);
     }
-    return true;
+    team_.sum(iterations);
+    team_.min(failed);
+    stats_.newton_iterations += iterations[0];
+    if (failed[0] == kNone) return true;
+    // The rank holding the failed grain says why.
+    const auto g = static_cast<size_t>(failed[0]);
+    const bool mine = g >= offset_ && g < offset_ + committed_.size();
+    std::array<std::int64_t, 1> owner{mine ? team_.rank() : team_.size()};
+    team_.min(owner);
+    if (mine) why = describe_failure(g - offset_, reports_[g - offset_]);
+    team_.broadcast(why, static_cast<int>(owner[0]));
+    return false;
   }
 
   std::string describe_failure(size_t g, const GrainStepReport& rep) const {
     std::ostringstream msg;
     const auto& s = committed_[g];
-    msg << "grain " << g << ", slip system " << rep.system << ": " << rep.why << " (after "
-        << rep.iterations << " iterations)";
+    msg << "grain " << offset_ + g << ", slip system " << rep.system << ": " << rep.why
+        << " (after " << rep.iterations << " iterations)";
     if (rep.system >= 0) {
       const VecN r = loading_ratio(phase_, s);
       msg << "; start state: mu = " << s.mu(rep.system) << ", r = " << r(rep.system)
@@ -408,10 +436,17 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     return msg.str();
   }
 
-  Vec6 average_stress() const {
-    Vec6 sum = Vec6::Zero();
-    for (size_t g = 0; g < trial_.size(); ++g) sum += weights_[g] * trial_[g].sample_stress();
-    return sum;
+  // The volume average of the grains' sample-frame stress, over the team (exact sums).
+  Vec6 average_stress(const std::vector<GrainState<N>>& grains) const {
+    std::array<parallel::ExactSum, 6> sum;
+    for (size_t g = 0; g < grains.size(); ++g) {
+      const Vec6 s = weights_[g] * grains[g].sample_stress();
+      for (int i = 0; i < 6; ++i) sum[static_cast<size_t>(i)].add(s(i));
+    }
+    team_.sum(sum);
+    Vec6 mean;
+    for (int i = 0; i < 6; ++i) mean(i) = sum[static_cast<size_t>(i)].value();
+    return mean;
   }
 
   // The mixed-control residual of the trial state: the free stresses minus their targets.
@@ -423,7 +458,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   MixedResidual free_stress_residual(const std::vector<FreeComponent>& fc,
                                      const Mat3& target) const {
-    const Vec6 sigma = average_stress();
+    const Vec6 sigma = average_stress(trial_);
     MixedResidual r;
     r.value.resize(static_cast<int>(fc.size()));
     for (size_t a = 0; a < fc.size(); ++a) {
@@ -449,25 +484,33 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   StressResolution stress_resolution(const Mat3& l, double dt, const AggregateOptions& opt) const {
     constexpr double kEps = std::numeric_limits<double>::epsilon();
     const double elastic = phase_.stiffness.cwiseAbs().maxCoeff() * l.cwiseAbs().maxCoeff() * dt;
-    double stress = 0.0, strength = 0.0;
+    std::array<double, 2> largest{0.0, 0.0};  // stress, strength
     for (const auto& s : trial_) {
-      stress = std::max(stress, s.stress.cwiseAbs().maxCoeff());
+      largest[0] = std::max(largest[0], s.stress.cwiseAbs().maxCoeff());
       const VecN fn = phase_.pressure_sensitive
                           ? VecN(phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress)
                           : phase_.tau0;
-      strength = std::max(strength, s.mu.cwiseProduct(fn).cwiseAbs().maxCoeff());
+      largest[1] = std::max(largest[1], s.mu.cwiseProduct(fn).cwiseAbs().maxCoeff());
     }
-    return {16.0 * kEps * (stress + elastic), 8.0 * opt.grain.tolerance * strength};
+    team_.max(largest);
+    return {16.0 * kEps * (largest[0] + elastic), 8.0 * opt.grain.tolerance * largest[1]};
   }
 
   // d(free stresses)/d(free components of L) from the averaged consistent tangents of the trial
-  // state (serial sum: thread-count independent). A free component not paired with its transpose
-  // also spins: its skew part W turns the stress, d sigma = (W sigma - sigma W) dt (with it, L_13
-  // free alone takes as few grain solves per increment as L_13 and L_31 free as a pair).
+  // state (exact sums: independent of the thread and rank counts). A free component not paired with
+  // its transpose also spins: its skew part W turns the stress, d sigma = (W sigma - sigma W) dt
+  // (with it, L_13 free alone takes as few grain solves per increment as L_13 and L_31 free as a
+  // pair).
   Eigen::MatrixXd free_stress_jacobian(const std::vector<FreeComponent>& fc, double dt) const {
-    Mat6 mean_tangent = Mat6::Zero();
-    for (size_t g = 0; g < tangents_.size(); ++g) mean_tangent += weights_[g] * tangents_[g];
-    const Mat3 sigma = symmetric_from_mandel(average_stress());
+    std::array<parallel::ExactSum, 36> sum;
+    for (size_t g = 0; g < tangents_.size(); ++g) {
+      const Mat6 t = weights_[g] * tangents_[g];
+      for (int k = 0; k < 36; ++k) sum[static_cast<size_t>(k)].add(t.data()[k]);
+    }
+    team_.sum(sum);
+    Mat6 mean_tangent;
+    for (int k = 0; k < 36; ++k) mean_tangent.data()[k] = sum[static_cast<size_t>(k)].value();
+    const Mat3 sigma = symmetric_from_mandel(average_stress(trial_));
     const int k = static_cast<int>(fc.size());
     Eigen::MatrixXd jac(k, k);
     for (int b = 0; b < k; ++b) {
@@ -602,7 +645,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
               const Eigen::VectorXd& u, double dt) {
     std::swap(committed_, trial_);
-    stats_.grain_steps += static_cast<long>(committed_.size());
+    stats_.grain_steps += static_cast<long>(total_);
     const Mat3 l = fc.empty() ? seg.velocity_gradient
                               : assemble_velocity_gradient(seg.velocity_gradient, fc, u);
     // Deformation gradient by the Cayley (midpoint) map: exact for a pure rotation.
@@ -616,10 +659,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     } else {
       macro_.strain = log_strain(macro_.deformation_gradient);
     }
-    Vec6 sum = Vec6::Zero();
-    for (size_t g = 0; g < committed_.size(); ++g)
-      sum += weights_[g] * committed_[g].sample_stress();
-    macro_.stress = symmetric_from_mandel(sum);
+    macro_.stress = symmetric_from_mandel(average_stress(committed_));
     macro_.velocity_gradient = l;
     macro_.time += dt;
   }
@@ -670,6 +710,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   }
 
   Phase<N> phase_;
+  const parallel::Team& team_;
+  size_t offset_ = 0;  // of this rank's grains in the aggregate
+  size_t total_ = 0;   // grains of the aggregate (over the team)
   std::vector<GrainState<N>> committed_, trial_;
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;
@@ -687,14 +730,16 @@ template <int N>
 std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,
                                                  const std::vector<Mat3>& orientations,
                                                  const std::vector<double>& weights,
-                                                 const typename SlipTypes<N>::VecN& initial_mu) {
-  return std::make_unique<TaylorAggregate<N>>(std::move(phase), orientations, weights, initial_mu);
+                                                 const typename SlipTypes<N>::VecN& initial_mu,
+                                                 const GrainShare& share) {
+  return std::make_unique<TaylorAggregate<N>>(std::move(phase), orientations, weights, initial_mu,
+                                              share);
 }
 
 #define SUBSLIP_INSTANTIATE_AGGREGATE(N)                              \
   template std::unique_ptr<Aggregate> make_taylor_aggregate<N>(       \
       Phase<N>, const std::vector<Mat3>&, const std::vector<double>&, \
-      const typename SlipTypes<N>::VecN&);
+      const typename SlipTypes<N>::VecN&, const GrainShare&);
 
 SUBSLIP_INSTANTIATE_AGGREGATE(1)
 SUBSLIP_INSTANTIATE_AGGREGATE(3)

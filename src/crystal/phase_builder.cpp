@@ -89,15 +89,18 @@ int checked_slip_count(const PhaseDescription& d) {
 }
 
 std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
-                                                  const std::vector<Orientation>& grains) {
+                                                  const std::vector<Orientation>& grains,
+                                                  const parallel::Team& team) {
+  const parallel::Block block = parallel::block_of(grains.size(), team.rank(), team.size());
   std::vector<Mat3> g;
   std::vector<double> w;
-  for (const auto& o : grains) {
-    g.push_back(o.g);
-    w.push_back(o.weight);
+  for (std::size_t k = block.offset; k < block.offset + block.count; ++k) {
+    g.push_back(grains[k].g);
+    w.push_back(grains[k].weight);
   }
+  const GrainShare share{&team, block.offset, block.total};
   return visit_phase(d, [&](auto built) -> std::unique_ptr<Aggregate> {
-    return make_taylor_aggregate(std::move(built.phase), g, w, built.initial_mu);
+    return make_taylor_aggregate(std::move(built.phase), g, w, built.initial_mu, share);
   });
 }
 

@@ -1,5 +1,6 @@
 #include "subslip/driver/crystal_run.hpp"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <string>
@@ -140,8 +141,16 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
   // from its checkpoint until it writes the next.
   crystal::MacroState last_output = resume ? resume->last_output : crystal::MacroState{};
   CheckpointClock clock(policy);
-  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations);
-  const GrainRange grains{0, c.orientations.size(), c.orientations.size()};
+  const parallel::Team& team = *options.team;
+  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations, team);
+  const parallel::Block block = parallel::block_of(c.orientations.size(), team.rank(), team.size());
+  const GrainRange grains{block.offset, block.count, block.total};
+  // Whether a checkpoint is due: the root's clock decides for every rank (wall times differ).
+  const auto checkpoint_due = [&] {
+    std::array<double, 1> due{team.is_root() && clock.due() ? 1.0 : 0.0};
+    team.max(due);
+    return due[0] > 0.0;
+  };
   const double duration = loading_time(c);
   const auto& on_progress = options.on_progress;
   if (on_progress && resume) on_progress(index, resume->state.macro.time / duration, true);
@@ -149,7 +158,7 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
   if (resume) control.resume = &resume->state;
   control.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState& m) {
     if (on_progress) on_progress(index, m.time / duration, false);
-    if (!checkpoints || !clock.due()) return;
+    if (!checkpoints || !checkpoint_due()) return;
     const crystal::AggregateCheckpoint state = aggregate->checkpoint();
     sink.write_checkpoint(CheckpointBlock{grains, state}, last_output);
   };

@@ -6,8 +6,9 @@
 // The step is a pure function of the start state: the whole aggregate is advanced from the
 // committed state; a mixed-control Newton re-runs the grains from that state with an updated
 // L; a failed grain makes the whole step halve (cut back) and retry. Grains run in parallel
-// (OpenMP, static schedule); all reductions are done serially in grain order afterwards, so
-// results are bitwise independent of the thread count.
+// (OpenMP, static schedule, inside each MPI rank when the aggregate is shared: GrainShare); the
+// volume averages are exact sums (parallel/exact_sum.hpp) and every other reduction picks by
+// grain index, so results are bitwise independent of the thread and rank counts.
 #pragma once
 
 #include <Eigen/Core>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "subslip/crystal/crystal_kernel.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::crystal {
 
@@ -161,11 +163,26 @@ class Aggregate {
   virtual void restore(const AggregateCheckpoint& c) = 0;
 };
 
-// The Taylor aggregate for N slip systems (N = Eigen::Dynamic for unusual counts).
+// The grains of an aggregate this process computes when the aggregate is shared among the
+// ranks of a team (MPI): grains [offset, offset + count) of `total`, count being the number of
+// orientations given; the other ranks hold the rest. Every rank runs the same loading; the
+// volume averages, the decisions (convergence, cutbacks, failure) and the counters are the
+// team's, bitwise the same at any rank count (exact sums), so every rank holds the same macro
+// state. Default: this process holds every grain.
+struct GrainShare {
+  const parallel::Team* team = &parallel::serial_team();
+  std::size_t offset = 0;
+  std::size_t total = 0;  // 0: the number of orientations given
+};
+
+// The Taylor aggregate for N slip systems (N = Eigen::Dynamic for unusual counts). The weights
+// are relative (empty: equal); they are normalised over all grains of the team. grain_count(),
+// the GrainFields and the checkpoint's grains are this rank's block.
 template <int N>
 std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,
                                                  const std::vector<Mat3>& orientations,
                                                  const std::vector<double>& weights,
-                                                 const typename SlipTypes<N>::VecN& initial_mu);
+                                                 const typename SlipTypes<N>::VecN& initial_mu,
+                                                 const GrainShare& share = {});
 
 }  // namespace subslip::crystal

@@ -55,8 +55,11 @@ struct DescribedSystem {
 };
 std::vector<DescribedSystem> described_systems(const PhaseDescription& d);
 
-std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
-                                                  const std::vector<Orientation>& grains);
+// The Taylor aggregate of `grains`; shared by a team, this rank's block of them
+// (parallel::block_of) with the weights normalised over all.
+std::unique_ptr<Aggregate> build_taylor_aggregate(
+    const PhaseDescription& d, const std::vector<Orientation>& grains,
+    const parallel::Team& team = parallel::serial_team());
 
 // The kernel phase of a description for N slip systems, with the initial mu of each system, for
 // drivers other than the Taylor aggregate (the CVODE peer). visit_phase picks N from the slip

@@ -14,6 +14,7 @@
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/driver/crystal_sink.hpp"
 #include "subslip/io/crystal_scene.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::driver {
 
@@ -27,6 +28,10 @@ double von_mises_stress(const Eigen::Matrix3d& stress);
 double von_mises_strain(const Eigen::Matrix3d& strain);
 
 struct CrystalRunOptions {
+  // The ranks that share each case's grains (MPI; each holds its parallel::block_of them). With
+  // more than one, the sink must be a TeamCrystalSink (driver/team_crystal_sink.hpp) on every
+  // rank, and every rank calls run_crystal_scene.
+  const parallel::Team* team = &parallel::serial_team();
   // --checkpoint-every: overrides every case's checkpoint_policy (driver/checkpoint_policy.hpp).
   std::optional<long> checkpoint_every;
   // Called as each case ends or is found ended by an earlier session.

@@ -1,0 +1,147 @@
+// The team of an MPI build: MPI_COMM_WORLD. Compiled only with SUBSLIP_WITH_MPI (it replaces
+// src/parallel/serial_session.cpp).
+#include <mpi.h>
+
+#include <algorithm>
+#include <climits>
+#include <cstdlib>
+#include <stdexcept>
+
+#include "subslip/parallel/team.hpp"
+
+namespace subslip::parallel {
+
+namespace {
+
+int as_int(std::size_t n) {
+  if (n > static_cast<std::size_t>(INT_MAX))
+    throw std::length_error("MPI message of more than INT_MAX values");
+  return static_cast<int>(n);
+}
+
+class WorldTeam final : public Team {
+ public:
+  WorldTeam() {
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
+    MPI_Comm_size(MPI_COMM_WORLD, &size_);
+  }
+  int rank() const override { return rank_; }
+  int size() const override { return size_; }
+
+  void sum(std::span<ExactSum> sums) const override {
+    if (size_ == 1) return;
+    std::vector<std::int64_t> words(sums.size() * ExactSum::kWords);
+    auto out = words.begin();
+    for (auto& s : sums) {
+      s.normalize();
+      out = std::copy(s.words().begin(), s.words().end(), out);
+    }
+    sum(words);
+    auto in = words.begin();
+    for (auto& s : sums) {
+      std::copy(in, in + ExactSum::kWords, s.words().begin());
+      in += ExactSum::kWords;
+      s.normalize();
+    }
+  }
+  void sum(std::span<std::int64_t> v) const override {
+    MPI_Allreduce(MPI_IN_PLACE, v.data(), as_int(v.size()), MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
+  }
+  void max(std::span<double> v) const override {
+    MPI_Allreduce(MPI_IN_PLACE, v.data(), as_int(v.size()), MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  }
+  void min(std::span<std::int64_t> v) const override {
+    MPI_Allreduce(MPI_IN_PLACE, v.data(), as_int(v.size()), MPI_INT64_T, MPI_MIN, MPI_COMM_WORLD);
+  }
+  std::vector<double> all_gather(std::span<const double> mine) const override {
+    std::vector<double> all(mine.size() * static_cast<std::size_t>(size_));
+    MPI_Allgather(mine.data(), as_int(mine.size()), MPI_DOUBLE, all.data(), as_int(mine.size()),
+                  MPI_DOUBLE, MPI_COMM_WORLD);
+    return all;
+  }
+  void broadcast(std::vector<double>& values, int root) const override {
+    auto n = static_cast<std::int64_t>(values.size());
+    MPI_Bcast(&n, 1, MPI_INT64_T, root, MPI_COMM_WORLD);
+    values.resize(static_cast<std::size_t>(n));
+    MPI_Bcast(values.data(), as_int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD);
+  }
+  void broadcast(std::string& text, int root) const override {
+    auto n = static_cast<std::int64_t>(text.size());
+    MPI_Bcast(&n, 1, MPI_INT64_T, root, MPI_COMM_WORLD);
+    text.resize(static_cast<std::size_t>(n));
+    MPI_Bcast(text.data(), as_int(text.size()), MPI_CHAR, root, MPI_COMM_WORLD);
+  }
+  void gather_rows(std::span<const double> mine, std::span<double> all,
+                   std::size_t) const override {
+    const std::vector<int> counts = value_counts(mine.size());
+    MPI_Gatherv(mine.data(), as_int(mine.size()), MPI_DOUBLE, all.data(), counts.data(),
+                offsets(counts).data(), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  }
+  void scatter_rows(std::span<const double> all, std::span<double> mine,
+                    std::size_t) const override {
+    const std::vector<int> counts = value_counts(mine.size());
+    MPI_Scatterv(all.data(), counts.data(), offsets(counts).data(), MPI_DOUBLE, mine.data(),
+                 as_int(mine.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  }
+  [[noreturn]] void abort(int exit_code) const override {
+    MPI_Abort(MPI_COMM_WORLD, exit_code);
+    std::abort();  // (MPI_Abort does not return)
+  }
+
+ private:
+  // Every rank's count of values, on every rank.
+  std::vector<int> value_counts(std::size_t mine) const {
+    std::vector<int> counts(static_cast<std::size_t>(size_));
+    const int n = as_int(mine);
+    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+    return counts;
+  }
+  static std::vector<int> offsets(const std::vector<int>& counts) {
+    std::vector<int> at(counts.size(), 0);
+    long long sum = 0;
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      at[r] = as_int(static_cast<std::size_t>(sum));
+      sum += counts[r];
+    }
+    return at;
+  }
+  int rank_ = 0, size_ = 1;
+};
+
+}  // namespace
+
+namespace {
+
+// Whether a launcher (mpirun, mpiexec, srun) started this process: then it is one rank of a
+// job. Started otherwise, it is a run of one process that needs no MPI at all, and it does not
+// start it: an MPI singleton would spawn Open MPI's daemon (a third of a second) and change
+// nothing else.
+bool launched_as_rank() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+    if (std::getenv(name) != nullptr) return true;
+  return false;
+}
+
+}  // namespace
+
+Session::Session(int& argc, char**& argv) {
+  if (!launched_as_rank()) return;
+  int initialised = 0;
+  MPI_Initialized(&initialised);
+  if (!initialised) {
+    // Only the main thread calls MPI (OpenMP threads compute grains between collectives).
+    int provided = 0;
+    MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+  }
+  owned_ = std::make_unique<WorldTeam>();
+  team_ = owned_.get();
+}
+
+Session::~Session() {
+  if (!owned_) return;
+  int finalised = 0;
+  MPI_Finalized(&finalised);
+  if (!finalised) MPI_Finalize();
+}
+
+}  // namespace subslip::parallel

@@ -1,0 +1,47 @@
+#include <algorithm>
+#include <cstdlib>
+
+#include "subslip/parallel/team.hpp"
+
+namespace subslip::parallel {
+
+Block block_of(std::size_t total, int rank, int ranks) {
+  const auto r = static_cast<std::size_t>(rank), n = static_cast<std::size_t>(ranks);
+  const std::size_t base = total / n, extra = total % n;
+  return {r * base + std::min(r, extra), base + (r < extra ? 1 : 0), total};
+}
+
+namespace {
+
+class SerialTeam final : public Team {
+ public:
+  int rank() const override { return 0; }
+  int size() const override { return 1; }
+  void sum(std::span<ExactSum>) const override {}
+  void sum(std::span<std::int64_t>) const override {}
+  void max(std::span<double>) const override {}
+  void min(std::span<std::int64_t>) const override {}
+  std::vector<double> all_gather(std::span<const double> mine) const override {
+    return {mine.begin(), mine.end()};
+  }
+  void broadcast(std::vector<double>&, int) const override {}
+  void broadcast(std::string&, int) const override {}
+  void gather_rows(std::span<const double> mine, std::span<double> all,
+                   std::size_t) const override {
+    std::copy(mine.begin(), mine.end(), all.begin());
+  }
+  void scatter_rows(std::span<const double> all, std::span<double> mine,
+                    std::size_t) const override {
+    std::copy(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(mine.size()), mine.begin());
+  }
+  [[noreturn]] void abort(int exit_code) const override { std::exit(exit_code); }
+};
+
+}  // namespace
+
+const Team& serial_team() {
+  static const SerialTeam team;
+  return team;
+}
+
+}  // namespace subslip::parallel

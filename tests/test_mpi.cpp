@@ -1,0 +1,194 @@
+// `mpirun -np N subslip run`: a crystal case's grains shared among MPI ranks give the serial
+// run's result file bit for bit (every dataset), for 1, 2 and 4 ranks (4 oversubscribed on two
+// cores); a run killed under 2 ranks continues under 3 and equals the uninterrupted run; a
+// grain that fails on rank 1 stops every rank with one message naming it. Built only with MPI.
+#ifdef SUBSLIP_MPIEXEC
+
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "child_process.hpp"
+#include "scratch_dir.hpp"
+#include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_file.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace h5 = subslip::io::h5;
+fs::path scratch_dir() {
+  return subslip::testing::scratch_dir("mpi");
+}
+
+// The copper phase of inputs/default.yaml.
+constexpr char kCopper[] = R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+  kinematics: finite_rotation
+)";
+
+// Uniaxial tension under mixed control (free lateral stresses), then reversed into compression;
+// 37 grains, so that the ranks' blocks differ in size; every per-grain field, checkpoints.
+std::string reversal_scene(int increments) {
+  const std::string n = std::to_string(increments);
+  return std::string(kCopper) + R"(title: "mixed-control tension, reversed"
+orientations: {random: {count: 37, seed: 5}}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 10
+    increments: )" +
+         n + R"(
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, -1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 20
+    increments: )" +
+         n + R"(
+integrator: {method: implicit, residual_tolerance: 1.0e-12, stress_tolerance: 1.0e-10}
+output:
+  macro: [time, L, F, strain, stress, segment]
+  grains: [stress, orientation, slip, slip_rate, crss, r, r_s]
+  checkpoint_every: 3
+)";
+}
+
+// Command line of `subslip args...` under the launcher with `ranks` ranks (root may run it).
+std::vector<std::string> under_mpi(int ranks, const std::vector<std::string>& args) {
+  std::vector<std::string> all{SUBSLIP_MPIEXEC, "-n", std::to_string(ranks), "--oversubscribe",
+                               SUBSLIP_BINARY};
+  all.insert(all.end(), args.begin(), args.end());
+  return all;
+}
+
+// Every rank gets the environment of the launcher (one machine): root may run Open MPI, and one
+// thread per rank keeps 4 ranks on two cores reasonable.
+void launcher_environment() {
+  ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+  ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  ::setenv("OMP_NUM_THREADS", "1", 1);
+  // Open MPI's own allocations at exit are not subslip's leaks.
+  ::setenv("ASAN_OPTIONS", "detect_leaks=0", 1);
+}
+
+int run_mpi(const fs::path& dir, int ranks, const std::vector<std::string>& args) {
+  return subslip::testing::wait_child(subslip::testing::spawn_program(
+      dir, under_mpi(ranks, args), dir / "mpi.log", launcher_environment));
+}
+
+std::string log_of(const fs::path& dir) {
+  return subslip::testing::read_text(dir / "mpi.log");
+}
+
+void expect_ranks_give_the_serial_run(const fs::path& dir, const std::string& scene) {
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", scene, "-o", "serial.h5", "-q"},
+                                          dir / "serial.log"),
+            0)
+      << subslip::testing::read_text(dir / "serial.log");
+  for (int ranks : {1, 2, 4}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const std::string out = "ranks" + std::to_string(ranks) + ".h5";
+    ASSERT_EQ(run_mpi(dir, ranks, {"run", scene, "-o", out, "-q"}), 0) << log_of(dir);
+    EXPECT_EQ(h5::File::open_read(dir / out).root().attribute_int("completed"), 1);
+    subslip::testing::expect_same_datasets(dir / "serial.h5", dir / out);
+  }
+}
+
+}  // namespace
+
+TEST(Mpi, DefaultSceneAtAnyRankCountIsTheSerialRun) {
+  const fs::path dir = scratch_dir();
+  expect_ranks_give_the_serial_run(dir, fs::path(SUBSLIP_SOURCE_DIR) / "inputs/default.yaml");
+  fs::remove_all(dir);
+}
+
+TEST(Mpi, MixedControlReversalAtAnyRankCountIsTheSerialRun) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(30);
+  expect_ranks_give_the_serial_run(dir, "reversal.yaml");
+  fs::remove_all(dir);
+}
+
+// The batch scheduler's kill (SIGTERM to the launcher, which passes it to every rank) at a
+// random moment, then --restart with another rank count: every dataset equals the
+// uninterrupted serial run.
+TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(150);
+  double serial = 0.0;
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "ref.h5", "-q"},
+                                          dir / "ref.log", &serial),
+            0);
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> when(0.2 * serial, 0.7 * serial);
+  const pid_t launcher = subslip::testing::spawn_program(
+      dir, under_mpi(2, {"run", "reversal.yaml", "-o", "out.h5", "-q"}), dir / "mpi.log",
+      launcher_environment);
+  // From the moment the result file is in place (its layout complete).
+  int code = subslip::testing::poll_child(launcher, [&] { return fs::exists(dir / "out.h5"); });
+  if (code < 0) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(when(rng));
+    code = subslip::testing::poll_child(launcher,
+                                        [&] { return std::chrono::steady_clock::now() >= until; });
+    if (code < 0) {
+      ::kill(launcher, SIGTERM);
+      code = subslip::testing::wait_child(launcher);
+    }
+  }
+  ASSERT_TRUE(fs::exists(dir / "out.h5")) << log_of(dir);
+  if (h5::File::open_read(dir / "out.h5").root().attribute_int("completed") == 0) {
+    ASSERT_EQ(run_mpi(dir, 3, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
+  } else {
+    GTEST_LOG_(INFO) << "the run ended before the kill (exit " << code << ")";
+  }
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);
+  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
+// Two cube grains (rank 0 of 2) and two [111] grains (rank 1) in one forward-Euler step with no
+// cutbacks: the [111] grains are loaded twice as hard and leave the admissible range. Every
+// rank stops; the message (one, from the root) names the first failing grain, 2, as the serial
+// run does; the file is left incomplete with the failure stored.
+TEST(Mpi, FailingGrainOnRankOneStopsEveryRankWithItsMessage) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "fails.yaml") << std::string(kCopper) + R"(orientations:
+  euler_deg: [[0, 0, 0], [0, 0, 0], [0, 54.7356, 45], [0, 54.7356, 45]]
+loading:
+  - L: [[-0.5e-3, 0, 0], [0, -0.5e-3, 0], [0, 0, 1.0e-3]]
+    duration: 0.7
+    increments: 1
+integrator: {method: forward_euler, max_cutbacks: 0}
+)";
+  const int serial = subslip::testing::run_subslip(dir, {"run", "fails.yaml", "-o", "serial.h5"},
+                                                   dir / "serial.log");
+  const std::string serial_log = subslip::testing::read_text(dir / "serial.log");
+  ASSERT_EQ(serial, 3) << serial_log;
+  ASSERT_NE(serial_log.find("grain 2,"), std::string::npos) << serial_log;
+  EXPECT_EQ(run_mpi(dir, 2, {"run", "fails.yaml", "-o", "ranks.h5"}), 3) << log_of(dir);
+  const std::string log = log_of(dir);
+  const std::size_t at = serial_log.find("subslip: error:");
+  const std::string error = serial_log.substr(at, serial_log.find('\n', at) - at);
+  EXPECT_NE(log.find(error), std::string::npos) << log;
+  EXPECT_EQ(log.find(error), log.rfind("subslip: error:")) << "one message: " << log;
+  const h5::File file = h5::File::open_read(dir / "ranks.h5");
+  EXPECT_EQ(file.root().attribute_int("completed"), 0);
+  EXPECT_NE(h5::failure_message(file.root().open_group("cases/base")), "");
+  fs::remove_all(dir);
+}
+
+#endif  // SUBSLIP_MPIEXEC
