@@ -51,12 +51,14 @@ namespace {
 struct Recording {
   std::vector<ContactRow> rows;
   contact::RunStats stats;
-  std::string failure;       // a numerical failure: recorded, the case is written as failed
+  std::string failure;       // a numerical failure (why): recorded, the case is written as failed
   std::exception_ptr error;  // anything else: rethrown when the case is written
 };
 
-std::string case_failure(const io::ContactCase& c, const contact::StepFailure& e) {
-  return "case '" + c.name + "': " + e.what();
+// What a result says of a failed case; its sink stores only `why` (in the case's own group), as
+// a crystal sink does, so that a restart that reads it back names the case once.
+std::string case_failure(const io::ContactCase& c, const std::string& why) {
+  return "case '" + c.name + "': " + why;
 }
 
 struct RunContext {
@@ -65,16 +67,16 @@ struct RunContext {
   const ContactRunOptions& options;
 };
 
-// Ends a case that ran to its end (or failed). The sink stores the failure with the case's
-// name, as the result says it.
+// Ends a case that ran to its end (or failed for `why`).
 ContactCaseResult close_case(RunContext& run, std::size_t index, const SummaryTracker& tracker,
-                             const contact::RunStats& stats, const std::string& failure) {
+                             const contact::RunStats& stats, const std::string& why) {
   const io::ContactCase& c = run.scene.cases[index];
-  ContactCaseResult result{c.name, tracker.result(c, stats), failure};
-  if (failure.empty()) {
+  ContactCaseResult result{c.name, tracker.result(c, stats), {}};
+  if (why.empty()) {
     run.sink.complete_case(result.summary);
   } else {
-    run.sink.fail_case(result.summary, failure);
+    result.failure = case_failure(c, why);
+    run.sink.fail_case(result.summary, why);
   }
   return result;
 }
@@ -93,7 +95,7 @@ ContactCaseResult stream_case(RunContext& run, std::size_t index) {
                                    run.sink.write_state(s, segment);
                                  });
   } catch (const contact::StepFailure& e) {
-    failure = case_failure(c, e);
+    failure = e.what();
     stats = {};
   }
   return close_case(run, index, tracker, stats, failure);
@@ -108,7 +110,7 @@ Recording record_case(const io::ContactCase& c) {
                                        rec.rows.push_back({s, segment});
                                      });
   } catch (const contact::StepFailure& e) {
-    rec.failure = case_failure(c, e);
+    rec.failure = e.what();
   } catch (...) {
     // Exceptions must not leave an OpenMP region; the writer rethrows it in case order.
     rec.error = std::current_exception();
@@ -170,7 +172,7 @@ void run_parallel(RunContext& run, const std::vector<std::size_t>& todo,
 
 ContactCaseResult stored_result(const io::ContactCase& c, const StoredContactCase& stored) {
   ContactCaseResult r{c.name, stored.summary, {}};
-  if (!stored.failure.empty()) r.failure = "case '" + c.name + "': " + stored.failure;
+  if (!stored.failure.empty()) r.failure = case_failure(c, stored.failure);
   return r;
 }
 
