@@ -111,13 +111,13 @@ inline int run_subslip_timed(const fs::path& dir, const std::vector<std::string>
   return code;
 }
 
-// SIGKILLs the child `delay` seconds from now unless it ends before; its exit code (137 when
-// killed).
-inline int kill_after(pid_t pid, double delay) {
+// Sends `signal` (SIGKILL: 137 when killed) to the child `delay` seconds from now unless it
+// ends before, then waits for it; its exit code.
+inline int kill_after(pid_t pid, double delay, int signal = SIGKILL) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
   const int code = poll_child(pid, [&] { return std::chrono::steady_clock::now() >= until; });
   if (code >= 0) return code;
-  ::kill(pid, SIGKILL);
+  ::kill(pid, signal);
   return wait_child(pid);
 }
 
@@ -127,13 +127,14 @@ inline int run_and_kill(const fs::path& dir, const std::vector<std::string>& arg
   return kill_after(spawn_subslip(dir, args, log), delay);
 }
 
-// Starts the command and SIGKILLs it `delay` seconds after `appears` exists (unless it ended
-// before).
+// Starts the command and SIGKILLs it (or sends it `signal`) `delay` seconds after `appears`
+// exists (unless it ended before).
 inline int run_and_kill_after_file(const fs::path& dir, const std::vector<std::string>& args,
-                                   const fs::path& log, const fs::path& appears, double delay) {
+                                   const fs::path& log, const fs::path& appears, double delay,
+                                   int signal = SIGKILL) {
   const pid_t pid = spawn_subslip(dir, args, log);
   const int code = poll_child(pid, [&] { return fs::exists(appears); });
-  return code >= 0 ? code : kill_after(pid, delay);
+  return code >= 0 ? code : kill_after(pid, delay, signal);
 }
 
 inline std::string read_text(const fs::path& p) {

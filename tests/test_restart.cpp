@@ -422,6 +422,49 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
   fs::remove_all(dir);
 }
 
+// SIGTERM (a batch scheduler's time limit) stops a crystal run after the increment in progress,
+// with a checkpoint there (the scene's own are too rare to come), and exit status 128 + 15; the
+// restart continues from that checkpoint and ends as the uninterrupted run.
+TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml")
+      << crystal_scene(16, 300, "output:\n  checkpoint_every: 100000\n");
+  subslip::testing::RunTiming ref;
+  ASSERT_EQ(subslip::testing::run_subslip_timed(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"},
+                                                dir / "run.log", dir / "ref.h5", ref),
+            0)
+      << log_of(dir);
+  const unsigned seed = subslip::testing::kill_seed();
+  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
+  std::mt19937 rng(seed);
+  const double computing = ref.total - ref.until_file;
+  std::uniform_real_distribution<double> when(0.2 * computing, 0.7 * computing);
+  const int code = subslip::testing::run_and_kill_after_file(
+      dir, {"run", "scene.yaml", "-o", "out.h5", "-q"}, dir / "run.log", dir / "out.h5", when(rng),
+      SIGTERM);
+  ASSERT_TRUE(code == 128 + SIGTERM || code == 0) << log_of(dir);
+  if (code == 128 + SIGTERM) {
+    const std::string log = log_of(dir);
+    EXPECT_NE(log.find("stopped by SIGTERM: case 'base' stopped after increment "),
+              std::string::npos)
+        << log;
+    EXPECT_NE(log.find("continue with: subslip run --restart out.h5"), std::string::npos) << log;
+    EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
+    {
+      const h5::File restart_file = h5::File::open_read(dir / "out.restart.h5");
+      const auto stop = CheckpointStore(restart_file.root()).latest(0);
+      ASSERT_TRUE(stop.has_value());
+      EXPECT_GT(stop->state.stats.increments, 0);
+    }
+    ASSERT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+  } else {
+    GTEST_LOG_(INFO) << "the run ended before the signal";
+  }
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);
+  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
 // Contact cases take milliseconds: an unfinished one is run again from its start.
 TEST(Restart, KilledContactRunRerunsUnfinishedCases) {
   const fs::path dir = scratch_dir();

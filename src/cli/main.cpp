@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <signal.h>
 #include <unistd.h>
 #include "accuracy.hpp"
 #include "bench.hpp"
@@ -18,6 +19,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -88,6 +90,14 @@ long long rows_in(const fs::path& file) {
   }
 }
 
+// A crystal run stopped by a signal: its exit status is 128 + the signal's number, as if the
+// signal had ended it.
+struct StoppedBySignal : std::runtime_error {
+  StoppedBySignal(const std::string& what, int signal)
+      : std::runtime_error(what), exit_code(128 + signal) {}
+  int exit_code;
+};
+
 // The exit status of a failure: 2 bad input or output path, 3 a numerical failure, 1 others.
 int exit_code_of(const std::exception_ptr& failure) {
   try {
@@ -101,6 +111,8 @@ int exit_code_of(const std::exception_ptr& failure) {
   } catch (const crystal::CrystalStepFailure&) {
     return 3;
   } catch (const parallel::StoppedByRoot& e) {
+    return e.exit_code;
+  } catch (const StoppedBySignal& e) {
     return e.exit_code;
   } catch (...) {
     return 1;
@@ -504,6 +516,57 @@ std::vector<fs::path> input_files(const RunArgs& a, const io::CrystalScene& scen
   return files;
 }
 
+// SIGTERM (a batch scheduler's time limit: Slurm sends it to every task), SIGINT (Ctrl-C) and
+// SIGUSR1 (which Open MPI's mpirun passes on to every rank, where it would end a job on SIGTERM)
+// stop a crystal run after the increment in progress, with a checkpoint there, so that
+// --restart continues from it. A second signal ends the process at once.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void request_stop(int signal) {
+  if (g_stop_signal != 0) {
+    ::signal(signal, SIG_DFL);
+    ::raise(signal);
+    return;
+  }
+  g_stop_signal = signal;
+}
+
+// The handlers for the lifetime of a crystal run (the default disposition before and after).
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction act {};
+    act.sa_handler = request_stop;
+    sigemptyset(&act.sa_mask);
+    for (std::size_t k = 0; k < kSignals.size(); ++k) ::sigaction(kSignals[k], &act, &old_[k]);
+  }
+  ~StopSignals() {
+    for (std::size_t k = 0; k < kSignals.size(); ++k) ::sigaction(kSignals[k], &old_[k], nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+  static bool received() { return g_stop_signal != 0; }
+  // The signal received here (SIGTERM for a rank that stopped because another did).
+  static int signal() { return g_stop_signal != 0 ? static_cast<int>(g_stop_signal) : SIGTERM; }
+
+ private:
+  static constexpr std::array<int, 3> kSignals{SIGTERM, SIGINT, SIGUSR1};
+  std::array<struct sigaction, 3> old_{};
+};
+
+std::string signal_name(int signal) {
+  switch (signal) {
+    case SIGTERM:
+      return "SIGTERM";
+    case SIGINT:
+      return "SIGINT";
+    case SIGUSR1:
+      return "SIGUSR1";
+    default:
+      return "signal " + std::to_string(signal);
+  }
+}
+
 // A crystal run over the ranks of `team` (MPI; a serial run is a team of one): every rank
 // parses the scene and computes its block of each case's grains; the root alone checks and
 // writes the result file (the ranks' blocks reach it through a driver::TeamCrystalSink) and
@@ -541,9 +604,11 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   }
   cli::ProgressReporter progress(team.is_root() ? progress_mode(a) : cli::ProgressMode::none,
                                  stderr, crystal_work(scene));
+  const StopSignals signals;
   driver::CrystalRunOptions options;
   options.team = &team;
   options.checkpoint_every = checkpoint_every;
+  options.stop_requested = [] { return StopSignals::received(); };
   options.on_case_done = [&](std::size_t, const io::CrystalCase&,
                              const driver::CrystalCaseResult& r) {
     progress.clear();
@@ -558,9 +623,13 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     driver::TeamCrystalSink shared(team, root_sink);
     return driver::run_crystal_scene(scene, team.size() > 1 ? shared : *root_sink, options);
   };
-  std::vector<driver::CrystalCaseResult> results;
-  if (team.is_root()) {
-    results = output->write([&] {
+  // The root runs into its file (RunOutput::write finishes it), the other ranks into nothing.
+  const auto run_on_ranks = [&] {
+    if (!team.is_root()) {
+      parallel::on_root(team, [] {});
+      return run(nullptr);
+    }
+    return output->write([&] {
       std::optional<io::CrystalResultSink> sink;
       parallel::on_root(team, [&] {
         io::CrystalSinkOptions to_file;
@@ -573,9 +642,16 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
       });
       return run(&*sink);
     });
-  } else {
-    parallel::on_root(team, [] {});
-    results = run(nullptr);
+  };
+  std::vector<driver::CrystalCaseResult> results;
+  try {
+    results = run_on_ranks();
+  } catch (const driver::RunStopped& e) {
+    progress.clear();
+    const std::string file = team.is_root() ? output->path.string() : "FILE";
+    throw StoppedBySignal("stopped by " + signal_name(StopSignals::signal()) + ": " + e.what() +
+                              "; continue with: subslip run --restart " + file,
+                          StopSignals::signal());
   }
   progress.clear();
   if (speaks) {

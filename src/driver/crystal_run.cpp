@@ -3,6 +3,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <string>
 
 #include "subslip/crystal/phase_builder.hpp"
@@ -127,6 +128,16 @@ CrystalCaseResult end_case(const io::CrystalCase& c, CrystalSink& sink,
   return result;
 }
 
+std::string stopped_at(const io::CrystalCase& c, const crystal::RunPosition& at,
+                       const crystal::MacroState& m, bool checkpointed) {
+  std::ostringstream msg;
+  msg << "case '" << c.name << "' stopped after increment " << at.increment << " of loading["
+      << at.segment << "]"
+      << " (time " << m.time << ")"
+      << (checkpointed ? ", with a checkpoint there" : ", without a checkpoint (none enabled)");
+  return msg.str();
+}
+
 // Runs case `index` into the sink; `resuming`: an interrupted case, continued from the sink's
 // latest checkpoint of it (or from the start when it has none).
 CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
@@ -145,22 +156,27 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
   const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations, team);
   const parallel::Block block = parallel::block_of(c.orientations.size(), team.rank(), team.size());
   const GrainRange grains{block.offset, block.count, block.total};
-  // Whether a checkpoint is due: the root's clock decides for every rank (wall times differ).
-  const auto checkpoint_due = [&] {
-    std::array<double, 1> due{team.is_root() && clock.due() ? 1.0 : 0.0};
-    team.max(due);
-    return due[0] > 0.0;
+  // After an increment, whether a checkpoint is due (the root's clock decides for every rank:
+  // wall times differ) and whether to stop (any rank's request stops all), in one reduction.
+  const auto after_increment = [&] {
+    std::array<double, 2> wanted{checkpoints && team.is_root() && clock.due() ? 1.0 : 0.0,
+                                 options.stop_requested && options.stop_requested() ? 1.0 : 0.0};
+    team.max(wanted);
+    return std::pair<bool, bool>{wanted[0] > 0.0, wanted[1] > 0.0};
   };
   const double duration = loading_time(c);
   const auto& on_progress = options.on_progress;
   if (on_progress && resume) on_progress(index, resume->state.macro.time / duration, true);
   crystal::RunControl control;
   if (resume) control.resume = &resume->state;
-  control.after_increment = [&](const crystal::RunPosition&, const crystal::MacroState& m) {
+  control.after_increment = [&](const crystal::RunPosition& at, const crystal::MacroState& m) {
     if (on_progress) on_progress(index, m.time / duration, false);
-    if (!checkpoints || !checkpoint_due()) return;
-    const crystal::AggregateCheckpoint state = aggregate->checkpoint();
-    sink.write_checkpoint(CheckpointBlock{grains, state}, last_output);
+    const auto [due, stop] = after_increment();
+    if (checkpoints && (due || stop)) {
+      const crystal::AggregateCheckpoint state = aggregate->checkpoint();
+      sink.write_checkpoint(CheckpointBlock{grains, state}, last_output);
+    }
+    if (stop) throw RunStopped(stopped_at(c, at, m, checkpoints), checkpoints);
   };
   const auto observe = [&](const crystal::MacroState& m, const crystal::GrainFields& g) {
     last_output = m;

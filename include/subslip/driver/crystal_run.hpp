@@ -8,6 +8,8 @@
 #include <cstddef>
 #include <functional>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -40,9 +42,21 @@ struct CrystalRunOptions {
   // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
   // restart continues from (work done before this session), and completed cases it skips.
   std::function<void(std::size_t index, double fraction, bool resumed)> on_progress;
+  // Asked after every increment (on every rank; the ranks stop together when any asks): true
+  // stops the run there, after a checkpoint when the case writes them, with RunStopped (a
+  // signal from a batch scheduler, Ctrl-C). None: the run is never stopped.
+  std::function<bool()> stop_requested;
   // Called with every state the aggregate reports, after the sink has it (tests, progress).
   std::function<void(std::size_t index, const crystal::MacroState&, const crystal::GrainFields&)>
       on_state;
+};
+
+// The run stopped on request (CrystalRunOptions::stop_requested) after an increment of the
+// running case; `checkpointed`: a checkpoint of that increment was written, from which
+// --restart continues (else from the case's last checkpoint, or its start).
+struct RunStopped : std::runtime_error {
+  RunStopped(const std::string& what, bool saved) : std::runtime_error(what), checkpointed(saved) {}
+  bool checkpointed;
 };
 
 // Runs every case of `scene` in order into `sink`: cases the sink reports ended are kept (their
