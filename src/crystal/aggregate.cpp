@@ -99,6 +99,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::size_t state_bytes_per_grain() const override {
     return sizeof(double) * (6 + 9 + 4 * static_cast<size_t>(phase_.slip_count));
   }
+  std::size_t memory_bytes_per_grain() const override {
+    return 2 * sizeof(GrainState<N>) + sizeof(Tangent) + sizeof(GrainStepReport) + sizeof(double);
+  }
 
   AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
                      const MacroObserver& observe, const RunControl& control) override {

@@ -152,6 +152,10 @@ class Aggregate {
   virtual int grain_count() const = 0;
   virtual int slip_count() const = 0;
   virtual std::size_t state_bytes_per_grain() const = 0;
+  // What the aggregate holds per grain while it runs: the committed and trial states, the
+  // consistent tangent, the step report and the weight (what limits the grains one process
+  // can hold; the checkpoint and output buffers come on top).
+  virtual std::size_t memory_bytes_per_grain() const = 0;
   // Runs the segments from the initial state (observed first) or, with control.resume, from
   // that checkpoint (nothing observed until the next output increment).
   virtual AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
