@@ -1,8 +1,8 @@
 // `mpirun -np N subslip run`: a crystal case's grains shared among MPI ranks give the serial
 // run's result file bit for bit (every dataset), for 1, 2 and 4 ranks (4 oversubscribed on two
 // cores); a run stopped by a signal under 2 ranks continues under 3 and equals the
-// uninterrupted run; a
-// grain that fails on rank 1 stops every rank with one message naming it. Built only with MPI.
+// uninterrupted run; a grain that fails on rank 1 stops every rank with one message naming it;
+// a sweep's cases distributed over ranks give the serial sweep. Built only with MPI.
 #ifdef SUBSLIP_MPIEXEC
 
 #include <gtest/gtest.h>
@@ -119,6 +119,17 @@ TEST(Mpi, MixedControlReversalAtAnyRankCountIsTheSerialRun) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "reversal.yaml") << reversal_scene(30);
   expect_ranks_give_the_serial_run(dir, "reversal.yaml");
+  fs::remove_all(dir);
+}
+
+// A sweep of five cases: under 2 and 4 ranks each rank runs whole cases (rank r: r, r + N, ...)
+// and the root writes them in case order; the file equals the serial sweep's.
+TEST(Mpi, SweepOverRanksIsTheSerialSweep) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "sweep.yaml") << reversal_scene(10) + R"(sweep:
+  "phase.tau0": [10, 12, 14, 16, 18]
+)";
+  expect_ranks_give_the_serial_run(dir, "sweep.yaml");
   fs::remove_all(dir);
 }
 

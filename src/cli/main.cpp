@@ -36,7 +36,6 @@
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
-#include "subslip/driver/team_crystal_sink.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -606,7 +605,6 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
                                  stderr, crystal_work(scene));
   const StopSignals signals;
   driver::CrystalRunOptions options;
-  options.team = &team;
   options.checkpoint_every = checkpoint_every;
   options.stop_requested = [] { return StopSignals::received(); };
   options.on_case_done = [&](std::size_t, const io::CrystalCase&,
@@ -618,10 +616,8 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     if (resumed) progress.set_done_before(k, fraction);
     progress.update(k, scene.cases[k].name, fraction);
   };
-  // The sink every rank runs against: the file's own in a run of one rank.
   const auto run = [&](driver::CrystalSink* root_sink) {
-    driver::TeamCrystalSink shared(team, root_sink);
-    return driver::run_crystal_scene(scene, team.size() > 1 ? shared : *root_sink, options);
+    return driver::run_crystal_scene_on_team(scene, team, root_sink, options);
   };
   // The root runs into its file (RunOutput::write finishes it), the other ranks into nothing.
   const auto run_on_ranks = [&] {

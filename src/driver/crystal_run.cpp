@@ -6,8 +6,10 @@
 #include <sstream>
 #include <string>
 
+#include "packing.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
+#include "subslip/driver/team_crystal_sink.hpp"
 
 namespace subslip::driver {
 
@@ -197,7 +199,183 @@ bool ended(CaseStatus s) {
   return s == CaseStatus::completed || s == CaseStatus::failed;
 }
 
+// ---------------------------------------------------------------- whole cases over ranks
+
+// The sink of a case one rank runs alone: its output states, packed for the root, and how it
+// ended. It holds no checkpoints (the case is rerun from its start after a kill).
+class RecordingSink final : public CrystalSink {
+ public:
+  Packed states;  // count, grains, slip systems, then per state its macro state and fields
+  std::size_t count = 0;
+  int grains = 0, slips = 0;
+  std::optional<CrystalSummary> summary;
+  std::string why;  // of a failure
+
+  CaseStatus status(std::size_t) const override { return CaseStatus::pending; }
+  StoredCrystalCase stored_case(std::size_t) const override { return {}; }
+  std::optional<ResumePoint> latest_checkpoint(std::size_t) const override { return std::nullopt; }
+  std::size_t checkpoint_capacity() const override { return 0; }
+  void begin_case(std::size_t, const ResumePoint*) override {}
+  void write_state(const crystal::MacroState& state, const GrainBlock& block) override {
+    const FieldArrays fields(block.fields);
+    grains = fields.grain_count();
+    slips = fields.slip_count();
+    states.put(state);
+    states.values.insert(states.values.end(), fields.values().begin(), fields.values().end());
+    ++count;
+  }
+  void write_checkpoint(const CheckpointBlock&, const crystal::MacroState&) override {}
+  void complete_case(const CrystalSummary& s) override { summary = s; }
+  void fail_case(const CrystalSummary& s, const std::string& reason) override {
+    summary = s;
+    why = reason;
+  }
+  void end_run() override {}
+
+  // What the root receives: the header, then the states.
+  std::vector<double> message() const {
+    Packed head;
+    head.put_integer(static_cast<std::int64_t>(count));
+    head.put_integer(grains);
+    head.put_integer(slips);
+    head.values.insert(head.values.end(), states.values.begin(), states.values.end());
+    return head.values;
+  }
+};
+
+// Case `index` on this rank alone (the serial team), recorded; `error`: an exception other
+// than a step failure, which stops every rank when the case's turn to be written comes.
+struct CaseAlone {
+  RecordingSink record;
+  std::string error;
+};
+
+void run_alone(const io::CrystalScene& scene, std::size_t index, CaseAlone& out) {
+  CrystalRunOptions alone;  // the serial team, no checkpoints, no callbacks
+  alone.checkpoint_every = 0;
+  try {
+    run_case(scene, out.record, alone, index, false);
+  } catch (const std::exception& e) {
+    out.error = e.what();
+  }
+}
+
+// The root writes a case another rank (or itself) recorded.
+void replay(CrystalSink& sink, std::size_t index, const std::vector<double>& message,
+            const CrystalSummary& summary, const std::string& why) {
+  sink.begin_case(index, nullptr);
+  Unpacked in(message);
+  const auto count = static_cast<std::size_t>(in.integer());
+  const auto grains = static_cast<int>(in.integer());
+  const auto slips = static_cast<int>(in.integer());
+  FieldArrays fields(grains, slips);
+  const GrainRange all{0, static_cast<std::size_t>(grains), static_cast<std::size_t>(grains)};
+  for (std::size_t k = 0; k < count; ++k) {
+    crystal::MacroState state;
+    in.get(state);
+    const auto values = in.take(fields.values().size());
+    std::copy(values.begin(), values.end(), fields.values().begin());
+    sink.write_state(state, GrainBlock{all, fields});
+  }
+  if (why.empty()) {
+    sink.complete_case(summary);
+  } else {
+    sink.fail_case(summary, why);
+  }
+}
+
+// Case `index`, recorded by rank `owner` (`mine` there): its result on every rank, its states
+// written by the root.
+CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::Team& team,
+                                CrystalSink* root_sink, std::size_t index, int owner,
+                                const CaseAlone* mine) {
+  Packed head;
+  std::string why, error;
+  if (mine != nullptr) {
+    head.put(mine->record.summary.value_or(CrystalSummary{}));
+    why = mine->record.why;
+    error = mine->error;
+  }
+  team.broadcast(head.values, owner);
+  team.broadcast(why, owner);
+  team.broadcast(error, owner);
+  const io::CrystalCase& c = scene.cases[index];
+  if (!error.empty()) {
+    const std::string what =
+        case_failure(c, error) + " (on MPI rank " + std::to_string(owner) + ")";
+    if (!team.is_root()) throw parallel::StoppedByRoot(what, 1);
+    parallel::root_failure_shared() = true;
+    throw std::runtime_error(what);
+  }
+  CrystalCaseResult result{c.name, {}, why.empty() ? "" : case_failure(c, why)};
+  Unpacked(head.values).get(result.summary);
+  std::vector<double> states;
+  if (mine != nullptr) {
+    if (owner != 0) team.send(mine->record.message(), 0);
+    if (team.is_root()) states = mine->record.message();
+  } else if (team.is_root()) {
+    states = team.receive(owner);
+  }
+  parallel::on_root(team, [&] { replay(*root_sink, index, states, result.summary, why); });
+  return result;
+}
+
+std::vector<CrystalCaseResult> run_cases_over_ranks(const io::CrystalScene& scene,
+                                                    const parallel::Team& team,
+                                                    CrystalSink* root_sink,
+                                                    const CrystalRunOptions& options) {
+  TeamCrystalSink shared(team, root_sink);  // the root's answers, on every rank
+  const std::size_t n = scene.cases.size();
+  std::vector<CaseStatus> status(n);
+  for (std::size_t k = 0; k < n; ++k) status[k] = shared.status(k);
+  std::vector<CrystalCaseResult> results;
+  const auto ranks = static_cast<std::size_t>(team.size());
+  for (std::size_t first = 0; first < n; first += ranks) {
+    const std::size_t mine_index = first + static_cast<std::size_t>(team.rank());
+    std::optional<CaseAlone> mine;
+    if (mine_index < n && !ended(status[mine_index])) {
+      mine.emplace();
+      run_alone(scene, mine_index, *mine);
+    }
+    std::array<double, 1> stop{options.stop_requested && options.stop_requested() ? 1.0 : 0.0};
+    team.max(stop);
+    const std::size_t last = std::min(n, first + ranks);
+    for (std::size_t k = first; k < last; ++k) {
+      if (ended(status[k])) {
+        results.push_back(stored_result(scene.cases[k], shared.stored_case(k)));
+      } else {
+        const int owner = static_cast<int>(k - first);
+        results.push_back(write_case_of(scene, team, root_sink, k, owner,
+                                        owner == team.rank() ? &*mine : nullptr));
+      }
+      if (options.on_progress) options.on_progress(k, 1.0, ended(status[k]));
+      if (options.on_case_done) options.on_case_done(k, scene.cases[k], results.back());
+    }
+    if (stop[0] > 0.0 && last < n) {
+      throw RunStopped("stopped after case '" + scene.cases[last - 1].name + "' (" +
+                           std::to_string(last) + " of " + std::to_string(n) +
+                           " cases written; --restart runs the others)",
+                       false);
+    }
+  }
+  shared.end_run();
+  return results;
+}
+
 }  // namespace
+
+std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
+                                                         const parallel::Team& team,
+                                                         CrystalSink* root_sink,
+                                                         const CrystalRunOptions& options) {
+  if (team.size() == 1) return run_crystal_scene(scene, *root_sink, options);
+  if (scene.cases.size() >= static_cast<std::size_t>(team.size()))
+    return run_cases_over_ranks(scene, team, root_sink, options);
+  TeamCrystalSink shared(team, root_sink);
+  CrystalRunOptions over_ranks = options;
+  over_ranks.team = &team;
+  return run_crystal_scene(scene, shared, over_ranks);
+}
 
 std::vector<CrystalCaseResult> run_crystal_scene(const io::CrystalScene& scene, CrystalSink& sink,
                                                  const CrystalRunOptions& options) {

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cstdlib>
+#include <stdexcept>
 
 #include "subslip/parallel/team.hpp"
 
@@ -33,6 +34,13 @@ class SerialTeam final : public Team {
   void scatter_rows(std::span<const double> all, std::span<double> mine,
                     std::size_t) const override {
     std::copy(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(mine.size()), mine.begin());
+  }
+  // (a team of one has no other rank to talk to)
+  void send(std::span<const double>, int) const override {
+    throw std::logic_error("serial team: no rank to send to");
+  }
+  std::vector<double> receive(int) const override {
+    throw std::logic_error("serial team: no rank to receive from");
   }
   [[noreturn]] void abort(int exit_code) const override { std::exit(exit_code); }
 };

@@ -51,6 +51,19 @@ struct CrystalRunOptions {
       on_state;
 };
 
+// Runs `scene` over the ranks of `team`; every rank calls it, `root_sink` being the result
+// file's sink on the root and null elsewhere. A scene of at least as many cases as ranks (a
+// sweep) gives each rank whole cases, round by round (rank r of N runs cases r, N + r, ...
+// with its threads), and the root writes each round's cases in case order as they come: a
+// kill loses at most the round in progress, whose cases --restart runs again from their start
+// (such cases write no checkpoints). Fewer cases than ranks: every case's grains are shared
+// among the ranks (TeamCrystalSink), with checkpoints as in a serial run. The results are the
+// same on every rank, and equal the serial run's.
+std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
+                                                         const parallel::Team& team,
+                                                         CrystalSink* root_sink,
+                                                         const CrystalRunOptions& options = {});
+
 // The run stopped on request (CrystalRunOptions::stop_requested) after an increment of the
 // running case; `checkpointed`: a checkpoint of that increment was written, from which
 // --restart continues (else from the case's last checkpoint, or its start).

@@ -55,6 +55,10 @@ class Team {
   // The inverse: root's `all` into every rank's block of rows `mine`.
   virtual void scatter_rows(std::span<const double> all, std::span<double> mine,
                             std::size_t width) const = 0;
+  // Point to point (the only non-collective operations): `values` to rank `to`, and what rank
+  // `from` sends (of any length).
+  virtual void send(std::span<const double> values, int to) const = 0;
+  virtual std::vector<double> receive(int from) const = 0;
   // Stops every rank of the run at once (after a failure only one rank knows of): never
   // returns.
   [[noreturn]] virtual void abort(int exit_code) const = 0;

@@ -83,6 +83,18 @@ class WorldTeam final : public Team {
     MPI_Scatterv(all.data(), counts.data(), offsets(counts).data(), MPI_DOUBLE, mine.data(),
                  as_int(mine.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
+  void send(std::span<const double> values, int to) const override {
+    MPI_Send(values.data(), as_int(values.size()), MPI_DOUBLE, to, kTag, MPI_COMM_WORLD);
+  }
+  std::vector<double> receive(int from) const override {
+    MPI_Status status;
+    MPI_Probe(from, kTag, MPI_COMM_WORLD, &status);
+    int count = 0;
+    MPI_Get_count(&status, MPI_DOUBLE, &count);
+    std::vector<double> values(static_cast<std::size_t>(count));
+    MPI_Recv(values.data(), count, MPI_DOUBLE, from, kTag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    return values;
+  }
   [[noreturn]] void abort(int exit_code) const override {
     MPI_Abort(MPI_COMM_WORLD, exit_code);
     std::abort();  // (MPI_Abort does not return)
@@ -105,6 +117,7 @@ class WorldTeam final : public Team {
     }
     return at;
   }
+  static constexpr int kTag = 18;  // (the only point-to-point messages subslip sends)
   int rank_ = 0, size_ = 1;
 };
 
