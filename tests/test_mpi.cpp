@@ -2,7 +2,8 @@
 // run's result file bit for bit (every dataset), for 1, 2 and 4 ranks (4 oversubscribed on two
 // cores); a run stopped by a signal under 2 ranks continues under 3 and equals the
 // uninterrupted run; a grain that fails on rank 1 stops every rank with one message naming it;
-// a sweep's cases distributed over ranks give the serial sweep. Built only with MPI.
+// a sweep's cases (crystal or contact) distributed over ranks give the serial sweep. Built
+// only with MPI.
 #ifdef SUBSLIP_MPIEXEC
 
 #include <gtest/gtest.h>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "child_process.hpp"
+#include "scene_text.hpp"
 #include "scratch_dir.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/result_file.hpp"
@@ -130,6 +132,20 @@ TEST(Mpi, SweepOverRanksIsTheSerialSweep) {
   "phase.tau0": [10, 12, 14, 16, 18]
 )";
   expect_ranks_give_the_serial_run(dir, "sweep.yaml");
+  fs::remove_all(dir);
+}
+
+// A contact sweep of seven cases: each rank computes its share of every round, the root writes
+// them in case order; the file equals the serial sweep's.
+TEST(Mpi, ContactSweepOverRanksIsTheSerialSweep) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "contact.yaml") << subslip::testing::contact_scene_start() + R"(loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 2.0}
+    increments: 400
+sweep:
+  "loading[0].slide.speed": [1, 2, 5, 10, 20, 50, 100]
+)";
+  expect_ranks_give_the_serial_run(dir, "contact.yaml");
   fs::remove_all(dir);
 }
 

@@ -387,40 +387,59 @@ cli::RunTotals contact_totals(const std::vector<driver::ContactCaseResult>& resu
   return t;
 }
 
-int run_contact(const RunArgs& a, const io::YamlDocument& document,
-                const io::RestartInfo* restart) {
+// A contact scene over the ranks of `team` (a serial run is a team of one): every rank parses
+// the scene and computes its share of the cases; the root checks and writes the file, prints.
+int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::RestartInfo* restart,
+                const parallel::Team& team) {
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
   const io::ContactScene scene = io::parse_contact_scene(document);
-  RunOutput output = open_output(a, document, names_of(scene.cases), restart, {a.scene},
-                                 io::estimate_contact_run(scene));
-  print_warnings(a, io::contact_scene_warnings(scene));
-  if (!a.quiet) {
+  std::optional<RunOutput> output;  // the root's
+  const bool speaks = team.is_root() && !a.quiet;
+  parallel::on_root(
+      team,
+      [&] {
+        output.emplace(open_output(a, document, names_of(scene.cases), restart, {a.scene},
+                                   io::estimate_contact_run(scene)));
+        print_warnings(a, io::contact_scene_warnings(scene));
+      },
+      exit_code_of);
+  if (speaks) {
     print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
     std::fflush(stdout);
   }
   std::vector<double> work;
   for (const auto& c : scene.cases)
     work.push_back(static_cast<double>(io::output_count(c.segments)));
-  cli::ProgressReporter progress(progress_mode(a), stderr, work);
-  io::ContactSinkOptions to_file;
-  to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
-  to_file.restart = output.restart();
+  cli::ProgressReporter progress(team.is_root() ? progress_mode(a) : cli::ProgressMode::none,
+                                 stderr, work);
   driver::ContactRunOptions options;
   options.threads = a.threads;
   options.on_case_done = [&](std::size_t k, const io::ContactCase& c,
                              const driver::ContactCaseResult&) { progress.update(k, c.name, 1.0); };
-  const auto results = output.write([&] {
-    io::ContactResultSink sink(scene, output.file, to_file);
-    if (!output.restart()) output.header_written();
-    return driver::run_contact_scene(scene, sink, options);
-  });
+  std::vector<driver::ContactCaseResult> results;
+  if (!team.is_root()) {
+    parallel::on_root(team, [] {});
+    results = driver::run_contact_scene_on_team(scene, team, nullptr, options);
+  } else {
+    results = output->write([&] {
+      std::optional<io::ContactResultSink> sink;
+      parallel::on_root(team, [&] {
+        io::ContactSinkOptions to_file;
+        to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
+        to_file.restart = output->restart();
+        sink.emplace(scene, output->file, to_file);
+        if (!output->restart()) output->header_written();
+      });
+      return driver::run_contact_scene_on_team(scene, team, &*sink, options);
+    });
+  }
   progress.clear();
-  if (!a.quiet) {
+  if (speaks) {
     print_contact_table(scene, results);
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
-    std::printf("%s\n", cli::summary_text(contact_totals(results), wall, output.path).c_str());
+    std::printf("%s\n", cli::summary_text(contact_totals(results), wall, output->path).c_str());
   }
   for (const auto& r : results) {
     if (!r.failure.empty()) throw contact::StepFailure(r.failure);
@@ -666,8 +685,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
 // With --restart the scene is the one stored in the file (/scene); a scene file named as well
 // must have the same text.
 // Run over MPI ranks, every rank runs this: the scene file is read by each; a restart file is
-// inspected by the root, which shares the scene it holds. Only crystal scenes share their work
-// among the ranks; a contact scene runs on the root.
+// inspected by the root, which shares the scene it holds.
 int run_scene(const RunArgs& a, const parallel::Team& team) {
   io::h5::print_error_stacks(a.verbose);
   std::optional<io::YamlDocument> given;
@@ -696,7 +714,7 @@ int run_scene(const RunArgs& a, const parallel::Team& team) {
   if (restart && kind != restart->scene_kind)
     throw InputError(a.restart, 0, "scene_kind",
                      "cannot restart: /scene is not a " + kind + " scene");
-  if (kind == "contact") return team.is_root() ? run_contact(a, document, info) : 0;
+  if (kind == "contact") return run_contact(a, document, info, team);
   if (kind == "crystal") return run_crystal(a, document, info, team);
   throw InputError(document.file(), 0, "scene", "no runner for scene kind '" + kind + "'");
 }

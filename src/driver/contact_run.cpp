@@ -2,8 +2,10 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <exception>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -176,7 +178,156 @@ ContactCaseResult stored_result(const io::ContactCase& c, const StoredContactCas
   return r;
 }
 
+// ---------------------------------------------------------------- cases over MPI ranks
+
+constexpr std::size_t kRowValues = 13;
+
+void pack_row(const ContactRow& row, std::vector<double>& out) {
+  const contact::ContactState& s = row.state;
+  out.insert(out.end(), {s.time, s.slip.x(), s.slip.y(), s.slip_path, s.vp_slip, s.vp_rate,
+                         s.traction_t.x(), s.traction_t.y(), s.traction_n, s.law.mu, s.law.r_s, s.r,
+                         static_cast<double>(row.segment)});
+}
+
+ContactRow unpack_row(const double* v) {
+  ContactRow row;
+  contact::ContactState& s = row.state;
+  s.time = v[0];
+  s.slip = {v[1], v[2]};
+  s.slip_path = v[3];
+  s.vp_slip = v[4];
+  s.vp_rate = v[5];
+  s.traction_t = {v[6], v[7]};
+  s.traction_n = v[8];
+  s.law.mu = v[9];
+  s.law.r_s = v[10];
+  s.r = v[11];
+  row.segment = static_cast<int>(v[12]);
+  return row;
+}
+
+// A recording as the root receives it: the run's counters, then the rows.
+std::vector<double> message_of(const Recording& rec) {
+  const contact::RunStats& st = rec.stats;
+  std::vector<double> out{static_cast<double>(st.increments), static_cast<double>(st.substeps),
+                          static_cast<double>(st.rejected),   static_cast<double>(st.iterations),
+                          static_cast<double>(st.cutbacks),   st.wall_seconds};
+  out.reserve(out.size() + rec.rows.size() * kRowValues);
+  for (const auto& row : rec.rows) pack_row(row, out);
+  return out;
+}
+
+Recording recording_of(const std::vector<double>& message, const std::string& failure) {
+  Recording rec;
+  contact::RunStats& st = rec.stats;
+  st.increments = static_cast<long>(message.at(0));
+  st.substeps = static_cast<long>(message.at(1));
+  st.rejected = static_cast<long>(message.at(2));
+  st.iterations = static_cast<long>(message.at(3));
+  st.cutbacks = static_cast<long>(message.at(4));
+  st.wall_seconds = message.at(5);
+  for (std::size_t at = 6; at + kRowValues <= message.size(); at += kRowValues)
+    rec.rows.push_back(unpack_row(message.data() + at));
+  rec.failure = failure;
+  return rec;
+}
+
+std::string what_of(const std::exception_ptr& error) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const std::exception& e) {
+    return e.what();
+  } catch (...) {
+    return "unknown error";
+  }
+}
+
+// Case `index`, recorded by rank `owner` (`mine` there): the root writes it; every rank gets
+// its result (the summary on the root only: the others print nothing).
+ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_sink,
+                                const io::ContactScene& scene, const ContactRunOptions& options,
+                                std::size_t index, int owner, const Recording* mine) {
+  std::string failure, error;
+  if (mine != nullptr) {
+    failure = mine->failure;
+    if (mine->error) error = what_of(mine->error);
+  }
+  team.broadcast(failure, owner);
+  team.broadcast(error, owner);
+  const io::ContactCase& c = scene.cases[index];
+  if (!error.empty()) {
+    const std::string what =
+        case_failure(c, error) + " (on MPI rank " + std::to_string(owner) + ")";
+    if (!team.is_root()) throw parallel::StoppedByRoot(what, 1);
+    parallel::root_failure_shared() = true;
+    throw std::runtime_error(what);
+  }
+  std::vector<double> message;
+  if (mine != nullptr) {
+    if (owner != 0) team.send(message_of(*mine), 0);
+    if (team.is_root()) message = message_of(*mine);
+  } else if (team.is_root()) {
+    message = team.receive(owner);
+  }
+  ContactCaseResult result{c.name, {}, failure.empty() ? "" : case_failure(c, failure)};
+  parallel::on_root(team, [&] {
+    RunContext run{scene, *root_sink, options};
+    result = write_recorded(run, index, recording_of(message, failure));
+  });
+  return result;
+}
+
 }  // namespace
+
+std::vector<ContactCaseResult> run_contact_scene_on_team(const io::ContactScene& scene,
+                                                         const parallel::Team& team,
+                                                         ContactSink* root_sink,
+                                                         const ContactRunOptions& options) {
+  if (team.size() == 1) return run_contact_scene(scene, *root_sink, options);
+  const std::size_t n = scene.cases.size();
+  // The root's statuses and stored failures, on every rank.
+  std::vector<double> status(n, 0.0);
+  std::vector<ContactCaseResult> results(n);
+  parallel::on_root(team, [&] {
+    for (std::size_t k = 0; k < n; ++k) status[k] = static_cast<double>(root_sink->status(k));
+  });
+  team.broadcast(status, 0);
+  std::vector<std::size_t> todo;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto s = static_cast<CaseStatus>(static_cast<int>(status[k]));
+    if (s != CaseStatus::completed && s != CaseStatus::failed) {
+      todo.push_back(k);
+      continue;
+    }
+    parallel::on_root(
+        team, [&] { results[k] = stored_result(scene.cases[k], root_sink->stored_case(k)); });
+    team.broadcast(results[k].failure, 0);
+    results[k].name = scene.cases[k].name;
+    if (options.on_case_done) options.on_case_done(k, scene.cases[k], results[k]);
+  }
+  // Rounds: each rank computes `per_rank` cases with its threads, then the root writes the
+  // round in case order.
+  const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
+  const auto per_rank = static_cast<std::size_t>(std::max(1, threads));
+  const std::size_t round = per_rank * static_cast<std::size_t>(team.size());
+  for (std::size_t first = 0; first < todo.size(); first += round) {
+    const std::size_t last = std::min(todo.size(), first + round);
+    const std::size_t mine_first = first + per_rank * static_cast<std::size_t>(team.rank());
+    const std::size_t mine_count = mine_first < last ? std::min(per_rank, last - mine_first) : 0;
+    std::vector<Recording> mine(mine_count);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (std::size_t j = 0; j < mine_count; ++j)
+      mine[j] = record_case(scene.cases[todo[mine_first + j]]);
+    for (std::size_t i = first; i < last; ++i) {
+      const int owner = static_cast<int>((i - first) / per_rank);
+      const Recording* rec = owner == team.rank() ? &mine[i - mine_first] : nullptr;
+      const std::size_t k = todo[i];
+      results[k] = write_case_of(team, root_sink, scene, options, k, owner, rec);
+      if (options.on_case_done) options.on_case_done(k, scene.cases[k], results[k]);
+    }
+  }
+  return results;
+}
 
 std::vector<ContactCaseResult> run_contact_scene(const io::ContactScene& scene, ContactSink& sink,
                                                  const ContactRunOptions& options) {

@@ -11,6 +11,7 @@
 
 #include "subslip/driver/contact_sink.hpp"
 #include "subslip/io/contact_scene.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::driver {
 
@@ -41,5 +42,14 @@ struct ContactRunOptions {
 // the other cases still run. Other errors (the sink's) are thrown.
 std::vector<ContactCaseResult> run_contact_scene(const io::ContactScene& scene, ContactSink& sink,
                                                  const ContactRunOptions& options = {});
+
+// The cases of `scene` over the ranks of `team` (every rank calls it; `root_sink`: the result
+// file's sink on the root, null elsewhere): round by round each rank computes `threads` cases
+// with its threads (options.threads, or OpenMP's), and the root writes the round's cases in case
+// order, so the file is the serial run's. Results on every rank (the summaries on the root).
+std::vector<ContactCaseResult> run_contact_scene_on_team(const io::ContactScene& scene,
+                                                         const parallel::Team& team,
+                                                         ContactSink* root_sink,
+                                                         const ContactRunOptions& options = {});
 
 }  // namespace subslip::driver
