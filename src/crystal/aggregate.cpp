@@ -392,17 +392,30 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   }
 
   // Runs every grain from the committed state with L; false (and why) when any grain fails.
+  // `warm`: each grain's Newton iteration starts from the slip rates of its last successful
+  // solve (warm_: in a mixed-control iteration, at a nearby L of the same step) and, should
+  // that fail, again from the committed rates; on success warm_ holds the new rates.
   bool solve_grains(const Mat3& l, double dt, bool want_tangent, const AggregateOptions& opt,
-                    std::string& why) {
+                    std::string& why, bool warm = false) {
     const long n = static_cast<long>(committed_.size());
+    if (warm_.size() != committed_.size()) warm_.resize(committed_.size());
 #pragma omp parallel for schedule(static) if (n > 1)
     for (long g = 0; g < n; ++g) {
       const auto gi = static_cast<size_t>(g);
       Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
-      reports_[gi] =
-          opt.method == CrystalMethod::implicit
-              ? implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t)
-              : explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+      if (opt.method != CrystalMethod::implicit) {
+        reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+        continue;
+      }
+      GrainStepReport& rep = reports_[gi];
+      rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t,
+                                warm ? &warm_[gi] : nullptr);
+      if (warm && !rep.ok) {
+        const int spent = rep.iterations;
+        rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t);
+        rep.iterations += spent;
+      }
+      if (rep.ok) warm_[gi] = trial_[gi].rate;
     }
     stats_.grain_solves += static_cast<long>(total_);
     // Serial, then over the ranks: the iterations, and the first failing grain (by index).
@@ -538,13 +551,15 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     MixedResidual residual;
   };
 
-  // Solves the grains at the free components u; false (and why) when a grain fails.
+  // Solves the grains at the free components u; false (and why) when a grain fails. `warm`:
+  // from the rates of the previous iteration (solve_grains); the first of a step starts cold.
   bool evaluate_mixed(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                       const Mat3& target, double dt, const Eigen::VectorXd& u,
-                      const AggregateOptions& opt, MixedIterate& out, std::string& why) {
+                      const AggregateOptions& opt, MixedIterate& out, std::string& why,
+                      bool warm = true) {
     ++stats_.mixed_iterations;
     const Mat3 l = assemble_velocity_gradient(seg.velocity_gradient, fc, u);
-    if (!solve_grains(l, dt, true, opt, why)) return false;
+    if (!solve_grains(l, dt, true, opt, why, warm)) return false;
     out = {u, l, free_stress_residual(fc, target)};
     return true;
   }
@@ -604,7 +619,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     constexpr int kNonmonotoneUpdates = 5;
     int nonmonotone = 0;
     MixedIterate it;
-    if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why)) return false;
+    if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false)) return false;
     for (int iteration = 0;; ++iteration) {
       const StressResolution resolution = stress_resolution(it.l, dt, opt);
       if (it.residual.size <= std::max(tolerance, resolution.round_off)) {
@@ -719,6 +734,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<GrainState<N>> committed_, trial_;
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;
+  std::vector<VecN> warm_;  // slip rates of each grain's last successful solve (solve_grains)
   std::vector<double> weights_;
   MacroState macro_;
   AggregateStats stats_;

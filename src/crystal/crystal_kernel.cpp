@@ -660,7 +660,8 @@ typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N
 template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
-                                    Tangent* tangent) {
+                                    Tangent* tangent,
+                                    const typename SlipTypes<N>::VecN* start_rate) {
   using T = SlipTypes<N>;
   using VecN = typename T::VecN;
   const int n = ph.slip_count;
@@ -670,10 +671,11 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   ImplicitSolver<N> solver(ph, s0, stress_trial, dt);
 
   // Warm start: the previous slip rate where its sign agrees with the trial shear.
+  const VecN& start = start_rate != nullptr ? *start_rate : s0.rate;
   VecN sign(n), x(n);
   for (int a = 0; a < n; ++a) {
     sign(a) = sign_of(solver.tau_trial()(a));
-    const double previous = s0.rate(a) * dt;
+    const double previous = start(a) * dt;
     x(a) = (previous * sign(a) > 0.0) ? solver.unknown_of(a, sign(a), std::abs(previous)) : 0.0;
   }
   Iterate<N> it, trial;
@@ -872,9 +874,9 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
 #define SUBSLIP_INSTANTIATE_KERNEL(N)                                                            \
   template struct Phase<N>;                                                                      \
   template struct GrainState<N>;                                                                 \
-  template GrainStepReport implicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,         \
-                                                  const Mat3&, double, const GrainStepOptions&,  \
-                                                  GrainState<N>&, Tangent*);                     \
+  template GrainStepReport implicit_grain_step<N>(                                               \
+      const Phase<N>&, const GrainState<N>&, const Mat3&, double, const GrainStepOptions&,       \
+      GrainState<N>&, Tangent*, const typename SlipTypes<N>::VecN*);                             \
   template GrainStepReport explicit_grain_step<N>(const Phase<N>&, const GrainState<N>&,         \
                                                   const Mat3&, double, GrainState<N>&, Tangent*, \
                                                   integrators::ExplicitStability);               \
