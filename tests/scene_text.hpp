@@ -1,5 +1,5 @@
-// Test helper: the YAML text of the contact scenes several tests write (units, the law, the
-// contact), so that each test spells out only its loading, sweep and output.
+// Test helper: the YAML text several tests' scenes share (contact: units, the law, the contact;
+// crystal: units and the copper phase), so that each test spells out only what it varies.
 #pragma once
 
 #include <string>
@@ -24,6 +24,24 @@ inline constexpr char kStiffContact[] =
 // the units, the law and the stiff contact.
 inline std::string contact_scene_start(std::string_view header = "") {
   return "scene: contact\n" + std::string(header) + kContactUnitsAndLaw + kStiffContact;
+}
+
+// The copper phase of inputs/default.yaml: the `phase:` block (its kinematics may follow).
+inline constexpr char kCopperPhase[] = R"(phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+)";
+
+// A crystal scene up to its orientations: `scene: crystal`, then `header` (e.g. a title line),
+// the units (MPa, s) and the copper phase.
+inline std::string copper_scene_start(std::string_view header = "") {
+  return "scene: crystal\n" + std::string(header) + "units: {stress: MPa, time: s}\n" +
+         kCopperPhase;
 }
 
 }  // namespace subslip::testing

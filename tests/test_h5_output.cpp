@@ -364,18 +364,8 @@ TEST(H5Writer, CommittedRowsSurviveACrashWithoutFlush) {
 namespace {
 
 // Two crystal cases of a few seconds at most, with macro and per-grain series.
-const std::string kCrystalKillScene = R"(scene: crystal
-title: "killed at random"
-units: {stress: MPa, time: s}
-phase:
-  families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
-  tau0: 10.0
-  law:
-    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-orientations:
+const std::string kCrystalKillScene =
+    subslip::testing::copper_scene_start("title: \"killed at random\"\n") + R"(orientations:
   random: {count: 24, seed: 3}
 loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]

@@ -12,6 +12,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <random>
 #include <sstream>
@@ -33,25 +34,12 @@ fs::path scratch_dir() {
   return subslip::testing::scratch_dir("mpi");
 }
 
-// The copper phase of inputs/default.yaml.
-constexpr char kCopper[] = R"(scene: crystal
-units: {stress: MPa, time: s}
-phase:
-  families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
-  tau0: 10.0
-  law:
-    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-  kinematics: finite_rotation
-)";
-
 // Uniaxial tension under mixed control (free lateral stresses), then reversed into compression;
 // 37 grains, so that the ranks' blocks differ in size; every per-grain field, checkpoints.
 std::string reversal_scene(int increments, int checkpoint_every = 3) {
   const std::string n = std::to_string(increments);
-  return std::string(kCopper) + R"(title: "mixed-control tension, reversed"
+  return subslip::testing::copper_scene_start("title: \"mixed-control tension, reversed\"\n") +
+         R"(
 orientations: {random: {count: 37, seed: 5}}
 loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
@@ -164,13 +152,16 @@ bool ended(pid_t pid) {
   return line.substr(line.rfind(')') + 2, 1) == "Z";
 }
 
-// A batch scheduler's hard kill: SIGKILL to every process of the job (the launcher and the
-// ranks it started, which Open MPI puts in process groups of their own) at a random moment;
-// --restart under 3 ranks continues from the last periodic checkpoint (every 3 increments) to the
-// uninterrupted serial run's file.
-TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
-  const fs::path dir = scratch_dir();
-  std::ofstream(dir / "reversal.yaml") << reversal_scene(150);
+// The reversal scene run serially (ref.h5), then under 2 ranks (out.h5) until `interrupt`
+// (given the launcher and a random delay, from the moment out.h5 is in place) ends it; an
+// interrupted run must have exited with `interrupted_code` and is continued under 3 ranks
+// (--restart). Every dataset must equal the serial run's. `check`: what else an interrupted run
+// must show.
+void interrupt_and_continue_under_three(const fs::path& dir, int checkpoint_every,
+                                        int interrupted_code,
+                                        const std::function<int(pid_t, double)>& interrupt,
+                                        const std::function<void()>& check = {}) {
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(150, checkpoint_every);
   double serial = 0.0;
   ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "ref.h5", "-q"},
                                           dir / "ref.log", &serial),
@@ -184,29 +175,39 @@ TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
       dir, under_mpi(2, {"run", "reversal.yaml", "-o", "out.h5", "-q"}), dir / "mpi.log",
       launcher_environment);
   int code = subslip::testing::poll_child(launcher, [&] { return fs::exists(dir / "out.h5"); });
-  if (code < 0) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(when(rng));
-    code = subslip::testing::poll_child(launcher,
-                                        [&] { return std::chrono::steady_clock::now() >= until; });
-    if (code < 0) {
-      const std::vector<pid_t> ranks = descendants(launcher);
-      for (pid_t p : ranks) ::kill(p, SIGKILL);
-      ::kill(launcher, SIGKILL);
-      code = subslip::testing::wait_child(launcher);
-      // Until the ranks are gone (the kernel releases their file locks as they end).
-      for (pid_t p : ranks)
-        while (!ended(p)) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-  }
-  ASSERT_TRUE(code == 128 + SIGKILL || code == 0) << log_of(dir);
+  if (code < 0) code = interrupt(launcher, when(rng));
+  ASSERT_TRUE(code == interrupted_code || code == 0) << log_of(dir);
   if (code != 0) {
     EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
+    if (check) check();
     ASSERT_EQ(run_mpi(dir, 3, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
   } else {
-    GTEST_LOG_(INFO) << "the run ended before the kill";
+    GTEST_LOG_(INFO) << "the run ended before it was interrupted";
   }
   EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);
   subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+}
+
+// A batch scheduler's hard kill: SIGKILL to every process of the job (the launcher and the
+// ranks it started, which Open MPI puts in process groups of their own) at a random moment;
+// --restart under 3 ranks continues from the last periodic checkpoint (every 3 increments) to
+// the uninterrupted serial run's file.
+TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
+  const fs::path dir = scratch_dir();
+  interrupt_and_continue_under_three(dir, 3, 128 + SIGKILL, [](pid_t launcher, double delay) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
+    const int code = subslip::testing::poll_child(
+        launcher, [&] { return std::chrono::steady_clock::now() >= until; });
+    if (code >= 0) return code;
+    const std::vector<pid_t> ranks = descendants(launcher);
+    for (pid_t p : ranks) ::kill(p, SIGKILL);
+    ::kill(launcher, SIGKILL);
+    const int killed = subslip::testing::wait_child(launcher);
+    // Until the ranks are gone (the kernel releases their file locks as they end).
+    for (pid_t p : ranks)
+      while (!ended(p)) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return killed;
+  });
   fs::remove_all(dir);
 }
 
@@ -241,35 +242,17 @@ sweep:
 // continues from it, and every dataset equals the uninterrupted serial run.
 TEST(Mpi, RunStoppedUnderTwoRanksContinuesUnderThree) {
   const fs::path dir = scratch_dir();
-  std::ofstream(dir / "reversal.yaml") << reversal_scene(150, 100000);
-  double serial = 0.0;
-  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "ref.h5", "-q"},
-                                          dir / "ref.log", &serial),
-            0);
-  const unsigned seed = subslip::testing::kill_seed();
-  SCOPED_TRACE("SUBSLIP_KILL_SEED=" + std::to_string(seed));
-  std::mt19937 rng(seed);
-  // (2 ranks take about half the serial time)
-  std::uniform_real_distribution<double> when(0.1 * serial, 0.4 * serial);
-  const pid_t launcher = subslip::testing::spawn_program(
-      dir, under_mpi(2, {"run", "reversal.yaml", "-o", "out.h5", "-q"}), dir / "mpi.log",
-      launcher_environment);
-  // From the moment the result file is in place (its layout complete).
-  int code = subslip::testing::poll_child(launcher, [&] { return fs::exists(dir / "out.h5"); });
-  if (code < 0) code = subslip::testing::kill_after(launcher, when(rng), SIGUSR1);
-  ASSERT_TRUE(code == 128 + SIGUSR1 || code == 0) << log_of(dir);
-  if (code != 0) {
-    const std::string log = log_of(dir);
-    EXPECT_NE(log.find("subslip: error: stopped by SIGUSR1: case 'base' stopped after"),
-              std::string::npos)
-        << log;
-    EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
-    ASSERT_EQ(run_mpi(dir, 3, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
-  } else {
-    GTEST_LOG_(INFO) << "the run ended before the signal";
-  }
-  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 1);
-  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  interrupt_and_continue_under_three(
+      dir, 100000, 128 + SIGUSR1,
+      [](pid_t launcher, double delay) {
+        return subslip::testing::kill_after(launcher, delay, SIGUSR1);
+      },
+      [&] {
+        const std::string log = log_of(dir);
+        EXPECT_NE(log.find("subslip: error: stopped by SIGUSR1: case 'base' stopped after"),
+                  std::string::npos)
+            << log;
+      });
   fs::remove_all(dir);
 }
 
@@ -279,7 +262,7 @@ TEST(Mpi, RunStoppedUnderTwoRanksContinuesUnderThree) {
 // run does; the file is left incomplete with the failure stored.
 TEST(Mpi, FailingGrainOnRankOneStopsEveryRankWithItsMessage) {
   const fs::path dir = scratch_dir();
-  std::ofstream(dir / "fails.yaml") << std::string(kCopper) + R"(orientations:
+  std::ofstream(dir / "fails.yaml") << subslip::testing::copper_scene_start() + R"(orientations:
   euler_deg: [[0, 0, 0], [0, 0, 0], [0, 54.7356, 45], [0, 54.7356, 45]]
 loading:
   - L: [[-0.5e-3, 0, 0], [0, -0.5e-3, 0], [0, 0, 1.0e-3]]

@@ -45,18 +45,7 @@ fs::path scratch_dir() {
 // vary.
 std::string crystal_scene(const std::string& kinematics, const std::string& integrator,
                           const std::string& output) {
-  return R"(scene: crystal
-units: {stress: MPa, time: s}
-phase:
-  families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
-  tau0: 10.0
-  law:
-    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-  kinematics: )" +
-         kinematics + R"(
+  return subslip::testing::copper_scene_start() + "  kinematics: " + kinematics + R"(
 orientations:
   random: {count: 3, seed: 11}
 loading:

@@ -96,17 +96,7 @@ void expect_exact(const fs::path& file) {
 
 // A small copper polycrystal in tension (4 grains, 20 increments).
 std::string small_crystal(const std::string& extra) {
-  return R"(scene: crystal
-units: {stress: MPa, time: s}
-phase:
-  families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
-  tau0: 10.0
-  law:
-    friction: {mu_s: 1.6, mu_k: 14.8, kappa: 20.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-orientations:
+  return subslip::testing::copper_scene_start() + R"(orientations:
   random: {count: 4, seed: 3}
 loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]

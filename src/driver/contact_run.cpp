@@ -255,13 +255,9 @@ ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_si
   team.broadcast(failure, owner);
   team.broadcast(error, owner);
   const io::ContactCase& c = scene.cases[index];
-  if (!error.empty()) {
-    const std::string what =
-        case_failure(c, error) + " (on MPI rank " + std::to_string(owner) + ")";
-    if (!team.is_root()) throw parallel::StoppedByRoot(what, 1);
-    parallel::root_failure_shared() = true;
-    throw std::runtime_error(what);
-  }
+  if (!error.empty())
+    parallel::stop_every_rank(team,
+                              case_failure(c, error) + " (MPI rank " + std::to_string(owner) + ")");
   std::vector<double> message;
   if (mine != nullptr) {
     if (owner != 0) team.send(message_of(*mine), 0);

@@ -300,13 +300,9 @@ CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::T
   team.broadcast(why, owner);
   team.broadcast(error, owner);
   const io::CrystalCase& c = scene.cases[index];
-  if (!error.empty()) {
-    const std::string what =
-        case_failure(c, error) + " (on MPI rank " + std::to_string(owner) + ")";
-    if (!team.is_root()) throw parallel::StoppedByRoot(what, 1);
-    parallel::root_failure_shared() = true;
-    throw std::runtime_error(what);
-  }
+  if (!error.empty())
+    parallel::stop_every_rank(team,
+                              case_failure(c, error) + " (MPI rank " + std::to_string(owner) + ")");
   CrystalCaseResult result{c.name, {}, why.empty() ? "" : case_failure(c, why)};
   Unpacked(head.values).get(result.summary);
   std::vector<double> states;

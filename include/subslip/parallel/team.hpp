@@ -84,6 +84,15 @@ inline bool& root_failure_shared() {
   return shared;
 }
 
+// Stops every rank for `what`, a failure one rank met and has broadcast to all: the root
+// throws it (as a shared failure: the others stop by themselves), the others StoppedByRoot.
+// Called on every rank.
+[[noreturn]] inline void stop_every_rank(const Team& team, const std::string& what) {
+  if (!team.is_root()) throw StoppedByRoot(what, 1);
+  root_failure_shared() = true;
+  throw std::runtime_error(what);
+}
+
 // Runs `work` on the root only, then tells every rank whether it succeeded: when it threw, the
 // root rethrows its exception and every other rank throws StoppedByRoot, so that no rank waits
 // in a collective the root never reaches. Collective.
