@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -137,4 +138,20 @@ TEST(Team, BlocksCoverTheGrainsInOrder) {
       EXPECT_LE(largest - smallest, 1u);
     }
   }
+}
+
+TEST(Team, TheLaunchersEnvironmentSaysWhetherAndAmongHowManyRanks) {
+  // (The suite itself runs without a launcher: none of these is set.)
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+    ASSERT_EQ(std::getenv(name), nullptr) << name;
+  EXPECT_FALSE(subslip::parallel::launched_by_mpi());
+  EXPECT_EQ(subslip::parallel::launched_ranks(), 0);
+  ::setenv("OMPI_COMM_WORLD_SIZE", "3", 1);
+  EXPECT_TRUE(subslip::parallel::launched_by_mpi());
+  EXPECT_EQ(subslip::parallel::launched_ranks(), 3);
+  ::unsetenv("OMPI_COMM_WORLD_SIZE");
+  ::setenv("PMIX_RANK", "0", 1);
+  EXPECT_TRUE(subslip::parallel::launched_by_mpi());
+  EXPECT_EQ(subslip::parallel::launched_ranks(), 0);
+  ::unsetenv("PMIX_RANK");
 }

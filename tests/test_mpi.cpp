@@ -144,12 +144,13 @@ std::vector<pid_t> descendants(pid_t root) {
   return found;
 }
 
-// Whether process `pid` has ended (gone, or a zombie: it holds no file any more).
-bool ended(pid_t pid) {
-  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-  std::string line;
-  if (!std::getline(stat, line)) return true;
-  return line.substr(line.rfind(')') + 2, 1) == "Z";
+// Whether process `pid` has let go of its files: it is gone, or no descriptor is left open (a
+// killed process's main thread turns zombie before its other threads have ended and closed the
+// files, so its state says nothing; its descriptor table does).
+bool let_go(pid_t pid) {
+  std::error_code error;
+  fs::directory_iterator fds(fs::path("/proc") / std::to_string(pid) / "fd", error);
+  return error || fds == fs::directory_iterator();
 }
 
 // The reversal scene run serially (ref.h5), then under 2 ranks (out.h5) until `interrupt`
@@ -203,9 +204,9 @@ TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
     for (pid_t p : ranks) ::kill(p, SIGKILL);
     ::kill(launcher, SIGKILL);
     const int killed = subslip::testing::wait_child(launcher);
-    // Until the ranks are gone (the kernel releases their file locks as they end).
+    // Until the ranks have let go of the file (and its lock).
     for (pid_t p : ranks)
-      while (!ended(p)) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      while (!let_go(p)) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     return killed;
   });
   fs::remove_all(dir);

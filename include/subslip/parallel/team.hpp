@@ -121,10 +121,18 @@ void on_root(const Team& team, Work&& work, ExitCodeOf exit_code_of = nullptr) {
   if (code[0] != 0.0) throw StoppedByRoot(why, static_cast<int>(code[0]));
 }
 
+// Whether an MPI launcher (mpirun, mpiexec, srun) started this process, from the environment it
+// sets (OMPI_COMM_WORLD_SIZE, PMI_SIZE, PMIX_RANK), and, if so, as one of how many ranks (0
+// when it does not say).
+bool launched_by_mpi();
+int launched_ranks();
+
 // The run's team for the lifetime of this object: in a build with MPI and a process started
 // by an MPI launcher (mpirun, mpiexec, srun), the MPI world (initialised here, finalised in the
 // destructor); else the serial team, and MPI is never started (a process started without a
-// launcher is a run of one rank, exactly as a build without MPI runs).
+// launcher is a run of one rank, exactly as a build without MPI runs). A build without MPI
+// started by a launcher as one of several ranks stops at once (exit 2, the root says why):
+// every rank would run the whole job into the same file.
 class Session {
  public:
   Session(int& argc, char**& argv);

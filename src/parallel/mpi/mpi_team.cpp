@@ -123,22 +123,10 @@ class WorldTeam final : public Team {
 
 }  // namespace
 
-namespace {
-
-// Whether a launcher (mpirun, mpiexec, srun) started this process: then it is one rank of a
-// job. Started otherwise, it is a run of one process that needs no MPI at all, and it does not
-// start it: an MPI singleton would spawn Open MPI's daemon (a third of a second) and change
-// nothing else.
-bool launched_as_rank() {
-  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
-    if (std::getenv(name) != nullptr) return true;
-  return false;
-}
-
-}  // namespace
-
 Session::Session(int& argc, char**& argv) {
-  if (!launched_as_rank()) return;
+  // Started without a launcher, this is a run of one process that needs no MPI at all: an MPI
+  // singleton would spawn Open MPI's daemon (a third of a second) and change nothing else.
+  if (!launched_by_mpi()) return;
   int initialised = 0;
   MPI_Initialized(&initialised);
   if (!initialised) {
