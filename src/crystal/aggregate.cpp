@@ -556,10 +556,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   bool evaluate_mixed(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                       const Mat3& target, double dt, const Eigen::VectorXd& u,
                       const AggregateOptions& opt, MixedIterate& out, std::string& why,
-                      bool warm = true) {
+                      bool warm = true, bool want_tangent = false) {
     ++stats_.mixed_iterations;
     const Mat3 l = assemble_velocity_gradient(seg.velocity_gradient, fc, u);
-    if (!solve_grains(l, dt, true, opt, why, warm)) return false;
+    if (!solve_grains(l, dt, want_tangent, opt, why, warm)) return false;
     out = {u, l, free_stress_residual(fc, target)};
     return true;
   }
@@ -619,7 +619,13 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     constexpr int kNonmonotoneUpdates = 5;
     int nonmonotone = 0;
     MixedIterate it;
-    if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false)) return false;
+    if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false, true)) return false;
+    // The Jacobian of the step's first iterate serves every update of the step (a chord
+    // iteration: the averaged tangent barely changes over the few iterations of one step, and
+    // the later grain solves need no tangent); it is renewed where its update does not decrease
+    // the error.
+    Eigen::MatrixXd jacobian = free_stress_jacobian(fc, dt);
+    bool fresh = true;
     for (int iteration = 0;; ++iteration) {
       const StressResolution resolution = stress_resolution(it.l, dt, opt);
       if (it.residual.size <= std::max(tolerance, resolution.round_off)) {
@@ -627,8 +633,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         return true;
       }
       if (iteration == opt.max_mixed_iterations || budget == 0) break;
-      const Eigen::VectorXd delta =
-          free_stress_jacobian(fc, dt).partialPivLu().solve(-it.residual.value);
+      const Eigen::VectorXd delta = jacobian.partialPivLu().solve(-it.residual.value);
+      const double previous_size = it.residual.size;
       if (!delta.allFinite()) {
         why = "mixed control: singular Jacobian of the free stresses";
         return false;
@@ -636,7 +642,26 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const bool at_noise = it.residual.size <= resolution.grain_noise;
       const Search search =
           mixed_line_search(seg, fc, target, dt, delta, opt, at_noise ? 2 : 10, it, budget, why);
-      if (search == Search::decreased) continue;
+      if (search == Search::decreased) {
+        // A chord iteration converges linearly; where it contracts the error by less than
+        // half per update, Newton's own Jacobian is worth a tangent (Hairer and Wanner's rule
+        // for the simplified Newton iteration of implicit Runge-Kutta methods).
+        const bool slow = it.residual.size > 0.5 * previous_size;
+        if (slow && !fresh && budget-- > 0) {
+          if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why, true, true)) return false;
+          jacobian = free_stress_jacobian(fc, dt);
+          fresh = true;
+        } else {
+          fresh = false;
+        }
+        continue;
+      }
+      if (!fresh && budget-- > 0) {  // a stale Jacobian: renewed at the current iterate
+        if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why, true, true)) return false;
+        jacobian = free_stress_jacobian(fc, dt);
+        fresh = true;
+        continue;
+      }
       if (at_noise) {
         // No L does better than this one: the grains are re-solved there (the line search left
         // its last trial in them).
