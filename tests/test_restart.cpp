@@ -445,7 +445,7 @@ TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
   ASSERT_TRUE(code == 128 + SIGTERM || code == 0) << log_of(dir);
   if (code == 128 + SIGTERM) {
     const std::string log = log_of(dir);
-    EXPECT_NE(log.find("stopped by SIGTERM: case 'base' stopped after increment "),
+    EXPECT_NE(log.find("subslip: stopped by SIGTERM: case 'base' stopped after increment "),
               std::string::npos)
         << log;
     EXPECT_NE(log.find("continue with: subslip run --restart out.h5"), std::string::npos) << log;

@@ -823,6 +823,11 @@ int report(const char* message, int code) {
 int stop_on(const std::exception& e, const parallel::Team& team) {
   const std::exception_ptr failure = std::current_exception();
   const int code = exit_code_of(failure);
+  // A stop on request is no error: said once, by the root.
+  if (dynamic_cast<const StoppedBySignal*>(&e) != nullptr) {
+    if (team.is_root()) std::fprintf(stderr, "subslip: %s\n", e.what());
+    return code;
+  }
   if (team.size() == 1) return report(e.what(), code);
   const bool shared = code != 1 || dynamic_cast<const parallel::StoppedByRoot*>(&e) != nullptr ||
                       (team.is_root() && parallel::root_failure_shared());
