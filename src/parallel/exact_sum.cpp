@@ -72,8 +72,8 @@ double ExactSum::value() const {
   if (words_[kMinusInf] > 0) return -std::numeric_limits<double>::infinity();
   std::array<std::int64_t, kWords> w = words_;
   carry(w);
-  // The magnitude in the same unique form, then its leading limbs from the top: 3 limbs hold
-  // at least 65 significant bits, so the rounded sum is within an ulp of the exact one.
+  // The magnitude in the same unique form, then its four leading limbs from the top (at least
+  // 97 significant bits), so the rounded sum is within an ulp of the exact one.
   const bool negative = w[kLimbs - 1] < 0;
   if (negative) {
     for (int k = 0; k < kLimbs; ++k) w[k] = -w[k];
