@@ -20,11 +20,11 @@
 #include <iostream>
 #include <limits>
 #include <numbers>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "message_number.hpp"
 #include "paper_law.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/law/subloading_friction.hpp"
@@ -805,10 +805,7 @@ TEST(ContactFailure, ForwardEulerBeyondStabilityNeverYieldsNonFinite) {
             // The message names the time and the state (r, r_s, mu) of the last accepted
             // state; they are printed with 6 significant digits.
             auto value_of = [&](const std::string& key) {
-              std::smatch m;
-              const std::regex re(key + "([-+]?[0-9]*\\.?[0-9]+(?:[eE][-+]?[0-9]+)?)");
-              EXPECT_TRUE(std::regex_search(msg, m, re)) << key << " missing in: " << msg;
-              return m.empty() ? std::numeric_limits<double>::quiet_NaN() : std::stod(m[1]);
+              return subslip::testing::number_after(msg, key);
             };
             const double time = value_of("at time ");
             const double mu = value_of("mu = ");
@@ -857,12 +854,7 @@ TEST(ContactFailure, ForwardEulerFailureNamesTheLastAcceptedState) {
   ASSERT_FALSE(msg.empty()) << "an impossible forward Euler step was accepted";
   ASSERT_GT(last.time, 0.0);
   ASSERT_GT(last.r, 1.0);
-  auto value_of = [&](const std::string& key) {
-    std::smatch m;
-    const std::regex re(key + "([-+]?[0-9]*\\.?[0-9]+(?:[eE][-+]?[0-9]+)?)");
-    EXPECT_TRUE(std::regex_search(msg, m, re)) << key << " missing in: " << msg;
-    return m.empty() ? std::numeric_limits<double>::quiet_NaN() : std::stod(m[1]);
-  };
+  auto value_of = [&](const std::string& key) { return subslip::testing::number_after(msg, key); };
   // Printed with 6 significant digits: 1e-5 relative.
   EXPECT_NEAR(value_of("at time "), last.time, 1e-5 * last.time) << msg;
   EXPECT_NEAR(value_of("mu = "), last.law.mu, 1e-5 * last.law.mu) << msg;

@@ -10,6 +10,7 @@
 #include <omp.h>
 #include "crystal_law.hpp"
 #include "grain_recorder.hpp"
+#include "message_number.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -19,7 +20,6 @@
 #include <iostream>
 #include <limits>
 #include <numbers>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -270,16 +270,7 @@ TEST(CrystalThreads, OneAndTwoThreadsAreBitwiseIdentical) {
 // ("free components of L did not converge") names no grain either.
 // ---------------------------------------------------------------------------------------------
 
-namespace {
-
-double value_after(const std::string& msg, const std::string& key) {
-  std::smatch m;
-  const std::regex re(key + "([-+]?[0-9]*\\.?[0-9]+(?:[eE][-+]?[0-9]+)?)");
-  EXPECT_TRUE(std::regex_search(msg, m, re)) << "'" << key << "' missing in: " << msg;
-  return m.empty() ? std::numeric_limits<double>::quiet_NaN() : std::stod(m[1]);
-}
-
-}  // namespace
+using subslip::testing::number_after;
 
 TEST(CrystalBounds, BccLargeIncrementsAdmissibleOrReported) {
   const auto p = crystal_law(1.0, 2.0, 5.0, 0.0, 500.0, 0.01);
@@ -335,12 +326,12 @@ TEST(CrystalBounds, BccLargeIncrementsAdmissibleOrReported) {
       measured() << "bcc 48 " << c.name << ": " << msg << "\n";
       EXPECT_EQ(msg.find("nan"), std::string::npos) << msg;
       EXPECT_EQ(msg.find("inf"), std::string::npos) << msg;
-      const double time = value_after(msg, "at time ");
-      const double grain = value_after(msg, "grain ");
-      const double system = value_after(msg, "slip system ");
-      const double mu = value_after(msg, "mu = ");
-      const double r = value_after(msg, " r = ");
-      const double r_s = value_after(msg, "r_s = ");
+      const double time = number_after(msg, "at time ");
+      const double grain = number_after(msg, "grain ");
+      const double system = number_after(msg, "slip system ");
+      const double mu = number_after(msg, "mu = ");
+      const double r = number_after(msg, " r = ");
+      const double r_s = number_after(msg, "r_s = ");
       ASSERT_FALSE(rec.snaps.empty());
       EXPECT_GE(grain, 0.0) << msg;
       EXPECT_LT(grain, 16.0) << msg;
