@@ -84,6 +84,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     trial_.resize(n);
     tangents_.resize(n);
     reports_.resize(n);
+    warm_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
     std::array<parallel::ExactSum, 1> total;
     for (double w : weights_) total[0].add(w);
@@ -325,9 +326,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // The local error estimate of the step just solved (trial_ from committed_): per grain and
   // slip system, dt/2 |A (gdot_end - gdot_start)| over the CRSS mu tau0, the largest of all.
   // The start rates are the committed end rates of the previous (backward Euler) step. A NaN
-  // wins, so that a broken step is never accepted.
-  // The first NaN, else the first of the largest, in grain order: per rank, then over the
-  // ranks in rank order (the same estimate at any rank count).
+  // wins, so that a broken step is never accepted: the first NaN, else the first of the
+  // largest, in grain order, per rank and then over the ranks in rank order (the same estimate
+  // at any rank count).
   ErrorEstimate local_error(double dt) const {
     ErrorEstimate worst;
     const auto keep_worse = [&worst](double value, size_t grain, int system) {
@@ -398,7 +399,6 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   bool solve_grains(const Mat3& l, double dt, bool want_tangent, const AggregateOptions& opt,
                     std::string& why, bool warm = false) {
     const long n = static_cast<long>(committed_.size());
-    if (warm_.size() != committed_.size()) warm_.resize(committed_.size());
 #pragma omp parallel for schedule(static) if (n > 1)
     for (long g = 0; g < n; ++g) {
       const auto gi = static_cast<size_t>(g);
@@ -644,8 +644,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
           mixed_line_search(seg, fc, target, dt, delta, opt, at_noise ? 2 : 10, it, budget, why);
       if (search == Search::decreased) {
         // A chord iteration converges linearly; where it contracts the error by less than
-        // half per update, Newton's own Jacobian is worth a tangent (Hairer and Wanner's rule
-        // for the simplified Newton iteration of implicit Runge-Kutta methods).
+        // half per update, Newton's own Jacobian is worth a tangent (docs/internals.md,
+        // "Mixed control").
         const bool slow = it.residual.size > 0.5 * previous_size;
         if (slow && !fresh && budget-- > 0) {
           if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why, true, true)) return false;
