@@ -6,8 +6,10 @@
 // sweep. Built only with MPI.
 #ifdef SUBSLIP_MPIEXEC
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -144,13 +146,30 @@ std::vector<pid_t> descendants(pid_t root) {
   return found;
 }
 
-// Whether process `pid` has let go of its files: it is gone, or no descriptor is left open (a
-// killed process's main thread turns zombie before its other threads have ended and closed the
-// files, so its state says nothing; its descriptor table does).
+// Whether process `pid` has let go of its files: no thread of it has a descriptor left open. A
+// killed process's main thread turns zombie (and its /proc/<pid>/fd reads empty) while its other
+// threads still share the open descriptor table, the HDF5 file's lock among them; so every
+// thread's table is looked at, and a process that is gone has let go.
 bool let_go(pid_t pid) {
   std::error_code error;
-  fs::directory_iterator fds(fs::path("/proc") / std::to_string(pid) / "fd", error);
-  return error || fds == fs::directory_iterator();
+  fs::directory_iterator threads(fs::path("/proc") / std::to_string(pid) / "task", error);
+  if (error) return true;
+  // (a thread may end while it is listed: each step takes an error code instead of throwing)
+  for (; !error && threads != fs::directory_iterator(); threads.increment(error)) {
+    std::error_code unreadable;
+    fs::directory_iterator fds(threads->path() / "fd", unreadable);
+    if (!unreadable && fds != fs::directory_iterator()) return false;
+  }
+  return true;
+}
+
+// Whether no process holds an flock on `file` (the lock HDF5 takes on a file it opens).
+bool lock_is_free(const fs::path& file) {
+  const int fd = ::open(file.c_str(), O_RDONLY);
+  if (fd < 0) return true;
+  const bool free = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+  ::close(fd);  // (closing releases the lock just taken)
+  return free;
 }
 
 // The reversal scene run serially (ref.h5), then under 2 ranks (out.h5) until `interrupt`
@@ -195,7 +214,7 @@ void interrupt_and_continue_under_three(const fs::path& dir, int checkpoint_ever
 // the uninterrupted serial run's file.
 TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
   const fs::path dir = scratch_dir();
-  interrupt_and_continue_under_three(dir, 3, 128 + SIGKILL, [](pid_t launcher, double delay) {
+  interrupt_and_continue_under_three(dir, 3, 128 + SIGKILL, [&dir](pid_t launcher, double delay) {
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
     const int code = subslip::testing::poll_child(
         launcher, [&] { return std::chrono::steady_clock::now() >= until; });
@@ -204,9 +223,11 @@ TEST(Mpi, RunKilledUnderTwoRanksContinuesUnderThree) {
     for (pid_t p : ranks) ::kill(p, SIGKILL);
     ::kill(launcher, SIGKILL);
     const int killed = subslip::testing::wait_child(launcher);
-    // Until the ranks have let go of the file (and its lock).
+    // Until the ranks have let go of the file, and its lock (HDF5's flock) is released too: an
+    // exiting process closes its descriptors before the kernel puts the last reference down.
     for (pid_t p : ranks)
       while (!let_go(p)) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    while (!lock_is_free(dir / "out.h5")) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     return killed;
   });
   fs::remove_all(dir);
