@@ -101,6 +101,10 @@ void expect_ranks_give_the_serial_run(const fs::path& dir, const std::string& sc
     EXPECT_EQ(h5::File::open_read(dir / out).root().attribute_int("completed"), 1);
     subslip::testing::expect_same_datasets(dir / "serial.h5", dir / out);
   }
+  // Rank 0 writing what the others send it (file systems without MPI-IO) gives the same file.
+  ASSERT_EQ(run_mpi(dir, 2, {"run", scene, "-o", "gathered.h5", "-q", "--gather-output"}), 0)
+      << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "serial.h5", dir / "gathered.h5");
 }
 
 }  // namespace
@@ -115,6 +119,23 @@ TEST(Mpi, MixedControlReversalAtAnyRankCountIsTheSerialRun) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "reversal.yaml") << reversal_scene(30);
   expect_ranks_give_the_serial_run(dir, "reversal.yaml");
+  fs::remove_all(dir);
+}
+
+// With parallel HDF5 the ranks sharing a case's grains write them into the file together, and
+// the run says so; --gather-output (and a serial HDF5) has rank 0 write them.
+TEST(Mpi, RanksSharingGrainsWriteTogetherWithParallelHdf5) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(5);
+  ASSERT_EQ(run_mpi(dir, 2, {"run", "reversal.yaml", "-o", "together.h5"}), 0) << log_of(dir);
+  const bool together =
+      log_of(dir).find("every rank writes its grains (parallel HDF5") != std::string::npos;
+  EXPECT_EQ(together, h5::parallel_hdf5()) << log_of(dir);
+  ASSERT_EQ(run_mpi(dir, 2, {"run", "reversal.yaml", "-o", "gathered.h5", "--gather-output"}), 0)
+      << log_of(dir);
+  EXPECT_NE(log_of(dir).find("rank 0 writes the grains gathered from every rank"),
+            std::string::npos)
+      << log_of(dir);
   fs::remove_all(dir);
 }
 

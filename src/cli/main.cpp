@@ -65,9 +65,10 @@ struct RunArgs {
   bool verbose = false;  // HDF5's error stack with an HDF5 error
   int threads = 0;
   double flush_interval = 0.0;
-  std::string restart;        // --restart FILE: continue the run that wrote FILE
-  int checkpoint_every = -1;  // --checkpoint-every N (-1: the scene's, or automatic)
-  bool keep_restart = false;  // --keep-restart: keep the restart file when the run finishes
+  std::string restart;         // --restart FILE: continue the run that wrote FILE
+  int checkpoint_every = -1;   // --checkpoint-every N (-1: the scene's, or automatic)
+  bool keep_restart = false;   // --keep-restart: keep the restart file when the run finishes
+  bool gather_output = false;  // --gather-output: MPI ranks' grains written by rank 0
 };
 
 fs::path output_path(const RunArgs& a) {
@@ -129,6 +130,17 @@ struct RunOutput {
   bool restart() const { return partial.empty(); }
   void header_written() { fs::rename(partial, path); }
   fs::path restart_file() const { return io::restart_file_for(path); }
+
+  // MPI ranks write the file together (run_collectively): after the root laid it out
+  // (or reopened it) and closed it, they open it for their writes; when they have closed it,
+  // the root finishes it, or reports `failure` as write() does.
+  void finish_collective_run(const std::optional<io::h5::Error>& failure) {
+    if (failure) {
+      file = io::h5::File::open_write(path);  // (write_failure records the error in it)
+      throw std::runtime_error(write_failure(*failure));
+    }
+    finish();
+  }
 
   // Runs `run` (which writes into `file`), then closes the file and, when every case ended,
   // rewrites it as the finished file (exactly its rows) and deletes the restart file (unless
@@ -492,7 +504,9 @@ void print_crystal_row(const text::Table& t, const driver::CrystalCaseResult& r)
   std::fflush(stdout);
 }
 
-void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene, int ranks) {
+// `output`: how the ranks' results reach the file, when there are several ranks.
+void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene, int ranks,
+                         const char* output) {
   const io::CrystalCase& first = scene.cases.front();
   print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
   const std::string over_ranks =
@@ -501,6 +515,7 @@ void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene, int ra
               first.orientations.size() == 1 ? "" : "s",
               crystal::described_systems(first.phase).size(), omp_get_max_threads(),
               omp_get_max_threads() == 1 ? "" : "s", over_ranks.c_str());
+  if (ranks > 1) std::printf("  output: %s\n", output);
   std::fflush(stdout);
 }
 
@@ -616,8 +631,15 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   if (a.threads > 0) omp_set_num_threads(a.threads);
   const bool speaks = team.is_root() && !a.quiet;
   const text::Table table = crystal_table(scene);
+  // The ranks share each case's grains and write them into the file together (parallel HDF5).
+  const bool collective =
+      driver::shares_grains(scene, team) && io::h5::parallel_hdf5() && !a.gather_output;
   if (speaks) {
-    print_crystal_intro(a, scene, team.size());
+    print_crystal_intro(a, scene, team.size(),
+                        collective ? "every rank writes its grains (parallel HDF5, MPI-IO)"
+                        : driver::shares_grains(scene, team)
+                            ? "rank 0 writes the grains gathered from every rank"
+                            : "rank 0 writes the cases of every rank");
     std::printf("%s\n", table.header().c_str());
   }
   cli::ProgressReporter progress(team.is_root() ? progress_mode(a) : cli::ProgressMode::none,
@@ -638,8 +660,58 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   const auto run = [&](driver::CrystalSink* root_sink) {
     return driver::run_crystal_scene_on_team(scene, team, root_sink, options);
   };
+  const auto sink_options = [&] {
+    io::CrystalSinkOptions to_file;
+    to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
+    to_file.restart = output->restart();
+    to_file.restart_file = output->restart_file();
+    to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+    return to_file;
+  };
+  const auto run_collectively = [&] {
+    // The root lays the file out (a restart: reopens it and its restart file) alone, as a
+    // serial run does, and closes it; then every rank opens it for its writes.
+    std::string path;
+    parallel::on_root(
+        team,
+        [&] {
+          io::CrystalResultSink layout(scene, output->file, sink_options());
+          if (!output->restart()) output->header_written();
+          layout.end_run();
+          output->file.close();
+          path = output->path.string();
+        },
+        exit_code_of);
+    team.broadcast(path, 0);
+    io::CrystalSinkOptions to_file;
+    to_file.restart = true;
+    to_file.restart_file = io::restart_file_for(path);
+    to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+    to_file.mpi = io::h5::MpiAccess{team.mpi_communicator(), team.rank()};
+    to_file.ranks = team.size();
+    std::optional<io::h5::Error> failure;
+    std::vector<driver::CrystalCaseResult> results;
+    {
+      // (the sink's objects are closed before the file: MPI-IO files close only without)
+      io::h5::File file = io::h5::File::open_write(path, &*to_file.mpi);
+      std::optional<io::CrystalResultSink> sink(std::in_place, scene, file, to_file);
+      try {
+        results = driver::run_crystal_scene_on_team(scene, team, &*sink, options, true);
+        sink.reset();
+        file.close();
+      } catch (const io::h5::Error& e) {  // (every rank has it: CollectiveCrystalSink)
+        sink.reset();
+        file.close_quietly();
+        failure = e;
+      }
+    }
+    parallel::on_root(
+        team, [&] { output->finish_collective_run(failure); }, exit_code_of);
+    return results;
+  };
   // The root runs into its file (RunOutput::write finishes it), the other ranks into nothing.
   const auto run_on_ranks = [&] {
+    if (collective) return run_collectively();
     if (!team.is_root()) {
       parallel::on_root(team, [] {});
       return run(nullptr);
@@ -647,12 +719,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     return output->write([&] {
       std::optional<io::CrystalResultSink> sink;
       parallel::on_root(team, [&] {
-        io::CrystalSinkOptions to_file;
-        to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
-        to_file.restart = output->restart();
-        to_file.restart_file = output->restart_file();
-        to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
-        sink.emplace(scene, output->file, to_file);
+        sink.emplace(scene, output->file, sink_options());
         if (!output->restart()) output->header_written();
       });
       return run(&*sink);
@@ -749,6 +816,10 @@ void add_run_command(CLI::App& app, RunArgs& a) {
   run->add_flag("--keep-restart", a.keep_restart,
                 "Crystal runs: keep the restart file (checkpoints, <result stem>.restart.h5) "
                 "when the run finishes; default: it is deleted");
+  run->add_flag("--gather-output", a.gather_output,
+                "Under MPI: rank 0 writes every rank's grains (gathered to it) instead of all "
+                "ranks writing the file together through MPI-IO; for file systems without "
+                "MPI-IO support (NFS). Needs the whole output state of a case on rank 0");
 }
 
 // ---- subslip orientations

@@ -360,16 +360,24 @@ std::vector<CrystalCaseResult> run_cases_over_ranks(const io::CrystalScene& scen
 
 }  // namespace
 
+bool shares_grains(const io::CrystalScene& scene, const parallel::Team& team) {
+  return team.size() > 1 && scene.cases.size() < static_cast<std::size_t>(team.size());
+}
+
 std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
                                                          const parallel::Team& team,
                                                          CrystalSink* root_sink,
-                                                         const CrystalRunOptions& options) {
+                                                         const CrystalRunOptions& options,
+                                                         bool own_sinks) {
   if (team.size() == 1) return run_crystal_scene(scene, *root_sink, options);
-  if (scene.cases.size() >= static_cast<std::size_t>(team.size()))
-    return run_cases_over_ranks(scene, team, root_sink, options);
-  TeamCrystalSink shared(team, root_sink);
+  if (!shares_grains(scene, team)) return run_cases_over_ranks(scene, team, root_sink, options);
   CrystalRunOptions over_ranks = options;
   over_ranks.team = &team;
+  if (own_sinks) {
+    CollectiveCrystalSink together(team, *root_sink);
+    return run_crystal_scene(scene, together, over_ranks);
+  }
+  TeamCrystalSink shared(team, root_sink);
   return run_crystal_scene(scene, shared, over_ranks);
 }
 

@@ -1,9 +1,13 @@
 #include "subslip/driver/team_crystal_sink.hpp"
 
+#include <array>
 #include <cstdint>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "packing.hpp"
+#include "subslip/io/h5_writer.hpp"
 
 namespace subslip::driver {
 
@@ -115,6 +119,107 @@ void TeamCrystalSink::fail_case(const CrystalSummary& summary, const std::string
 
 void TeamCrystalSink::end_run() {
   parallel::on_root(team_, [&] { root_->end_run(); });
+}
+
+}  // namespace subslip::driver
+
+// ---------------------------------------------------------------- CollectiveCrystalSink
+
+namespace subslip::driver {
+
+CollectiveCrystalSink::CollectiveCrystalSink(const parallel::Team& team, CrystalSink& own_sink)
+    : team_(team), own_(own_sink) {}
+
+// Runs `work` on every rank, then agrees: when it threw anywhere, every rank throws the error
+// of the lowest rank it failed on (an io::h5::Error as one, so that the command line reports
+// it as the failed write it is). Collective.
+template <class Work>
+void CollectiveCrystalSink::together(Work&& work) const {
+  std::string action, reason;
+  bool h5_error = false, failed = false;
+  try {
+    work();
+  } catch (const io::h5::Error& e) {
+    failed = h5_error = true;
+    action = e.action;
+    reason = e.reason;
+  } catch (const std::exception& e) {
+    failed = true;
+    action = e.what();
+  }
+  std::array<std::int64_t, 1> first{failed ? team_.rank() : team_.size()};
+  team_.min(first);
+  if (first[0] == team_.size()) return;
+  const int owner = static_cast<int>(first[0]);
+  std::vector<double> kind{h5_error ? 1.0 : 0.0};
+  team_.broadcast(kind, owner);
+  team_.broadcast(action, owner);
+  team_.broadcast(reason, owner);
+  if (kind[0] != 0.0) throw io::h5::Error(action, reason);
+  parallel::stop_every_rank(team_, action + " (MPI rank " + std::to_string(owner) + ")");
+}
+
+CrystalSummary CollectiveCrystalSink::roots(const CrystalSummary& summary) const {
+  Packed p;
+  p.put(summary);
+  team_.broadcast(p.values, 0);
+  CrystalSummary same;
+  Unpacked(p.values).get(same);
+  return same;
+}
+
+CaseStatus CollectiveCrystalSink::status(std::size_t index) const {
+  CaseStatus s{};
+  together([&] { s = own_.status(index); });
+  return s;
+}
+
+StoredCrystalCase CollectiveCrystalSink::stored_case(std::size_t index) const {
+  StoredCrystalCase stored;
+  together([&] { stored = own_.stored_case(index); });
+  return stored;
+}
+
+std::optional<ResumePoint> CollectiveCrystalSink::latest_checkpoint(std::size_t index) const {
+  std::optional<ResumePoint> found;
+  together([&] { found = own_.latest_checkpoint(index); });
+  return found;
+}
+
+std::size_t CollectiveCrystalSink::checkpoint_capacity() const {
+  std::size_t capacity = 0;
+  together([&] { capacity = own_.checkpoint_capacity(); });
+  return capacity;
+}
+
+void CollectiveCrystalSink::begin_case(std::size_t index, const ResumePoint* resume) {
+  together([&] { own_.begin_case(index, resume); });
+}
+
+void CollectiveCrystalSink::write_state(const crystal::MacroState& state,
+                                        const GrainBlock& grains) {
+  together([&] { own_.write_state(state, grains); });
+}
+
+void CollectiveCrystalSink::write_checkpoint(const CheckpointBlock& checkpoint,
+                                             const crystal::MacroState& last_output) {
+  together([&] { own_.write_checkpoint(checkpoint, last_output); });
+}
+
+void CollectiveCrystalSink::complete_case(const CrystalSummary& summary) {
+  const CrystalSummary same = roots(summary);
+  together([&] { own_.complete_case(same); });
+}
+
+void CollectiveCrystalSink::fail_case(const CrystalSummary& summary, const std::string& why) {
+  const CrystalSummary same = roots(summary);
+  std::string reason = why;
+  team_.broadcast(reason, 0);
+  together([&] { own_.fail_case(same, reason); });
+}
+
+void CollectiveCrystalSink::end_run() {
+  together([&] { own_.end_run(); });
 }
 
 }  // namespace subslip::driver

@@ -84,9 +84,9 @@ std::vector<double> pack_values(const crystal::AggregateCheckpoint& c,
 }
 
 std::vector<long long> pack_counters(std::size_t case_index, const crystal::AggregateCheckpoint& c,
-                                     std::size_t rows, const crystal::MacroState& last) {
+                                     std::size_t rows, const crystal::MacroState& last,
+                                     std::size_t grain_count) {
   const auto& s = c.stats;
-  const auto per_grain = static_cast<std::size_t>(std::max(c.values_per_grain, 1));
   return {c.position.segment,
           c.position.increment,
           c.macro.segment,
@@ -102,7 +102,7 @@ std::vector<long long> pack_counters(std::size_t case_index, const crystal::Aggr
           s.rejected,
           s.mixed_iterations,
           static_cast<long long>(case_index),
-          static_cast<long long>(c.grains.size() / per_grain),
+          static_cast<long long>(grain_count),
           c.values_per_grain};
 }
 
@@ -219,14 +219,15 @@ h5::File create_restart_file(const std::filesystem::path& path, const std::strin
 }
 
 std::optional<h5::File> open_restart_file(const std::filesystem::path& path,
-                                          const std::string& run_id) {
+                                          const std::string& run_id, const h5::MpiAccess* mpi) {
   std::string id;
   if (!is_restart_file(path, &id) || id != run_id) return std::nullopt;
-  return h5::File::open_write(path);
+  return h5::File::open_write(path, mpi);
 }
 
 void CheckpointStore::write(std::size_t case_index, const crystal::AggregateCheckpoint& state,
-                            std::size_t rows, const crystal::MacroState& last_output) {
+                            std::size_t rows, const crystal::MacroState& last_output,
+                            const parallel::Block* grains) {
   if (!continued_) {
     // A restart: continue the numbering, and write over the older slot.
     continued_ = true;
@@ -240,14 +241,23 @@ void CheckpointStore::write(std::size_t case_index, const crystal::AggregateChec
   }
   const h5::Group slot = store_.open_group(kSlots[next_slot_]);
   write_sequence(slot, -1);  // from here until the end the slot is not a checkpoint
-  slot.open_dataset("grains").write_prefix(state.grains);
+  const auto width = static_cast<std::size_t>(std::max(state.values_per_grain, 1));
+  std::size_t grain_count = state.grains.size() / width;
+  if (grains != nullptr) {
+    slot.open_dataset("grains").write_elements(grains->offset * width, state.grains);
+    grain_count = grains->total;
+  } else {
+    slot.open_dataset("grains").write_prefix(state.grains);
+  }
   slot.open_dataset("values").write(pack_values(state, last_output));
-  slot.open_dataset("counters").write(pack_counters(case_index, state, rows, last_output));
+  slot.open_dataset("counters")
+      .write(pack_counters(case_index, state, rows, last_output, grain_count));
   write_sequence(slot, ++sequence_);
   next_slot_ = 1 - next_slot_;
 }
 
-std::optional<StoredCheckpoint> CheckpointStore::latest(std::size_t case_index) const {
+std::optional<StoredCheckpoint> CheckpointStore::latest(std::size_t case_index, int rank,
+                                                        int ranks) const {
   int best = -1;
   long long best_sequence = 0;
   for (int k = 0; k < 2; ++k) {
@@ -266,12 +276,13 @@ std::optional<StoredCheckpoint> CheckpointStore::latest(std::size_t case_index) 
   }
   const std::size_t last = kCounterNames.size() - 1;  // case, grain_count, values_per_grain
   if (counters[last - 2] != static_cast<long long>(case_index)) return std::nullopt;
-  const auto grain_values =
-      static_cast<std::size_t>(counters[last - 1]) * static_cast<std::size_t>(counters[last]);
-  std::vector<double> grains = slot.open_dataset("grains").read_doubles();
-  if (grains.size() < grain_values)
+  const auto width = static_cast<std::size_t>(counters[last]);
+  const auto grain_count = static_cast<std::size_t>(counters[last - 1]);
+  const h5::Dataset stored = slot.open_dataset("grains");
+  if (stored.shape().front() < grain_count * width)
     throw h5::Error("HDF5: checkpoint slot '" + std::string(kSlots[best]) + "' is too small");
-  grains.resize(grain_values);
+  const parallel::Block mine = parallel::block_of(grain_count, rank, ranks);
+  std::vector<double> grains = stored.read_elements(mine.offset * width, mine.count * width);
   return unpack(values, counters, std::move(grains), static_cast<int>(counters[last]),
                 best_sequence);
 }

@@ -465,7 +465,7 @@ void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, in
 
 CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
                                      const Units& units, h5::CaseProgress& progress,
-                                     std::size_t rows)
+                                     std::size_t rows, const parallel::Block* block)
     : group_(cases.open_group(c.name)),
       units_(units),
       progress_(progress),
@@ -490,15 +490,16 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   if (c.output.grains.empty()) return;
   const h5::Group grains = group_.open_group("grains");
   grain_row_.emplace(grains.open_series("row", h5::Type::int32, grain_rows, kMacroBlockRows));
-  const std::size_t n_grains = c.orientations.size();
+  const std::size_t n_grains = block != nullptr ? block->count : c.orientations.size();
   const std::size_t slip_count = crystal::described_systems(c.phase).size();
   std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
-    const std::size_t row_bytes = n_grains * width_of(spec) * sizeof(double);
-    grains_[static_cast<std::size_t>(f)].emplace(
+    const std::size_t row_bytes = c.orientations.size() * width_of(spec) * sizeof(double);
+    h5::Series& series = grains_[static_cast<std::size_t>(f)].emplace(
         grains.open_series(to_string(f), spec.type, grain_rows,
                            rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
+    if (block != nullptr) series.select_grains(block->offset, block->count);
     grain_width_[static_cast<std::size_t>(f)] = n_grains * width_of(spec);
     widest = std::max(widest, width_of(spec));
   }
@@ -628,8 +629,13 @@ std::optional<h5::File> reopen_restart_file(const h5::File& file,
                                             const CrystalSinkOptions& options) {
   if (options.restart_file.empty()) return std::nullopt;
   const std::string run_id = file.root().attribute_string("run_id");
-  if (auto existing = open_restart_file(options.restart_file, run_id)) return existing;
+  const h5::MpiAccess* mpi = options.mpi ? &*options.mpi : nullptr;
+  if (auto existing = open_restart_file(options.restart_file, run_id, mpi)) return existing;
   if (options.checkpoint_capacity == 0) return std::nullopt;
+  // (the ranks of a collective run reopen what one process made: it is made first)
+  if (mpi != nullptr)
+    throw std::logic_error(
+        "CrystalResultSink: the restart file must exist before MPI ranks open it");
   return create_restart_file(options.restart_file, run_id, options.checkpoint_capacity);
 }
 
@@ -642,12 +648,29 @@ CrystalRunFiles reopen(h5::File& file, const CrystalSinkOptions& options) {
 
 }  // namespace
 
+namespace {
+
+const CrystalSinkOptions& checked(const CrystalSinkOptions& options, const h5::File& file) {
+  if (options.mpi.has_value() != file.collective() || (options.mpi && !options.restart))
+    throw std::logic_error(
+        "CrystalResultSink: MPI ranks continue a file laid out before, opened by all of them");
+  return options;
+}
+
+}  // namespace
+
 CrystalResultSink::CrystalResultSink(const CrystalScene& scene, h5::File& file,
                                      const CrystalSinkOptions& options)
     : scene_(scene),
       file_(file),
-      options_(options),
+      options_(checked(options, file)),
       run_(options.restart ? reopen(file, options) : lay_out(scene, file, options)) {}
+
+std::optional<parallel::Block> CrystalResultSink::grains_of(std::size_t index) const {
+  if (!options_.mpi) return std::nullopt;
+  return parallel::block_of(scene_.cases[index].orientations.size(), options_.mpi->rank,
+                            options_.ranks);
+}
 
 driver::CaseStatus CrystalResultSink::status(std::size_t index) const {
   return case_status(run_.progress.state(index));
@@ -681,7 +704,8 @@ driver::StoredCrystalCase CrystalResultSink::stored_case(std::size_t index) cons
 
 std::optional<driver::ResumePoint> CrystalResultSink::latest_checkpoint(std::size_t index) const {
   if (!run_.restart_file) return std::nullopt;
-  auto latest = CheckpointStore(run_.restart_file->root()).latest(index);
+  const int rank = options_.mpi ? options_.mpi->rank : 0;
+  auto latest = CheckpointStore(run_.restart_file->root()).latest(index, rank, options_.ranks);
   if (!latest) return std::nullopt;
   return driver::ResumePoint{std::move(latest->state), latest->rows, latest->last_output};
 }
@@ -694,27 +718,38 @@ void CrystalResultSink::begin_case(std::size_t index, const driver::ResumePoint*
   index_ = index;
   checkpoints_.reset();
   if (run_.restart_file) checkpoints_.emplace(run_.restart_file->root());
+  const std::optional<parallel::Block> mine = grains_of(index);
   writer_.emplace(run_.cases, scene_.cases[index], static_cast<int>(index), scene_.units,
-                  run_.progress, resume ? resume->rows : 0);
+                  run_.progress, resume ? resume->rows : 0, mine ? &*mine : nullptr);
   run_.progress.set_state(index, h5::CaseState::running);
-  pacer_.emplace(options_.flush_interval, options_.write_cost_ratio);
+  // (collective writes: every output step, as the ranks' clocks would pace them apart)
+  if (options_.mpi)
+    pacer_.emplace(std::chrono::duration<double>(0.0), 0.0);
+  else
+    pacer_.emplace(options_.flush_interval, options_.write_cost_ratio);
 }
 
 void CrystalResultSink::write_state(const crystal::MacroState& state,
                                     const driver::GrainBlock& grains) {
-  // One process, one block: the blocks of several (MPI ranks) need collective writes.
-  if (!grains.range.whole())
-    throw std::logic_error("CrystalResultSink: writes whole aggregates only");
+  // This process's block: every grain, or its share when MPI ranks write the file together.
+  const std::optional<parallel::Block> mine = grains_of(index_);
+  if (mine ? grains.range.offset != mine->offset || grains.range.count != mine->count
+           : !grains.range.whole())
+    throw std::logic_error("CrystalResultSink: grains of another block");
   writer_->append(state, grains.fields);
   if (pacer_->due()) pacer_->commit([&] { writer_->commit(); });
 }
 
 void CrystalResultSink::write_checkpoint(const driver::CheckpointBlock& checkpoint,
                                          const crystal::MacroState& last_output) {
-  if (!checkpoint.range.whole() || !checkpoints_)
+  const std::optional<parallel::Block> mine = grains_of(index_);
+  if (!checkpoints_ ||
+      (mine ? checkpoint.range.offset != mine->offset || checkpoint.range.count != mine->count
+            : !checkpoint.range.whole()))
     throw std::logic_error("CrystalResultSink: no store for this checkpoint");
   pacer_->commit([&] { writer_->commit(); });  // the rows a checkpoint counts come first
-  checkpoints_->write(index_, checkpoint.state, writer_->rows(), last_output);
+  checkpoints_->write(index_, checkpoint.state, writer_->rows(), last_output,
+                      mine ? &*mine : nullptr);
 }
 
 void CrystalResultSink::complete_case(const driver::CrystalSummary& summary) {

@@ -18,13 +18,38 @@
 #include <random>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
+
+#ifdef H5_HAVE_PARALLEL
+#include <mpi.h>
+#endif
 
 namespace subslip::io::h5 {
 
 static_assert(std::is_same_v<hid_t, Id>, "h5::Id must be hid_t (HDF5 >= 1.10)");
 
+bool parallel_hdf5() {
+#ifdef H5_HAVE_PARALLEL
+  return true;
+#else
+  return false;
+#endif
+}
+
 namespace {
+
+// The files this process has open for collective writes (File::open_write with MpiAccess) and
+// its rank among their ranks: while one is open, every write is a collective one (every rank
+// makes it; see "collective writes" in the header). One communicator per run, so one rank.
+struct CollectiveFiles {
+  int open = 0;
+  int rank = 0;
+};
+CollectiveFiles& collective_files() {
+  static CollectiveFiles files;
+  return files;
+}
 
 // HDF5 prints its error stack to stderr by default; we report errors as exceptions instead
 // (the stack goes to stderr only when asked for: print_error_stacks).
@@ -129,6 +154,42 @@ Handle scalar_space() {
 Handle simple_space(std::span<const hsize_t> dims, const hsize_t* max_dims = nullptr) {
   return own(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), max_dims), H5Sclose,
              "create dataspace");
+}
+
+// Whose values a write stores: data every rank holds alike (stored once, by rank 0, when the
+// write is collective), or this process's own part of a dataset.
+enum class Part { shared, own };
+
+// The transfer properties of a write: collective MPI-IO while a collective file is open, else
+// the default (an invalid handle).
+Handle write_transfer() {
+  Handle none;
+  if (collective_files().open == 0) return none;
+#ifdef H5_HAVE_PARALLEL
+  Handle dxpl = own(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "create transfer properties");
+  check(H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE), "set collective transfer");
+  return dxpl;
+#else
+  return none;
+#endif
+}
+
+// H5Dwrite of `data` (in `memory_space`) into the selection `file_space` of `dataset`; on a
+// collective write of shared values every rank but 0 takes part with an empty selection.
+void write_selection(hid_t dataset, hid_t memory_type, hid_t memory_space, hid_t file_space,
+                     const void* data, Part part, const std::string& what) {
+  const Handle transfer = write_transfer();
+  if (!transfer.valid()) {
+    check(H5Dwrite(dataset, memory_type, memory_space, file_space, H5P_DEFAULT, data), what);
+    return;
+  }
+  if (part == Part::shared && collective_files().rank != 0) {
+    Handle nothing = own(H5Dget_space(dataset), H5Sclose, "dataset space");
+    check(H5Sselect_none(nothing.get()), "select nothing");
+    check(H5Dwrite(dataset, memory_type, nothing.get(), nothing.get(), transfer.get(), data), what);
+    return;
+  }
+  check(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer.get(), data), what);
 }
 
 // Groups (and the root) track creation order, so that readers list cases and attributes in
@@ -524,16 +585,16 @@ void Dataset::write(std::span<const double> values) const {
   Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
   if (static_cast<std::size_t>(element_count(space.get())) != values.size())
     throw Error("HDF5: values do not fit the dataset");
-  check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-        "write dataset " + object_path(id()));
+  write_selection(id(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, values.data(), Part::shared,
+                  "write dataset " + object_path(id()));
 }
 
 void Dataset::write(std::span<const long long> values) const {
   Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
   if (static_cast<std::size_t>(element_count(space.get())) != values.size())
     throw Error("HDF5: values do not fit the dataset");
-  check(H5Dwrite(id(), H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
-        "write dataset " + object_path(id()));
+  write_selection(id(), H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, values.data(), Part::shared,
+                  "write dataset " + object_path(id()));
 }
 
 void Dataset::write_prefix(std::span<const double> values) const {
@@ -546,9 +607,57 @@ void Dataset::write_prefix(std::span<const double> values) const {
   check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
         "select elements");
   Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
-  check(H5Dwrite(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
-                 values.data()),
-        "write dataset " + object_path(id()));
+  write_selection(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), values.data(),
+                  Part::shared, "write dataset " + object_path(id()));
+}
+
+namespace {
+
+// The elements [offset, offset + count) of a 1-D dataset, selected in its space.
+Handle elements_of(hid_t dataset, std::size_t offset, std::size_t count) {
+  Handle space = own(H5Dget_space(dataset), H5Sclose, "dataset space");
+  if (H5Sget_simple_extent_ndims(space.get()) != 1 ||
+      static_cast<std::size_t>(element_count(space.get())) < offset + count)
+    throw Error("HDF5: elements " + std::to_string(offset) + ".." + std::to_string(offset + count) +
+                " are not in dataset " + object_path(dataset));
+  if (count == 0) {
+    check(H5Sselect_none(space.get()), "select nothing");
+  } else {
+    const hsize_t start[1] = {offset}, n[1] = {count};
+    check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, n, nullptr),
+          "select elements");
+  }
+  return space;
+}
+
+Handle memory_of(std::size_t count) {
+  const hsize_t n[1] = {std::max<std::size_t>(count, 1)};
+  Handle space = simple_space(std::span<const hsize_t>(n, 1));
+  if (count == 0) check(H5Sselect_none(space.get()), "select nothing");
+  return space;
+}
+
+}  // namespace
+
+void Dataset::write_elements(std::size_t offset, std::span<const double> values) const {
+  const Handle file_space = elements_of(id(), offset, values.size());
+  const Handle memory_space = memory_of(values.size());
+  const double unused = 0.0;  // (HDF5 wants a buffer even for no elements)
+  write_selection(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(),
+                  values.empty() ? &unused : values.data(), Part::own,
+                  "write elements " + std::to_string(offset) + ".." +
+                      std::to_string(offset + values.size()) + " of dataset " + object_path(id()));
+}
+
+std::vector<double> Dataset::read_elements(std::size_t offset, std::size_t count) const {
+  const Handle file_space = elements_of(id(), offset, count);
+  const Handle memory_space = memory_of(count);
+  std::vector<double> out(std::max<std::size_t>(count, 1));
+  check(H5Dread(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
+                out.data()),
+        "read elements of dataset " + object_path(id()));
+  out.resize(count);
+  return out;
 }
 
 std::vector<std::string> Dataset::filters() const {
@@ -673,7 +782,32 @@ FileEnd file_end(hid_t object, const std::string& what) {
   return end;
 }
 
+// A collective file: its MPI-IO handle preallocates (every rank calls it, as every rank grows
+// the dataset). Space already claimed stays: MPI-IO has no collective give-back that is safe
+// while HDF5 holds the file, and HDF5 truncates the file to its end when it closes it.
+void claim_collective_file_space([[maybe_unused]] hid_t object,
+                                 [[maybe_unused]] std::uint64_t bytes, const std::string& what) {
+#ifdef H5_HAVE_PARALLEL
+  Handle file = own(H5Iget_file_id(object), H5Fclose, what + ": file of the dataset");
+  hsize_t size = 0;
+  check(H5Fget_filesize(file.get(), &size), what + ": file size");
+  void* handle = nullptr;
+  check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), what + ": MPI-IO file handle");
+  const int error =
+      MPI_File_preallocate(*static_cast<MPI_File*>(handle), static_cast<MPI_Offset>(size + bytes));
+  if (error != MPI_SUCCESS) {
+    char reason[MPI_MAX_ERROR_STRING];
+    int length = 0;
+    MPI_Error_string(error, reason, &length);
+    throw Error(what, std::string(reason, static_cast<std::size_t>(length)));
+  }
+#else
+  throw Error(what, "collective writes need parallel HDF5");
+#endif
+}
+
 void claim_file_space(hid_t object, std::uint64_t bytes, const std::string& what) {
+  if (collective_files().open > 0) return claim_collective_file_space(object, bytes, what);
   const FileEnd end = file_end(object, what);
   const int error =
       ::posix_fallocate(end.fd, static_cast<off_t>(end.size), static_cast<off_t>(bytes));
@@ -683,6 +817,7 @@ void claim_file_space(hid_t object, std::uint64_t bytes, const std::string& what
 
 // Gives back what a growth claimed and HDF5 did not use: the file ends where HDF5's data do.
 void release_unused_space(hid_t object, const std::string& what) {
+  if (collective_files().open > 0) return;  // (see claim_collective_file_space)
   const FileEnd end = file_end(object, what);
   struct stat st {};
   if (::fstat(end.fd, &st) == 0 && static_cast<hsize_t>(st.st_size) > end.size &&
@@ -708,26 +843,48 @@ void Series::reserve(std::size_t rows) {
   release_unused_space(dataset_.id(), "grow dataset " + object_path(dataset_.id()));
 }
 
+void Series::select_grains(std::size_t offset, std::size_t count) {
+  if (row_shape_.empty() || offset + count > row_shape_[0] || pending_ > 0 ||
+      type_ != Type::float64)
+    throw Error("HDF5: grains " + std::to_string(offset) + ".." + std::to_string(offset + count) +
+                " of dataset " + object_path(dataset_.id()) + " cannot be selected");
+  grains_.emplace(offset, count);
+  width_ = count * product(std::span<const std::size_t>(row_shape_).subspan(1));
+  block_.assign(block_rows_ * std::max<std::size_t>(width_, 1), 0.0);
+}
+
 void Series::commit() {
   if (pending_ == 0) return;
   reserve(committed_ + pending_);
-  // [rows, row_shape...]: the selection and the memory block share the trailing dims.
+  // [rows, row_shape...]: the selection and the memory block share the trailing dims (of this
+  // process's grains, when it writes a block of them).
   std::vector<hsize_t> count{pending_};
   count.insert(count.end(), row_shape_.begin(), row_shape_.end());
   std::vector<hsize_t> start(count.size(), 0);
   start[0] = committed_;
+  if (grains_) {
+    start[1] = grains_->first;
+    count[1] = grains_->second;
+  }
   Handle file_space = own(H5Dget_space(dataset_.id()), H5Sclose, "dataset space");
-  check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
-                            nullptr),
-        "select rows");
-  Handle memory_space = simple_space(count);
+  Handle memory_space;
+  if (width_ == 0) {  // a block of no grains: this rank takes part in the write with nothing
+    check(H5Sselect_none(file_space.get()), "select nothing");
+    memory_space = own(H5Scopy(file_space.get()), H5Sclose, "memory space");
+  } else {
+    check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
+                              nullptr),
+          "select rows");
+    memory_space = simple_space(count);
+  }
   const hid_t memory_type = type_ == Type::float64 ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT;
   const void* data = type_ == Type::float64 ? static_cast<const void*>(block_.data())
                                             : static_cast<const void*>(int_block_.data());
-  check(
-      H5Dwrite(dataset_.id(), memory_type, memory_space.get(), file_space.get(), H5P_DEFAULT, data),
-      "write rows " + std::to_string(committed_) + ".." +
-          std::to_string(committed_ + pending_ - 1) + " of dataset " + object_path(dataset_.id()));
+  write_selection(dataset_.id(), memory_type, memory_space.get(), file_space.get(), data,
+                  grains_ ? Part::own : Part::shared,
+                  "write rows " + std::to_string(committed_) + ".." +
+                      std::to_string(committed_ + pending_ - 1) + " of dataset " +
+                      object_path(dataset_.id()));
   committed_ += pending_;
   pending_ = 0;
 }
@@ -915,7 +1072,38 @@ Dataset Group::write_array(std::string_view name, std::span<const std::size_t> s
 
 // ---------------------------------------------------------------- File
 
-File::File(Handle h, std::filesystem::path path) : handle_(std::move(h)), path_(std::move(path)) {}
+File::File(Handle h, std::filesystem::path path, bool collective)
+    : handle_(std::move(h)), path_(std::move(path)), collective_(collective) {
+  if (collective_) ++collective_files().open;
+}
+
+File::File(File&& o) noexcept
+    : handle_(std::move(o.handle_)),
+      path_(std::move(o.path_)),
+      collective_(std::exchange(o.collective_, false)) {}
+
+File& File::operator=(File&& o) noexcept {
+  if (this == &o) return *this;
+  close_quietly();
+  handle_ = std::move(o.handle_);
+  path_ = std::move(o.path_);
+  collective_ = std::exchange(o.collective_, false);
+  return *this;
+}
+
+File::~File() {
+  close_quietly();
+}
+
+void File::forget_collective() noexcept {
+  if (collective_) --collective_files().open;
+  collective_ = false;
+}
+
+void File::close_quietly() noexcept {
+  handle_.reset();
+  forget_collective();
+}
 
 namespace {
 
@@ -939,11 +1127,22 @@ File File::create(const std::filesystem::path& path, bool overwrite) {
   return File(own(id, H5Fclose, "create file " + path.string()), path);
 }
 
-File File::open_write(const std::filesystem::path& path) {
+File File::open_write(const std::filesystem::path& path, const MpiAccess* mpi) {
   quiet_hdf5();
   Handle fapl = unbuffered_file_access();
+  const std::string what = "open file " + path.string() + " for writing";
+  if (mpi != nullptr) {
+#ifdef H5_HAVE_PARALLEL
+    check(H5Pset_fapl_mpio(fapl.get(), *static_cast<const MPI_Comm*>(mpi->communicator),
+                           MPI_INFO_NULL),
+          what + ": MPI-IO access");
+    collective_files().rank = mpi->rank;
+#else
+    throw Error(what + " by MPI ranks", "this build's HDF5 library is serial");
+#endif
+  }
   const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.get());
-  return File(own(id, H5Fclose, "open file " + path.string() + " for writing"), path);
+  return File(own(id, H5Fclose, what), path, mpi != nullptr);
 }
 
 File File::open_read(const std::filesystem::path& path) {
@@ -1028,9 +1227,8 @@ void CaseProgress::write_element(const Dataset& d, std::size_t index, long long 
   check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
         "select element");
   Handle memory_space = simple_space(std::span<const hsize_t>(count, 1));
-  check(
-      H5Dwrite(d.id(), H5T_NATIVE_LLONG, memory_space.get(), file_space.get(), H5P_DEFAULT, &value),
-      "write " + object_path(d.id()));
+  write_selection(d.id(), H5T_NATIVE_LLONG, memory_space.get(), file_space.get(), &value,
+                  Part::shared, "write " + object_path(d.id()));
 }
 
 void CaseProgress::set_rows(std::size_t index, std::size_t rows) {
@@ -1058,7 +1256,9 @@ std::string failure_message(const Group& case_group) {
 void File::close() {
   if (!handle_.valid()) return;
   flush();
-  check(H5Fclose(handle_.release()), "close file " + path_.string());
+  const herr_t closed = H5Fclose(handle_.release());
+  forget_collective();
+  check(closed, "close file " + path_.string());
 }
 
 // ---------------------------------------------------------------- result header

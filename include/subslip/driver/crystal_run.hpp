@@ -57,12 +57,19 @@ struct CrystalRunOptions {
 // with its threads), and the root writes each round's cases in case order as they come: a
 // kill loses at most the round in progress, whose cases --restart runs again from their start
 // (such cases write no checkpoints). Fewer cases than ranks: every case's grains are shared
-// among the ranks (TeamCrystalSink), with checkpoints as in a serial run. The results are the
-// same on every rank, and equal the serial run's.
+// among the ranks, with checkpoints as in a serial run: their blocks reach the root's sink
+// (TeamCrystalSink), or, with `own_sinks`, every rank passes its own sink in `root_sink` and
+// the ranks write one file together (CollectiveCrystalSink: parallel HDF5). The results are
+// the same on every rank, and equal the serial run's.
 std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
                                                          const parallel::Team& team,
                                                          CrystalSink* root_sink,
-                                                         const CrystalRunOptions& options = {});
+                                                         const CrystalRunOptions& options = {},
+                                                         bool own_sinks = false);
+
+// Whether run_crystal_scene_on_team shares the grains of each case among the ranks of `team`
+// (fewer cases than ranks), rather than giving each rank whole cases.
+bool shares_grains(const io::CrystalScene& scene, const parallel::Team& team);
 
 // The run stopped on request (CrystalRunOptions::stop_requested) after an increment of the
 // running case; `checkpointed`: a checkpoint of that increment was written, from which

@@ -31,6 +31,7 @@
 
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::io {
 
@@ -46,9 +47,11 @@ struct StoredCheckpoint {
 // complete (a kill while it is created leaves no restart file), then opened for writing.
 h5::File create_restart_file(const std::filesystem::path& path, const std::string& run_id,
                              std::size_t capacity);
-// The restart file `path` opened for writing, when it is one and belongs to `run_id`.
+// The restart file `path` opened for writing (by the ranks of `mpi` together, when given),
+// when it is one and belongs to `run_id`.
 std::optional<h5::File> open_restart_file(const std::filesystem::path& path,
-                                          const std::string& run_id);
+                                          const std::string& run_id,
+                                          const h5::MpiAccess* mpi = nullptr);
 
 class CheckpointStore {
  public:
@@ -59,11 +62,14 @@ class CheckpointStore {
   explicit CheckpointStore(const h5::Group& parent);
 
   // Writes a checkpoint of case `case_index` into the slot that does not hold the latest one.
+  // `grains`: the grains of the case that state.grains holds (every grain unless MPI ranks
+  // write the store together, each its own block: h5_writer.hpp, collective writes).
   void write(std::size_t case_index, const crystal::AggregateCheckpoint& state, std::size_t rows,
-             const crystal::MacroState& last_output);
+             const crystal::MacroState& last_output, const parallel::Block* grains = nullptr);
 
   // The complete checkpoint with the highest sequence, if it belongs to case `case_index`.
-  std::optional<StoredCheckpoint> latest(std::size_t case_index) const;
+  // Its grains: those of rank `rank` of `ranks` (parallel::block_of; every grain for 0 of 1).
+  std::optional<StoredCheckpoint> latest(std::size_t case_index, int rank = 0, int ranks = 1) const;
 
   long long sequence() const { return sequence_; }  // of the latest write (0: none yet)
   std::size_t capacity() const;                     // grain values a slot holds

@@ -26,6 +26,7 @@
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/run_size.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::io {
 
@@ -38,10 +39,12 @@ class CrystalCaseWriter {
   static void lay_out(const h5::Group& cases, const CrystalCase& c, int index, const Units& units);
   // The group lay_out made, written from row `rows` on (0: a case that starts; else a restart
   // continuing from a checkpoint). Throws InputError when the case's orientations are not those
-  // the group was laid out for.
+  // the group was laid out for. `grains`: the grains this process writes (MPI ranks writing
+  // the file together, each its block); nullptr: every grain.
   CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index, const Units& units,
-                    h5::CaseProgress& progress, std::size_t rows);
-  // One row in every dataset.
+                    h5::CaseProgress& progress, std::size_t rows,
+                    const parallel::Block* grains = nullptr);
+  // One row in every dataset (`grains`: the block of grains this writer writes).
   void append(const crystal::MacroState& m, const crystal::GrainFields& grains);
   // Writes the rows gathered so far and then their number to /progress.
   void commit();
@@ -83,6 +86,13 @@ struct CrystalSinkOptions {
   // Grain values of the largest checkpoint the run writes (driver::checkpoint_capacity); 0:
   // the run writes none.
   std::size_t checkpoint_capacity = 0;
+  // MPI ranks writing the file together (opened with this MpiAccess by all `ranks`; the
+  // restart file is opened so too): this process writes and reads the grains of its block
+  // (parallel::block_of) of each case only, and every rank makes every other write alike
+  // (h5_writer.hpp, collective writes). Such a sink only continues a file laid out before
+  // (`restart`), and commits after every output step (a pace by each rank's clock would differ).
+  std::optional<h5::MpiAccess> mpi;
+  int ranks = 1;
 };
 
 // The groups and files a crystal run writes into, laid out or reopened by CrystalResultSink.
@@ -120,6 +130,7 @@ class CrystalResultSink final : public driver::CrystalSink {
 
  private:
   void end_case(h5::CaseState state);
+  std::optional<parallel::Block> grains_of(std::size_t index) const;  // this process's, if a part
 
   const CrystalScene& scene_;
   h5::File& file_;

@@ -29,6 +29,16 @@
 // first (posix_fallocate), so that a full disk stops it before HDF5 changes anything: the file
 // stays consistent, its valid rows readable, and a message can still be written in place.
 //
+// Collective writes (MPI ranks sharing one file, parallel HDF5: File::open_write with an
+// MpiAccess). The file is laid out by one process first (the layout above, sec2 driver); the
+// ranks then open it together through MPI-IO and write values only: every rank makes the same
+// calls in the same order with the same values (attributes, /progress, macro rows: HDF5's
+// metadata is replicated, so they must agree), and the data themselves are stored by rank 0,
+// except where a rank names its own part: the grains of a per-grain series
+// (Series::select_grains) and elements of a 1-D array (Dataset::write_elements). The rows of a
+// per-grain series are thus written by every rank at once, each its block of grains
+// (a collective hyperslab write). A growth claims its space with MPI_File_preallocate.
+//
 // The header does not include hdf5.h: identifiers are carried as std::int64_t (hid_t in
 // HDF5 >= 1.10), so users of this layer need neither HDF5's include path nor its macros.
 #pragma once
@@ -168,6 +178,10 @@ class Dataset : public Object {
   void write(std::span<const long long> values) const;
   // Overwrite the first values.size() elements of a 1-D float64 dataset in place.
   void write_prefix(std::span<const double> values) const;
+  // This rank's part of a 1-D float64 dataset: the elements [offset, offset + values.size())
+  // (collective: every rank of a parallel file calls it, each with its own part, maybe none).
+  void write_elements(std::size_t offset, std::span<const double> values) const;
+  std::vector<double> read_elements(std::size_t offset, std::size_t count) const;
 };
 
 // An extendible dataset, [n] (columns == 0), [n, columns] or [n, d1, d2, ...] (a row shape), that
@@ -197,6 +211,10 @@ class Series {
   void truncate(std::size_t rows);
   // Commits what is left (the end of a case; the reservation is kept).
   void finish();
+  // A per-grain series ([n, grains, ...]) of which this process writes the grains
+  // [offset, offset + count) only: a row appended is that block (count x the trailing shape).
+  // Call before appending. Other ranks write the other blocks of the same rows.
+  void select_grains(std::size_t offset, std::size_t count);
   std::size_t rows() const { return committed_ + pending_; }
   std::size_t capacity() const { return capacity_; }
   const Dataset& dataset() const { return dataset_; }
@@ -207,7 +225,9 @@ class Series {
 
   Dataset dataset_;
   std::vector<std::size_t> row_shape_;  // {} for [n], {k} for [n, k], {d1, d2} for [n, d1, d2]
-  std::size_t width_;                   // elements per row
+  std::size_t width_;                   // elements per row (of this process's block)
+  // select_grains: this process's grains (axis 1 of the dataset); nullopt: every value.
+  std::optional<std::pair<std::size_t, std::size_t>> grains_;
   Type type_;
   std::size_t block_rows_;
   std::size_t committed_ = 0;
@@ -267,13 +287,30 @@ class Group : public Object {
                       std::string_view description) const;
 };
 
+// The ranks of an MPI communicator opening a file together (parallel HDF5 through MPI-IO):
+// `communicator` points at an MPI_Comm (parallel::Team::mpi_communicator()), `rank` is this
+// process's rank in it. See the note on collective writes at the top.
+struct MpiAccess {
+  const void* communicator = nullptr;
+  int rank = 0;
+};
+
+// Whether this build's HDF5 library can open files through MPI-IO (parallel HDF5).
+bool parallel_hdf5();
+
 class File {
  public:
   // Creates `path`; fails if it exists unless `overwrite` (then truncates).
   static File create(const std::filesystem::path& path, bool overwrite);
   static File open_read(const std::filesystem::path& path);
-  // An existing file, for writing (a restart).
-  static File open_write(const std::filesystem::path& path);
+  // An existing file, for writing (a restart). With `mpi`, every rank of its communicator
+  // opens the file together (collective writes; Error when this HDF5 is not parallel).
+  static File open_write(const std::filesystem::path& path, const MpiAccess* mpi = nullptr);
+  File(File&& o) noexcept;
+  File& operator=(File&& o) noexcept;
+  ~File();
+  // Opened by the ranks of a communicator: every call that writes is collective.
+  bool collective() const { return collective_; }
 
   Group root() const;
   const std::filesystem::path& path() const { return path_; }
@@ -283,12 +320,14 @@ class File {
   // Flushes and closes; throws Error when either fails (the file may then lack metadata).
   void close();
   // Closes without checking (after a failed write, whose Error is the one to report).
-  void close_quietly() noexcept { handle_.reset(); }
+  void close_quietly() noexcept;
 
  private:
-  File(Handle h, std::filesystem::path path);
+  File(Handle h, std::filesystem::path path, bool collective = false);
+  void forget_collective() noexcept;  // the file is closed
   Handle handle_;
   std::filesystem::path path_;
+  bool collective_ = false;
 };
 
 // When a writer commits the rows it gathered: after every output step, unless committing

@@ -62,6 +62,9 @@ class Team {
   // Stops every rank of the run at once (after a failure only one rank knows of): never
   // returns.
   [[noreturn]] virtual void abort(int exit_code) const = 0;
+  // The team's MPI communicator (a pointer to its MPI_Comm) for libraries that take one
+  // (parallel HDF5); null for a team without MPI.
+  virtual const void* mpi_communicator() const { return nullptr; }
 };
 
 // A team of one process: every operation is the identity.

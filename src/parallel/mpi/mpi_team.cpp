@@ -99,6 +99,7 @@ class WorldTeam final : public Team {
     MPI_Abort(MPI_COMM_WORLD, exit_code);
     std::abort();  // (MPI_Abort does not return)
   }
+  const void* mpi_communicator() const override { return &world_; }
 
  private:
   // Every rank's count of values, on every rank.
@@ -119,6 +120,7 @@ class WorldTeam final : public Team {
   }
   static constexpr int kTag = 18;  // (the only point-to-point messages subslip sends)
   int rank_ = 0, size_ = 1;
+  MPI_Comm world_ = MPI_COMM_WORLD;
 };
 
 }  // namespace
