@@ -122,6 +122,53 @@ TEST(Mpi, MixedControlReversalAtAnyRankCountIsTheSerialRun) {
   fs::remove_all(dir);
 }
 
+// The reversal scene with its orientations given by `orientations` (a flow mapping).
+std::string reversal_scene_with(const std::string& orientations, int increments) {
+  std::string scene = reversal_scene(increments);
+  const std::string random = "{random: {count: 37, seed: 5}}";
+  scene.replace(scene.find(random), random.size(), orientations);
+  return scene;
+}
+
+// Where the ranks write the file together, an orientation file is read by rank 0 alone and
+// each rank keeps its block of it: the result is the serial run's, also where some ranks hold
+// no grain (3 grains on 4 ranks).
+TEST(Mpi, OrientationFileReadByBlocksGivesTheSerialRun) {
+  const fs::path dir = scratch_dir();
+  const std::string shipped = std::string(SUBSLIP_SOURCE_DIR) + "/orientations/random_100.txt";
+  std::ofstream(dir / "file.yaml") << reversal_scene_with("{file: \"" + shipped + "\"}", 10);
+  expect_ranks_give_the_serial_run(dir, "file.yaml");
+  const fs::path three = dir / "three";
+  fs::create_directory(three);
+  std::ofstream(three / "three.txt") << "# subslip-orientations convention=bunge-euler-deg\n"
+                                        "10 20 30 2\n40 50 60 1\n70 80 90 0.5\n";
+  std::ofstream(three / "three.yaml") << reversal_scene_with("{file: three.txt}", 10);
+  expect_ranks_give_the_serial_run(three, "three.yaml");
+  fs::remove_all(dir);
+}
+
+// A problem in an orientation file read by rank 0 for every rank is reported once, as a
+// serial run reports it, with the same exit status.
+TEST(Mpi, BadOrientationFileIsReportedOnceAsInASerialRun) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "bad.txt") << "# subslip-orientations convention=bunge-euler-deg\n"
+                                    "10 20 30\n40 200 60\n";
+  std::ofstream(dir / "bad.yaml") << reversal_scene_with("{file: bad.txt}", 10);
+  const int serial = subslip::testing::run_subslip(dir, {"run", "bad.yaml", "-o", "s.h5", "-q"},
+                                                   dir / "serial.log");
+  std::string message = subslip::testing::read_text(dir / "serial.log");
+  ASSERT_NE(serial, 0);
+  ASSERT_NE(message.find("bad.txt:3: Phi:"), std::string::npos) << message;
+  message = message.substr(0, message.find('\n'));
+  EXPECT_EQ(run_mpi(dir, 2, {"run", "bad.yaml", "-o", "p.h5", "-q"}), serial) << log_of(dir);
+  const std::string log = log_of(dir);
+  const auto first = log.find(message);
+  ASSERT_NE(first, std::string::npos) << log;
+  EXPECT_EQ(log.find(message, first + 1), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "p.h5"));
+  fs::remove_all(dir);
+}
+
 // With parallel HDF5 the ranks sharing a case's grains write them into the file together, and
 // the run says so; --gather-output (and a serial HDF5) has rank 0 write them.
 TEST(Mpi, RanksSharingGrainsWriteTogetherWithParallelHdf5) {

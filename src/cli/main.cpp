@@ -511,10 +511,9 @@ void print_crystal_intro(const RunArgs& a, const io::CrystalScene& scene, int ra
   print_scene_intro(a, scene.file, scene.cases.size(), scene.title);
   const std::string over_ranks =
       ranks > 1 ? " in each of " + std::to_string(ranks) + " MPI ranks" : "";
-  std::printf("  %zu grain%s, %zu slip systems, %d thread%s%s\n", first.orientations.size(),
-              first.orientations.size() == 1 ? "" : "s",
-              crystal::described_systems(first.phase).size(), omp_get_max_threads(),
-              omp_get_max_threads() == 1 ? "" : "s", over_ranks.c_str());
+  std::printf("  %zu grain%s, %zu slip systems, %d thread%s%s\n", first.grain_count(),
+              first.grain_count() == 1 ? "" : "s", crystal::described_systems(first.phase).size(),
+              omp_get_max_threads(), omp_get_max_threads() == 1 ? "" : "s", over_ranks.c_str());
   if (ranks > 1) std::printf("  output: %s\n", output);
   std::fflush(stdout);
 }
@@ -536,7 +535,7 @@ std::vector<double> crystal_work(const io::CrystalScene& scene) {
   for (const auto& c : scene.cases) {
     double increments = 0.0;
     for (const auto& s : c.segments) increments += s.increments;
-    work.push_back(increments * static_cast<double>(c.orientations.size()));
+    work.push_back(increments * static_cast<double>(c.grain_count()));
   }
   return work;
 }
@@ -608,7 +607,11 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
                 const parallel::Team& team) {
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
-  const io::CrystalScene scene = io::parse_crystal_scene(document);
+  // Ranks that will write the file together keep only their blocks of the orientations.
+  io::OrientationSharing sharing;
+  if (team.size() > 1 && io::h5::parallel_hdf5() && !a.gather_output)
+    sharing = {&team, exit_code_of};
+  const io::CrystalScene scene = io::parse_crystal_scene(document, sharing);
   const std::optional<long> checkpoint_every =
       a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
   bool checkpoints = true, any_checkpoints = false;

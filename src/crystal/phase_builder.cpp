@@ -90,11 +90,16 @@ int checked_slip_count(const PhaseDescription& d) {
 
 std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
                                                   const std::vector<Orientation>& grains,
-                                                  const parallel::Team& team) {
-  const parallel::Block block = parallel::block_of(grains.size(), team.rank(), team.size());
+                                                  const parallel::Team& team,
+                                                  const parallel::Block* held) {
+  const parallel::Block block =
+      held != nullptr ? *held : parallel::block_of(grains.size(), team.rank(), team.size());
+  if (held != nullptr && held->count != grains.size())
+    throw std::invalid_argument("build_taylor_aggregate: the grains held are not the block");
+  const std::size_t first = held != nullptr ? 0 : block.offset;
   std::vector<Mat3> g;
   std::vector<double> w;
-  for (std::size_t k = block.offset; k < block.offset + block.count; ++k) {
+  for (std::size_t k = first; k < first + block.count; ++k) {
     g.push_back(grains[k].g);
     w.push_back(grains[k].weight);
   }

@@ -20,7 +20,7 @@ CheckpointPolicy checkpoint_policy(const io::CrystalCase& c, std::optional<long>
 
 std::size_t checkpoint_values(const io::CrystalCase& c) {
   const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
-  return c.orientations.size() *
+  return c.grain_count() *
          static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
 }
 

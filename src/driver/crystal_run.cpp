@@ -155,8 +155,11 @@ CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
   crystal::MacroState last_output = resume ? resume->last_output : crystal::MacroState{};
   CheckpointClock clock(policy);
   const parallel::Team& team = *options.team;
-  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations, team);
-  const parallel::Block block = parallel::block_of(c.orientations.size(), team.rank(), team.size());
+  const parallel::Block block = parallel::block_of(c.grain_count(), team.rank(), team.size());
+  if (c.orientation_block && c.orientation_block->offset != block.offset)
+    throw std::logic_error("run_case: the orientations held are another rank's block");
+  const auto aggregate = crystal::build_taylor_aggregate(c.phase, c.orientations, team,
+                                                         c.orientation_block ? &block : nullptr);
   const GrainRange grains{block.offset, block.count, block.total};
   // After an increment, whether a checkpoint is due (the root's clock decides for every rank:
   // wall times differ) and whether to stop (any rank's request stops all), in one reduction.

@@ -244,7 +244,7 @@ void CheckpointStore::write(std::size_t case_index, const crystal::AggregateChec
   const auto width = static_cast<std::size_t>(std::max(state.values_per_grain, 1));
   std::size_t grain_count = state.grains.size() / width;
   if (grains != nullptr) {
-    slot.open_dataset("grains").write_elements(grains->offset * width, state.grains);
+    slot.open_dataset("grains").write_rows(grains->offset * width, state.grains);
     grain_count = grains->total;
   } else {
     slot.open_dataset("grains").write_prefix(state.grains);
@@ -282,7 +282,7 @@ std::optional<StoredCheckpoint> CheckpointStore::latest(std::size_t case_index, 
   if (stored.shape().front() < grain_count * width)
     throw h5::Error("HDF5: checkpoint slot '" + std::string(kSlots[best]) + "' is too small");
   const parallel::Block mine = parallel::block_of(grain_count, rank, ranks);
-  std::vector<double> grains = stored.read_elements(mine.offset * width, mine.count * width);
+  std::vector<double> grains = stored.read_rows(mine.offset * width, mine.count * width);
   return unpack(values, counters, std::move(grains), static_cast<int>(counters[last]),
                 best_sequence);
 }

@@ -22,25 +22,6 @@ using driver::CrystalSummary;
 
 namespace {
 
-// A fingerprint of a case's grains (quaternions and weights, bit for bit): a restart refuses to
-// continue with orientations that changed since the run started (an edited orientation file).
-std::string orientations_digest(const CrystalCase& c) {
-  std::uint64_t h = 14695981039346656037ull;  // FNV-1a, 64 bit
-  auto mix = [&h](double x) {
-    unsigned char bytes[sizeof x];
-    std::memcpy(bytes, &x, sizeof x);
-    for (unsigned char b : bytes) h = (h ^ b) * 1099511628211ull;
-  };
-  for (const auto& o : c.orientations) {
-    const auto v = o.q.as_vector();
-    for (int k = 0; k < 4; ++k) mix(v(k));
-    mix(o.weight);
-  }
-  char text[40];
-  std::snprintf(text, sizeof text, "fnv1a64:%016llx", static_cast<unsigned long long>(h));
-  return text;
-}
-
 using crystal::Mat3;
 
 // Every second-order tensor of the file, macro or per grain, is stored with two trailing axes
@@ -242,7 +223,7 @@ void write_phase_parameters(const h5::Group& g, const CrystalCase& c, const Unit
 }
 
 void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
-  g.set_attribute("grains", static_cast<long long>(c.orientations.size()));
+  g.set_attribute("grains", static_cast<long long>(c.grain_count()));
   g.set_attribute("orientations", c.orientation_source.kind);
   g.set_attribute("orientations_source", c.orientation_source.description);
   const auto& o = c.options;
@@ -256,29 +237,52 @@ void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
   g.set_attribute("max_mixed_iterations", o.max_mixed_iterations);
 }
 
-std::vector<double> normalised_weights(const std::vector<crystal::Orientation>& grains) {
+// The weights of the grains held, normalised by the sum over every grain of the case (summed
+// in grain order, also where this process holds a block only).
+std::vector<double> normalised_weights(const CrystalCase& c) {
   double total = 0.0;
-  for (const auto& o : grains) total += o.weight;
+  if (c.orientation_block) {
+    total = c.orientation_block->weight_sum;
+  } else {
+    for (const auto& o : c.orientations) total += o.weight;
+  }
   std::vector<double> w;
-  for (const auto& o : grains) w.push_back(o.weight / total);
+  for (const auto& o : c.orientations) w.push_back(o.weight / total);
   return w;
 }
 
-void write_grain_statics(const h5::Group& g, const CrystalCase& c,
-                         const std::vector<crystal::DescribedSystem>& systems) {
-  const std::size_t n = c.orientations.size();
-  const std::size_t w_shape[1] = {n};
-  g.write_array("weight", w_shape, normalised_weights(c.orientations), kDimensionless,
-                "volume fraction of each grain (orientation weights normalised to sum 1)");
+// The initial orientations of the grains held: quaternions (w, x, y, z), [grains x 4].
+std::vector<double> initial_quaternions(const CrystalCase& c) {
   std::vector<double> q;
   for (const auto& o : c.orientations) {
     const auto v = o.q.canonical().as_vector();
     q.insert(q.end(), v.data(), v.data() + 4);
   }
+  return q;
+}
+
+constexpr const char* kWeightDescription =
+    "volume fraction of each grain (orientation weights normalised to sum 1)";
+constexpr const char* kInitialOrientationDescription =
+    "initial orientation quaternion (w, x, y, z) of each grain";
+constexpr const char* kQuaternionConvention = "passive, Rowenhorst P=-1, w>=0";
+
+void write_grain_statics(const h5::Group& g, const CrystalCase& c,
+                         const std::vector<crystal::DescribedSystem>& systems) {
+  const std::size_t n = c.grain_count();
+  const std::size_t w_shape[1] = {n};
   const std::size_t q_shape[2] = {n, 4};
-  g.write_array("initial_orientation", q_shape, q, kDimensionless,
-                "initial orientation quaternion (w, x, y, z) of each grain")
-      .set_attribute("convention", "passive, Rowenhorst P=-1, w>=0");
+  if (c.orientation_block) {
+    // Each rank holds its block only: they write them (write_grain_block_statics) together.
+    g.reserve_array("weight", w_shape, kDimensionless, kWeightDescription);
+    g.reserve_array("initial_orientation", q_shape, kDimensionless, kInitialOrientationDescription)
+        .set_attribute("convention", kQuaternionConvention);
+  } else {
+    g.write_array("weight", w_shape, normalised_weights(c), kDimensionless, kWeightDescription);
+    g.write_array("initial_orientation", q_shape, initial_quaternions(c), kDimensionless,
+                  kInitialOrientationDescription)
+        .set_attribute("convention", kQuaternionConvention);
+  }
   std::vector<double> sm;
   std::vector<std::string> labels;
   for (const auto& sys : systems) {
@@ -375,7 +379,7 @@ void lay_out_grains(const h5::Group& group, const CrystalCase& c, const Units& u
   const h5::Group grains = group.create_group("grains");
   const auto systems = crystal::described_systems(c.phase);
   write_grain_statics(grains, c, systems);
-  const std::size_t n_grains = c.orientations.size();
+  const std::size_t n_grains = c.grain_count();
   const std::size_t rows = grain_rows_of(c, crystal_output_count(c.segments));
   grains.create_series({"row", 0, h5::Type::int32, "index",
                         "the output row (of macro/time and the other macro series) of each "
@@ -456,7 +460,7 @@ void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, in
   write_phase_parameters(group, c, units);
   write_law_parameters(group, c, units);
   write_run_parameters(group, c);
-  group.set_attribute("orientations_digest", orientations_digest(c));
+  group.set_attribute("orientations_digest", c.orientations_digest());
   write_summary(group, placeholder_summary(), units, true);
   group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
   lay_out_macro(group, c, units);
@@ -470,7 +474,7 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
       units_(units),
       progress_(progress),
       index_(static_cast<std::size_t>(index)) {
-  if (group_.attribute_string("orientations_digest") != orientations_digest(c)) {
+  if (group_.attribute_string("orientations_digest") != c.orientations_digest()) {
     throw InputError(c.orientation_source.description, 0, "orientations",
                      "case '" + c.name +
                          "': the orientations differ from those the interrupted run used; "
@@ -490,12 +494,12 @@ CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& 
   if (c.output.grains.empty()) return;
   const h5::Group grains = group_.open_group("grains");
   grain_row_.emplace(grains.open_series("row", h5::Type::int32, grain_rows, kMacroBlockRows));
-  const std::size_t n_grains = block != nullptr ? block->count : c.orientations.size();
+  const std::size_t n_grains = block != nullptr ? block->count : c.grain_count();
   const std::size_t slip_count = crystal::described_systems(c.phase).size();
   std::size_t widest = 9;  // the orientation matrices are read before conversion
   for (GrainField f : c.output.grains) {
     const FieldSpec spec = grain_spec(f, units_, slip_count);
-    const std::size_t row_bytes = c.orientations.size() * width_of(spec) * sizeof(double);
+    const std::size_t row_bytes = c.grain_count() * width_of(spec) * sizeof(double);
     h5::Series& series = grains_[static_cast<std::size_t>(f)].emplace(
         grains.open_series(to_string(f), spec.type, grain_rows,
                            rows_within(kGrainBlockBytes, row_bytes, kMacroBlockRows)));
@@ -664,12 +668,26 @@ CrystalResultSink::CrystalResultSink(const CrystalScene& scene, h5::File& file,
     : scene_(scene),
       file_(file),
       options_(checked(options, file)),
-      run_(options.restart ? reopen(file, options) : lay_out(scene, file, options)) {}
+      run_(options.restart ? reopen(file, options) : lay_out(scene, file, options)) {
+  if (options_.mpi) write_grain_blocks_statics();
+}
+
+// The weights and initial orientations of the grains each rank holds, where the layout could
+// not write them (no process held them all: CrystalCase::orientation_block). Every rank writes
+// its block of every such case, collectively; a restart writes the same values again.
+void CrystalResultSink::write_grain_blocks_statics() {
+  for (const CrystalCase& c : scene_.cases) {
+    if (!c.orientation_block || c.output.grains.empty()) continue;
+    const h5::Group grains = run_.cases.open_group(c.name).open_group("grains");
+    grains.open_dataset("weight").write_rows(c.orientation_block->offset, normalised_weights(c));
+    grains.open_dataset("initial_orientation")
+        .write_rows(c.orientation_block->offset, initial_quaternions(c));
+  }
+}
 
 std::optional<parallel::Block> CrystalResultSink::grains_of(std::size_t index) const {
   if (!options_.mpi) return std::nullopt;
-  return parallel::block_of(scene_.cases[index].orientations.size(), options_.mpi->rank,
-                            options_.ranks);
+  return parallel::block_of(scene_.cases[index].grain_count(), options_.mpi->rank, options_.ranks);
 }
 
 driver::CaseStatus CrystalResultSink::status(std::size_t index) const {
@@ -801,7 +819,7 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
   for (const auto& c : scene.cases) {
     const std::size_t slip_count = crystal::described_systems(c.phase).size();
     const double rows = static_cast<double>(crystal_output_count(c.segments));
-    const double grains = static_cast<double>(c.orientations.size());
+    const double grains = static_cast<double>(c.grain_count());
     double macro_values = 0.0, grain_values = 0.0;
     for (MacroField f : c.output.macro)
       macro_values += static_cast<double>(width_of(macro_spec(f, scene.units)));
@@ -822,7 +840,7 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
                           static_cast<double>(c.output.grains.size() * kGrainBlockBytes);
     if (memory > size.memory_bytes) {
       size.memory_bytes = memory;
-      size.grains = c.orientations.size();
+      size.grains = c.grain_count();
     }
     if (bytes > largest_case) {
       largest_case = bytes;

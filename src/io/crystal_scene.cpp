@@ -6,8 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <numbers>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <utility>
 
@@ -259,20 +262,138 @@ std::filesystem::path resolve_relative(const std::string& file, const std::strin
   return std::filesystem::path(scene_file).parent_path() / p;
 }
 
-// Errors inside the orientation file keep its file and line and say which scene key read it;
-// a missing or empty file has no line of its own and is reported at the scene key.
-std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node,
-                                                         OrientationSource& source) {
+// Reads the orientation file `node` names through `each` (returns the count). Errors inside
+// the file keep its file and line and say which scene key read it; a missing or empty file has
+// no line of its own and is reported at the scene key.
+std::size_t visit_orientation_file(const CheckedNode& node, OrientationSource& source,
+                                   const OrientationVisitor& each) {
   const std::filesystem::path path = resolve_relative(node.as_string(), node.file());
   source = {"file", path.string()};
   try {
-    return read_orientation_file(path.string(), &source.largest_euler_deg);
+    return read_orientation_file(path.string(), each, &source.largest_euler_deg);
   } catch (const InputError& e) {
     if (e.line == 0) node.fail(e.what());
     throw InputError(e.file, e.line, e.key,
                      e.message + " (orientation file given at " + node.file() + ":" +
                          std::to_string(node.line()) + ": " + node.path() + ")");
   }
+}
+
+std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node,
+                                                         OrientationSource& source) {
+  std::vector<crystal::Orientation> out;
+  visit_orientation_file(node, source, [&](const crystal::Orientation& o) { out.push_back(o); });
+  return out;
+}
+
+// An orientation as the doubles a rank sends another (bit for bit: q, g, weight) and back.
+constexpr std::size_t kOrientationValues = 14;
+void pack(const crystal::Orientation& o, std::vector<double>& out) {
+  out.insert(out.end(), {o.q.w, o.q.x, o.q.y, o.q.z});
+  out.insert(out.end(), o.g.data(), o.g.data() + 9);
+  out.push_back(o.weight);
+}
+std::vector<crystal::Orientation> unpacked(std::span<const double> values) {
+  std::vector<crystal::Orientation> out(values.size() / kOrientationValues);
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const double* v = values.data() + kOrientationValues * k;
+    out[k].q = {v[0], v[1], v[2], v[3]};
+    std::copy(v + 4, v + 13, out[k].g.data());
+    out[k].weight = v[13];
+  }
+  return out;
+}
+
+// Rank 0's second pass over the file: each rank's block, sent to it in rank order (its own
+// kept); every rank gets exactly one message, whatever happens. Returns rank 0's block; sets
+// `complete` when the file gave `total` orientations again without a problem.
+std::vector<double> send_file_blocks(const CheckedNode& node, const parallel::Team& team,
+                                     std::size_t total, bool& complete) {
+  std::vector<double> buffer, own;
+  int rank = 0;
+  const auto finished = [&] {
+    return buffer.size() == kOrientationValues * parallel::block_of(total, rank, team.size()).count;
+  };
+  const auto hand_over = [&] {
+    if (rank == 0)
+      own = std::move(buffer);
+    else
+      team.send(buffer, rank);
+    buffer.clear();
+    ++rank;
+  };
+  while (rank < team.size() && finished()) hand_over();
+  std::size_t read = 0;
+  complete = true;
+  try {
+    OrientationSource again;
+    read = visit_orientation_file(node, again, [&](const crystal::Orientation& o) {
+      if (rank >= team.size()) return;  // (more than the first pass read: the file changed)
+      pack(o, buffer);
+      while (rank < team.size() && finished()) hand_over();
+    });
+  } catch (const InputError&) {
+    complete = false;
+  }
+  while (rank < team.size()) hand_over();  // (what is left, if the file changed)
+  complete = complete && read == total;
+  return own;
+}
+
+// This rank's block of the orientations in the file `node` names, read by rank 0 alone
+// (OrientationSharing); `block` what the whole file gives.
+std::vector<crystal::Orientation> read_shared_file(const CheckedNode& node,
+                                                   OrientationSource& source,
+                                                   const OrientationSharing& sharing,
+                                                   std::optional<OrientationBlock>& block) {
+  const parallel::Team& team = *sharing.team;
+  std::vector<double> whole(3, 0.0);  // count, weight sum, largest |Euler angle|
+  std::string digest;
+  parallel::on_root(
+      team,
+      [&] {
+        OrientationDigest d;
+        double sum = 0.0;
+        const std::size_t n =
+            visit_orientation_file(node, source, [&](const crystal::Orientation& o) {
+              d.add(o);
+              sum += o.weight;
+            });
+        if (!std::isfinite(sum)) node.fail("the orientation weights sum to more than 1.8e308");
+        whole = {static_cast<double>(n), sum, source.largest_euler_deg};
+        digest = d.text();
+      },
+      sharing.exit_code_of);
+  team.broadcast(whole, 0);
+  team.broadcast(digest, 0);
+  const auto total = static_cast<std::size_t>(whole[0]);
+  source = {"file", resolve_relative(node.as_string(), node.file()).string(), whole[2]};
+  block = OrientationBlock{parallel::block_of(total, team.rank(), team.size()).offset, total,
+                           whole[1], digest};
+  bool complete = true;
+  const std::vector<double> mine =
+      team.is_root() ? send_file_blocks(node, team, total, complete) : team.receive(0);
+  parallel::on_root(
+      team,
+      [&] {
+        if (!complete)
+          node.fail("the orientation file " + source.description +
+                    " changed while it was read; run again");
+      },
+      sharing.exit_code_of);
+  return unpacked(mine);
+}
+
+// Cuts a set every rank made alike to this rank's block; `block` what the whole set gives.
+void keep_own_block(std::vector<crystal::Orientation>& grains, const parallel::Team& team,
+                    std::optional<OrientationBlock>& block) {
+  double sum = 0.0;
+  for (const auto& g : grains) sum += g.weight;
+  const parallel::Block mine = parallel::block_of(grains.size(), team.rank(), team.size());
+  block = OrientationBlock{mine.offset, grains.size(), sum, orientations_digest(grains)};
+  const auto first = grains.begin() + static_cast<std::ptrdiff_t>(mine.offset);
+  grains =
+      std::vector<crystal::Orientation>(first, first + static_cast<std::ptrdiff_t>(mine.count));
 }
 
 std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
@@ -318,12 +439,16 @@ std::vector<crystal::Orientation> generated(const CheckedNode& node, bool compon
   return crystal::generate_orientations(request);
 }
 
+// `sharing`: this rank keeps only its block (OrientationSharing), and `block` says so.
 std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
-                                                     OrientationSource& source) {
+                                                     OrientationSource& source,
+                                                     const OrientationSharing* sharing,
+                                                     std::optional<OrientationBlock>& block) {
   node.allow_keys({"file", "euler_deg", "random", "component"});
   const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
   const CheckedNode value = node.required(kind);
   std::vector<crystal::Orientation> grains;
+  if (sharing != nullptr && kind == "file") return read_shared_file(value, source, *sharing, block);
   if (kind == "file") {
     grains = read_orientations_from(value, source);
   } else if (kind == "euler_deg") {
@@ -335,6 +460,7 @@ std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
   double total = 0.0;
   for (const auto& g : grains) total += g.weight;
   if (!std::isfinite(total)) value.fail("the orientation weights sum to more than 1.8e308");
+  if (sharing != nullptr) keep_own_block(grains, *sharing->team, block);
   return grains;
 }
 
@@ -604,7 +730,7 @@ void check_top_level(const CheckedNode& root) {
   root.get_choice("scene", {"crystal"});
 }
 
-CrystalCase parse_case(SweepCase swept, const Units& units) {
+CrystalCase parse_case(SweepCase swept, const Units& units, const OrientationSharing* sharing) {
   const CheckedNode root = swept.document.root();
   check_top_level(root);
   CrystalCase c;
@@ -612,7 +738,8 @@ CrystalCase parse_case(SweepCase swept, const Units& units) {
   c.overrides = std::move(swept.overrides);
   SceneValues values(units);
   parse_phase(root.required("phase"), c, values);
-  c.orientations = parse_orientations(root.required("orientations"), c.orientation_source);
+  c.orientations = parse_orientations(root.required("orientations"), c.orientation_source, sharing,
+                                      c.orientation_block);
   c.segments = parse_loading(root.required("loading"), values);
   c.options = parse_integrator(root.optional("integrator"), c.phase);
   c.output = parse_output(root.optional("output"));
@@ -666,6 +793,10 @@ CrystalScene load_crystal_scene(const std::filesystem::path& path) {
 }
 
 CrystalScene parse_crystal_scene(const YamlDocument& document) {
+  return parse_crystal_scene(document, OrientationSharing{});
+}
+
+CrystalScene parse_crystal_scene(const YamlDocument& document, const OrientationSharing& sharing) {
   const CheckedNode root = document.root();
   check_top_level(root);
   CrystalScene scene;
@@ -674,10 +805,40 @@ CrystalScene parse_crystal_scene(const YamlDocument& document) {
   scene.title = root.get_string("title", "");
   scene.units = parse_units_without_length(root.required("units"));
   const Units& units = scene.units;
-  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units](SweepCase swept) {
-    return parse_case(std::move(swept), units);
+  // Blocks where the ranks will share each case's grains (driver::shares_grains).
+  const bool blocks = sharing.team != nullptr && sharing.team->size() > 1 &&
+                      expand_sweep(document, kCrystalSweepable).size() <
+                          static_cast<std::size_t>(sharing.team->size());
+  const OrientationSharing* share = blocks ? &sharing : nullptr;
+  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units, share](SweepCase swept) {
+    return parse_case(std::move(swept), units, share);
   });
   return scene;
+}
+
+void OrientationDigest::add(const crystal::Orientation& o) {
+  const auto mix = [this](double x) {
+    unsigned char bytes[sizeof x];
+    std::memcpy(bytes, &x, sizeof x);
+    for (unsigned char b : bytes) hash_ = (hash_ ^ b) * 1099511628211ull;
+  };
+  for (double v : {o.q.w, o.q.x, o.q.y, o.q.z, o.weight}) mix(v);
+}
+
+std::string OrientationDigest::text() const {
+  char text[40];
+  std::snprintf(text, sizeof text, "fnv1a64:%016llx", static_cast<unsigned long long>(hash_));
+  return text;
+}
+
+std::string orientations_digest(const std::vector<crystal::Orientation>& orientations) {
+  OrientationDigest d;
+  for (const auto& o : orientations) d.add(o);
+  return d.text();
+}
+
+std::string CrystalCase::orientations_digest() const {
+  return orientation_block ? orientation_block->digest : io::orientations_digest(orientations);
 }
 
 std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units) {

@@ -613,20 +613,35 @@ void Dataset::write_prefix(std::span<const double> values) const {
 
 namespace {
 
-// The elements [offset, offset + count) of a 1-D dataset, selected in its space.
-Handle elements_of(hid_t dataset, std::size_t offset, std::size_t count) {
+// The values of one row (the product of the trailing dimensions) of a dataset's space.
+std::size_t row_width(hid_t space) {
+  const int rank = H5Sget_simple_extent_ndims(space);
+  if (rank < 1) throw Error("HDF5: a scalar dataset has no rows");
+  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+  H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  std::size_t width = 1;
+  for (std::size_t d = 1; d < dims.size(); ++d) width *= dims[d];
+  return width;
+}
+
+// The rows [first, first + count) of a dataset, selected in its space.
+Handle rows_of(hid_t dataset, std::size_t first, std::size_t count) {
   Handle space = own(H5Dget_space(dataset), H5Sclose, "dataset space");
-  if (H5Sget_simple_extent_ndims(space.get()) != 1 ||
-      static_cast<std::size_t>(element_count(space.get())) < offset + count)
-    throw Error("HDF5: elements " + std::to_string(offset) + ".." + std::to_string(offset + count) +
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+  if (rank >= 1) H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  if (rank < 1 || dims[0] < first + count)
+    throw Error("HDF5: rows " + std::to_string(first) + ".." + std::to_string(first + count) +
                 " are not in dataset " + object_path(dataset));
   if (count == 0) {
     check(H5Sselect_none(space.get()), "select nothing");
-  } else {
-    const hsize_t start[1] = {offset}, n[1] = {count};
-    check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, n, nullptr),
-          "select elements");
+    return space;
   }
+  std::vector<hsize_t> start(dims.size(), 0), n = dims;
+  start[0] = first;
+  n[0] = count;
+  check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start.data(), nullptr, n.data(), nullptr),
+        "select rows");
   return space;
 }
 
@@ -637,26 +652,40 @@ Handle memory_of(std::size_t count) {
   return space;
 }
 
-}  // namespace
-
-void Dataset::write_elements(std::size_t offset, std::span<const double> values) const {
-  const Handle file_space = elements_of(id(), offset, values.size());
-  const Handle memory_space = memory_of(values.size());
-  const double unused = 0.0;  // (HDF5 wants a buffer even for no elements)
-  write_selection(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(),
-                  values.empty() ? &unused : values.data(), Part::own,
-                  "write elements " + std::to_string(offset) + ".." +
-                      std::to_string(offset + values.size()) + " of dataset " + object_path(id()));
+std::size_t rows_in(hid_t dataset, std::size_t values) {
+  Handle space = own(H5Dget_space(dataset), H5Sclose, "dataset space");
+  const std::size_t width = row_width(space.get());
+  if (width == 0 || values % width != 0)
+    throw Error("HDF5: values do not fill whole rows of dataset " + object_path(dataset));
+  return values / width;
 }
 
-std::vector<double> Dataset::read_elements(std::size_t offset, std::size_t count) const {
-  const Handle file_space = elements_of(id(), offset, count);
-  const Handle memory_space = memory_of(count);
-  std::vector<double> out(std::max<std::size_t>(count, 1));
+}  // namespace
+
+void Dataset::write_rows(std::size_t first, std::span<const double> values) const {
+  const std::size_t count = rows_in(id(), values.size());
+  const Handle file_space = rows_of(id(), first, count);
+  const Handle memory_space = memory_of(values.size());
+  const double unused = 0.0;  // (HDF5 wants a buffer even for no values)
+  write_selection(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(),
+                  values.empty() ? &unused : values.data(), Part::own,
+                  "write rows " + std::to_string(first) + ".." + std::to_string(first + count) +
+                      " of dataset " + object_path(id()));
+}
+
+std::vector<double> Dataset::read_rows(std::size_t first, std::size_t count) const {
+  const Handle file_space = rows_of(id(), first, count);
+  std::size_t width = 0;
+  {
+    Handle space = own(H5Dget_space(id()), H5Sclose, "dataset space");
+    width = row_width(space.get());
+  }
+  const Handle memory_space = memory_of(count * width);
+  std::vector<double> out(std::max<std::size_t>(count * width, 1));
   check(H5Dread(id(), H5T_NATIVE_DOUBLE, memory_space.get(), file_space.get(), H5P_DEFAULT,
                 out.data()),
-        "read elements of dataset " + object_path(id()));
-  out.resize(count);
+        "read rows of dataset " + object_path(id()));
+  out.resize(count * width);
   return out;
 }
 
@@ -1042,6 +1071,24 @@ Dataset Group::create_fixed(std::string_view name, std::span<const std::size_t> 
   Dataset ds(own(H5Dcreate2(id(), n.c_str(), real ? H5T_IEEE_F64LE : H5T_STD_I64LE, space.get(),
                             H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
                  H5Dclose, "create dataset " + member(id(), n)));
+  ds.set_attribute("description", description);
+  return ds;
+}
+
+Dataset Group::reserve_array(std::string_view name, std::span<const std::size_t> shape,
+                             std::string_view unit, std::string_view description) const {
+  const std::string n(name);
+  const std::vector<hsize_t> dims(shape.begin(), shape.end());
+  Handle space = simple_space(dims);
+  Handle dcpl = make_property_list(H5P_DATASET_CREATE);
+  check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY), "set allocation time");
+  check(H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_ALLOC), "set fill time");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "set fill value");
+  Dataset ds(own(H5Dcreate2(id(), n.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(),
+                            H5P_DEFAULT),
+                 H5Dclose, "create dataset " + member(id(), n)));
+  ds.set_attribute("unit", unit);
   ds.set_attribute("description", description);
   return ds;
 }

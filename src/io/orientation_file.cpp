@@ -70,9 +70,12 @@ std::string format_number(double value, int digits) {
 // Reads one orientation file line by line; throws InputError at the first problem.
 class OrientationReader {
  public:
-  explicit OrientationReader(const std::string& file_name) : file_(file_name) {}
+  // `each`: called with every orientation in file order (nothing is kept).
+  OrientationReader(const std::string& file_name, const OrientationVisitor& each)
+      : file_(file_name), each_(each) {}
 
-  std::vector<crystal::Orientation> read(std::istream& in) {
+  // Returns the number of orientations read.
+  std::size_t read(std::istream& in) {
     std::string text;
     while (std::getline(in, text)) {
       ++line_;
@@ -88,8 +91,8 @@ class OrientationReader {
            concat("empty file: expected the header '", kHeaderExample,
                   "' and at least one orientation"));
     }
-    if (orientations_.empty()) fail(0, "orientations", "no orientations after the header");
-    return std::move(orientations_);
+    if (count_ == 0) fail(0, "orientations", "no orientations after the header");
+    return count_;
   }
 
  private:
@@ -157,7 +160,8 @@ class OrientationReader {
     const crystal::Quaternion q = *convention_ == OrientationConvention::bunge_euler_deg
                                       ? quaternion_from_euler_degrees(values, fields)
                                       : checked_quaternion(values);
-    orientations_.push_back(crystal::Orientation::from_quaternion(q, weight));
+    each_(crystal::Orientation::from_quaternion(q, weight));
+    ++count_;
   }
 
   int angle_columns() const {
@@ -239,7 +243,8 @@ class OrientationReader {
   std::optional<OrientationConvention> convention_;
   int first_data_line_ = 0;
   int first_column_count_ = 0;
-  std::vector<crystal::Orientation> orientations_;
+  const OrientationVisitor& each_;
+  std::size_t count_ = 0;
 
  public:
   double largest_euler_deg_ = -1.0;  // the largest |angle| read; -1: not Euler angles
@@ -292,12 +297,21 @@ std::istream& without_byte_order_mark(std::istream& in, const std::string& file_
 
 }  // namespace
 
+std::size_t read_orientations(std::istream& in, const std::string& file_name,
+                              const OrientationVisitor& each, double* largest_euler_deg) {
+  OrientationReader reader(file_name, each);
+  std::istringstream converted;
+  const std::size_t count = reader.read(without_byte_order_mark(in, file_name, converted));
+  if (largest_euler_deg != nullptr) *largest_euler_deg = reader.largest_euler_deg_;
+  return count;
+}
+
 std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
                                                     double* largest_euler_deg) {
-  OrientationReader reader(file_name);
-  std::istringstream converted;
-  auto orientations = reader.read(without_byte_order_mark(in, file_name, converted));
-  if (largest_euler_deg != nullptr) *largest_euler_deg = reader.largest_euler_deg_;
+  std::vector<crystal::Orientation> orientations;
+  read_orientations(
+      in, file_name, [&](const crystal::Orientation& o) { orientations.push_back(o); },
+      largest_euler_deg);
   return orientations;
 }
 
@@ -308,6 +322,14 @@ bool euler_angles_look_like_radians(double largest_euler_deg, std::size_t count)
 
 std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
                                                         double* largest_euler_deg) {
+  std::vector<crystal::Orientation> orientations;
+  read_orientation_file(
+      path, [&](const crystal::Orientation& o) { orientations.push_back(o); }, largest_euler_deg);
+  return orientations;
+}
+
+std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
+                                  double* largest_euler_deg) {
   std::error_code error;
   if (!std::filesystem::is_regular_file(path, error)) {
     throw InputError(
@@ -316,7 +338,7 @@ std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
-  return read_orientations(in, path, largest_euler_deg);
+  return read_orientations(in, path, each, largest_euler_deg);
 }
 
 std::string format_orientations(const std::vector<crystal::Orientation>& orientations,

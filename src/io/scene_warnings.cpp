@@ -237,13 +237,13 @@ std::string settings_key(const crystal::PhaseDescription& d, std::size_t k) {
 // read as degrees, every grain is within 6 degrees of the cube orientation.
 void check_euler_units(Collector& w, const CrystalCase& c) {
   const OrientationSource& s = c.orientation_source;
-  if (!euler_angles_look_like_radians(s.largest_euler_deg, c.orientations.size())) return;
+  if (!euler_angles_look_like_radians(s.largest_euler_deg, c.grain_count())) return;
   const std::string where =
       s.kind == "file" ? "orientations.file: " + s.description : std::string("orientations");
   w.add(c.name, where + format(": every Euler angle of the %.0f orientations is within 2 pi "
                                "(largest %.4g), yet they are read as degrees: were they written "
                                "in radians? (convert them: degrees = radians x 180 / pi)",
-                               static_cast<double>(c.orientations.size()), s.largest_euler_deg));
+                               static_cast<double>(c.grain_count()), s.largest_euler_deg));
 }
 
 void check_crystal_case(Collector& w, const CrystalCase& c, const Units& units, bool checkpoints,
@@ -306,13 +306,12 @@ void check_crystal_case(Collector& w, const CrystalCase& c, const Units& units, 
     const std::size_t n = systems.size();
     for (GrainField f : c.output.grains)
       values += f == GrainField::stress ? 6 : f == GrainField::orientation ? 4 : n;
-    const double bytes = 8.0 * static_cast<double>(values) *
-                         static_cast<double>(c.orientations.size()) *
+    const double bytes = 8.0 * static_cast<double>(values) * static_cast<double>(c.grain_count()) *
                          static_cast<double>(crystal_output_count(c.segments));
     if (bytes > limits.output_bytes) {
       w.add(c.name, format("output.grains: about %.3g GB of per-grain series (%.0f grains x "
                            "%.0f rows); consider fewer fields or output_every",
-                           bytes / 1e9, static_cast<double>(c.orientations.size()),
+                           bytes / 1e9, static_cast<double>(c.grain_count()),
                            static_cast<double>(crystal_output_count(c.segments))));
     }
   }
@@ -320,7 +319,7 @@ void check_crystal_case(Collector& w, const CrystalCase& c, const Units& units, 
   if (!checkpoints) {
     double increments = 0.0;
     for (const auto& seg : c.segments) increments += seg.increments;
-    const double grain_steps = increments * static_cast<double>(c.orientations.size());
+    const double grain_steps = increments * static_cast<double>(c.grain_count());
     if (grain_steps > limits.grain_steps_checkpoint) {
       w.add(c.name, format("checkpoints are off for a long run (%.3g grain-steps, hours): a "
                            "killed run cannot be continued; keep output.checkpoint_every > 0",

@@ -56,10 +56,11 @@ struct DescribedSystem {
 std::vector<DescribedSystem> described_systems(const PhaseDescription& d);
 
 // The Taylor aggregate of `grains`; shared by a team, this rank's block of them
-// (parallel::block_of) with the weights normalised over all.
+// (parallel::block_of) with the weights normalised over all. `held`: `grains` is only that
+// block of the team's grains (a rank that never held the others).
 std::unique_ptr<Aggregate> build_taylor_aggregate(
     const PhaseDescription& d, const std::vector<Orientation>& grains,
-    const parallel::Team& team = parallel::serial_team());
+    const parallel::Team& team = parallel::serial_team(), const parallel::Block* held = nullptr);
 
 // The kernel phase of a description for N slip systems, with the initial mu of each system, for
 // drivers other than the Taylor aggregate (the CVODE peer). visit_phase picks N from the slip

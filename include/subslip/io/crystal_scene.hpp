@@ -6,7 +6,9 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,6 +19,7 @@
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::io {
 
@@ -50,18 +53,47 @@ struct OrientationSource {
   double largest_euler_deg = -1.0;  // the largest |Euler angle| given; -1: not Euler angles
 };
 
+// A digest of a set of orientations, in order (quaternion and weight of each, FNV-1a 64 bit):
+// "fnv1a64:<16 hex digits>". A restart checks that its orientations are those of the run.
+class OrientationDigest {
+ public:
+  void add(const crystal::Orientation& o);
+  std::string text() const;
+
+ private:
+  std::uint64_t hash_ = 14695981039346656037ull;
+};
+std::string orientations_digest(const std::vector<crystal::Orientation>& orientations);
+
+// What the whole set of a case's orientations gives, where a process holds only its block of
+// them (MPI ranks sharing the grains: share_orientations below).
+struct OrientationBlock {
+  std::size_t offset = 0;   // the grain index of the first orientation held
+  std::size_t total = 0;    // every grain of the case
+  double weight_sum = 0.0;  // of every grain's weight, summed in grain order
+  std::string digest;       // orientations_digest of every grain
+};
+
 // One case of a crystal scene (the whole scene when it has no sweep).
 struct CrystalCase {
   std::string name;                      // "base", or built from the sweep overrides
   std::vector<SweepOverride> overrides;  // this case's swept values
   crystal::PhaseDescription phase;
   std::string elasticity_type;  // cubic | hexagonal | isotropic (for the attributes)
+  // Every grain's orientation, or only this process's block of them when `orientation_block`
+  // is set (grain_count() is then the case's).
   std::vector<crystal::Orientation> orientations;
+  std::optional<OrientationBlock> orientation_block;
   OrientationSource orientation_source;
   std::vector<crystal::LoadSegment> segments;
   crystal::AggregateOptions options;
   CrystalOutputSelection output;
   std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
+
+  std::size_t grain_count() const {
+    return orientation_block ? orientation_block->total : orientations.size();
+  }
+  std::string orientations_digest() const;  // of every grain of the case
 };
 
 struct CrystalScene {
@@ -80,6 +112,19 @@ inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
 // key path. Orientation files are read relative to the scene file's directory.
 CrystalScene load_crystal_scene(const std::filesystem::path& path);
 CrystalScene parse_crystal_scene(const YamlDocument& document);
+
+// MPI ranks that will share the grains of each case (parallel::block_of) and write them into
+// the result file together: with fewer cases than ranks, each rank keeps only its block of each
+// case's orientations (CrystalCase::orientation_block). An orientation file is then read by
+// rank 0 alone, twice, streaming (the checks, the count, the digest and the weight sum; then
+// each rank's block, sent to it), so that no process holds the whole file; generated and inline
+// sets are made on every rank and cut to its block. A problem in the file is reported by rank 0
+// (the others stop with `exit_code_of` of it: parallel::on_root). Collective.
+struct OrientationSharing {
+  const parallel::Team* team = nullptr;
+  parallel::ExitCodeOf exit_code_of = nullptr;
+};
+CrystalScene parse_crystal_scene(const YamlDocument& document, const OrientationSharing& sharing);
 
 // The unit pairs of a crystal result file's /units group: ("stress", ...), ("time", ...).
 std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units);

@@ -35,7 +35,7 @@
 // calls in the same order with the same values (attributes, /progress, macro rows: HDF5's
 // metadata is replicated, so they must agree), and the data themselves are stored by rank 0,
 // except where a rank names its own part: the grains of a per-grain series
-// (Series::select_grains) and elements of a 1-D array (Dataset::write_elements). The rows of a
+// (Series::select_grains) and rows of an array (Dataset::write_rows). The rows of a
 // per-grain series are thus written by every rank at once, each its block of grains
 // (a collective hyperslab write). A growth claims its space with MPI_File_preallocate.
 //
@@ -178,10 +178,11 @@ class Dataset : public Object {
   void write(std::span<const long long> values) const;
   // Overwrite the first values.size() elements of a 1-D float64 dataset in place.
   void write_prefix(std::span<const double> values) const;
-  // This rank's part of a 1-D float64 dataset: the elements [offset, offset + values.size())
-  // (collective: every rank of a parallel file calls it, each with its own part, maybe none).
-  void write_elements(std::size_t offset, std::span<const double> values) const;
-  std::vector<double> read_elements(std::size_t offset, std::size_t count) const;
+  // This process's part of a float64 dataset: the rows [first, first + n) of its first axis,
+  // n = values.size() / (the values of a row) (collective: every rank of a parallel file calls
+  // it, each with its own part, maybe none). A 1-D dataset's rows are its elements.
+  void write_rows(std::size_t first, std::span<const double> values) const;
+  std::vector<double> read_rows(std::size_t first, std::size_t count) const;
 };
 
 // An extendible dataset, [n] (columns == 0), [n, columns] or [n, d1, d2, ...] (a row shape), that
@@ -278,6 +279,10 @@ class Group : public Object {
   // or 0; Dataset::write() overwrites it in place (no metadata change: safe at any moment).
   Dataset create_fixed(std::string_view name, std::span<const std::size_t> shape, Type type,
                        std::string_view description) const;
+  // A float64 array of `shape` allocated now and filled with NaN, with `unit` and `description`
+  // attributes (as write_array), whose values its writers give later (Dataset::write_rows).
+  Dataset reserve_array(std::string_view name, std::span<const std::size_t> shape,
+                        std::string_view unit, std::string_view description) const;
   // Unlinks a member (its space is not reclaimed; h5repack does that).
   void remove(std::string_view name) const;
   // A fixed float64 array of `shape` (row-major `values`, size = product of shape) with `unit`

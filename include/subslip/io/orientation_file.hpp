@@ -23,6 +23,8 @@
 // phi1, Phi, phi2, w, x, y, z, quaternion, weight, orientations, file).
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <istream>
 #include <string>
 #include <string_view>
@@ -45,6 +47,15 @@ std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
 // The same from a stream; `file_name` is what error messages call it.
 std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
                                                     double* largest_euler_deg = nullptr);
+
+// Streaming: `each` is called with every orientation in file order and nothing is kept (a file
+// of more orientations than one process should hold: io::share_orientations); the same checks
+// and messages. Returns how many were read.
+using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
+std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
+                                  double* largest_euler_deg = nullptr);
+std::size_t read_orientations(std::istream& in, const std::string& file_name,
+                              const OrientationVisitor& each, double* largest_euler_deg = nullptr);
 
 // Whether `count` Euler angle sets, said to be degrees, whose largest |angle| is
 // `largest_euler_deg`, were most likely written in radians (all within 2 pi, not all zero).
