@@ -1054,40 +1054,40 @@ Series Group::open_series(std::string_view name, Type type, std::size_t rows,
   return Series(std::move(ds), type, block_rows, rows);
 }
 
-Dataset Group::create_fixed(std::string_view name, std::span<const std::size_t> shape, Type type,
-                            std::string_view description) const {
-  const std::string n(name);
+namespace {
+
+// A float64 or int64 dataset of `shape` (empty: a scalar) in `group`, allocated now and filled
+// with NaN or 0, so that writing its values later changes no metadata.
+Handle allocated_dataset(hid_t group, const std::string& name, std::span<const std::size_t> shape,
+                         Type type) {
   const std::vector<hsize_t> dims(shape.begin(), shape.end());
   Handle space = dims.empty() ? scalar_space() : simple_space(dims);
   Handle dcpl = make_property_list(H5P_DATASET_CREATE);
   check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY), "set allocation time");
   check(H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_ALLOC), "set fill time");
   const bool real = type == Type::float64;
-  if (type == Type::int32) throw Error("HDF5: '" + n + "': fixed arrays are float64 or int64");
+  if (type == Type::int32) throw Error("HDF5: '" + name + "': fixed arrays are float64 or int64");
   if (real) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "set fill value");
   }
-  Dataset ds(own(H5Dcreate2(id(), n.c_str(), real ? H5T_IEEE_F64LE : H5T_STD_I64LE, space.get(),
-                            H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
-                 H5Dclose, "create dataset " + member(id(), n)));
+  return own(H5Dcreate2(group, name.c_str(), real ? H5T_IEEE_F64LE : H5T_STD_I64LE, space.get(),
+                        H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+             H5Dclose, "create dataset " + member(group, name));
+}
+
+}  // namespace
+
+Dataset Group::create_fixed(std::string_view name, std::span<const std::size_t> shape, Type type,
+                            std::string_view description) const {
+  Dataset ds(allocated_dataset(id(), std::string(name), shape, type));
   ds.set_attribute("description", description);
   return ds;
 }
 
 Dataset Group::reserve_array(std::string_view name, std::span<const std::size_t> shape,
                              std::string_view unit, std::string_view description) const {
-  const std::string n(name);
-  const std::vector<hsize_t> dims(shape.begin(), shape.end());
-  Handle space = simple_space(dims);
-  Handle dcpl = make_property_list(H5P_DATASET_CREATE);
-  check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY), "set allocation time");
-  check(H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_ALLOC), "set fill time");
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  check(H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan), "set fill value");
-  Dataset ds(own(H5Dcreate2(id(), n.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(),
-                            H5P_DEFAULT),
-                 H5Dclose, "create dataset " + member(id(), n)));
+  Dataset ds(allocated_dataset(id(), std::string(name), shape, Type::float64));
   ds.set_attribute("unit", unit);
   ds.set_attribute("description", description);
   return ds;
