@@ -35,15 +35,22 @@ LatticeKinematics lattice_kinematics(const Mat3& g, const Mat3& L) {
   return {mandel_from_symmetric(g * d * g.transpose()), axial(g * w * g.transpose())};
 }
 
-// The same over a step, at the orientation of its start.
+// The same over an implicit step. With finite rotations the strain increment is resolved at
+// the step's mid-point orientation, the start orientation turned by half the step's total spin
+// (the midpoint rule: second order in the step's rotation), and the lattice spin is taken at the
+// start, where split_rotated_orientation applies it; a superposed rigid rotation then leaves the
+// lattice-frame increment as it is (to round-off for a steady rotation about a fixed axis).
 struct StepKinematics {
-  Vec6 strain_increment;  // D_lat dt (Mandel)
-  Vec3 lattice_spin;      // axial vector of W_lat (lattice frame)
+  Vec6 strain_increment;  // D_lat dt (Mandel), at `resolved_at`
+  Vec3 lattice_spin;      // axial vector of W_lat at the start orientation (lattice frame)
+  Mat3 resolved_at;       // the orientation the strain increment is resolved at
 };
 
-StepKinematics step_kinematics(const Mat3& g, const Mat3& L, double dt) {
-  const LatticeKinematics k = lattice_kinematics(g, L);
-  return {k.strain_rate * dt, k.spin};
+StepKinematics step_kinematics(Kinematics kinematics, const Mat3& g, const Mat3& L, double dt) {
+  const LatticeKinematics start = lattice_kinematics(g, L);
+  if (kinematics == Kinematics::small_strain) return {start.strain_rate * dt, start.spin, g};
+  const Mat3 mid = rotation_exp(-start.spin * (0.5 * dt)) * g;
+  return {lattice_kinematics(mid, L).strain_rate * dt, start.spin, mid};
 }
 
 // The friction-coefficient evolution (3.4) as dmu = slip |du_vp| + time dt at a given mu (the
@@ -58,13 +65,24 @@ FrictionRateCoefficients friction_rate_coefficients(const law::SubloadingFrictio
 }
 
 // The orientation after a step: the lattice spins with W - W_p (lattice components omega),
-// and g maps sample to crystal components, so g1 = exp(-[omega] dt) g0.
+// and g maps sample to crystal components, so g1 = exp(-[omega] dt) g0 (forward Euler, the
+// paper's explicit path).
 template <int N>
 Mat3 rotated_orientation(const Phase<N>& ph, const Mat3& g0, const Vec3& lattice_spin,
                          const typename SlipTypes<N>::VecN& rate, double dt) {
   if (ph.kinematics == Kinematics::small_strain) return g0;
   const Vec3 omega = lattice_spin - ph.slip_spin * rate;
   return rotation_exp(-omega * dt) * g0;
+}
+
+// The implicit step's update split: the total spin first (exactly a superposed rigid rotation
+// for a steady spin), then the plastic spin back: g1 = exp([W_p dgamma]) exp(-[w dt]) g0.
+template <int N>
+Mat3 split_rotated_orientation(const Phase<N>& ph, const Mat3& g0, const Vec3& lattice_spin,
+                               const typename SlipTypes<N>::VecN& rate, double dt) {
+  if (ph.kinematics == Kinematics::small_strain) return g0;
+  const Vec3 plastic = ph.slip_spin * rate;
+  return rotation_exp(plastic * dt) * rotation_exp(-lattice_spin * dt) * g0;
 }
 
 // Normal traction on each slip plane: tau0 alone, or tau0 plus the compressive normal stress.
@@ -666,7 +684,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   using VecN = typename T::VecN;
   const int n = ph.slip_count;
   GrainStepReport rep;
-  const StepKinematics kin = step_kinematics(s0.orientation, L, dt);
+  const StepKinematics kin = step_kinematics(ph.kinematics, s0.orientation, L, dt);
   const Vec6 stress_trial = s0.stress + ph.stiffness * kin.strain_increment;
   ImplicitSolver<N> solver(ph, s0, stress_trial, dt);
 
@@ -758,7 +776,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   const VecN fn1 = normal_traction(ph, s1.stress);
   const VecN r_abs = loading_ratio_of(ph, s1.stress, it.mu, fn1);
   s1.r_s = it.rs.cwiseMin(r_abs);  // (3.12): r_s follows r down where no slip occurs
-  s1.orientation = rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
+  s1.orientation = split_rotated_orientation(ph, s0.orientation, kin.lattice_spin, s1.rate, dt);
   if (!admissible_state(ph, s1, r_abs, fn1, rep, OpenPlanes::resolved)) return rep;
 
   if (tangent) {
@@ -783,7 +801,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
             mandel_from_symmetric(dg1.transpose() * sigma * g1 + g1.transpose() * sigma * dg1);
       }
     }
-    *tangent = sample_tangent * mandel_rotation_operator(s0.orientation);
+    *tangent = sample_tangent * mandel_rotation_operator(kin.resolved_at);
   }
   rep.ok = true;
   return rep;
