@@ -83,8 +83,8 @@ double collective_row_write(const parallel::Team& team, const std::filesystem::p
   parallel::on_root(team, [&] {  // the layout, by one process (as a run's)
     h5::File f = h5::File::create(path, true);
     const auto rows = static_cast<std::size_t>(repeats);
-    f.root().create_series({"field", 0, h5::Type::float64, "1", "timing", rows, 1, rows,
-                            {total, width}});
+    f.root().create_series(
+        {"field", 0, h5::Type::float64, "1", "timing", rows, 1, rows, {total, width}});
     f.close();
   });
   const h5::MpiAccess mpi{team.mpi_communicator(), team.rank()};
