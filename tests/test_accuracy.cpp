@@ -310,6 +310,14 @@ TEST(AccuracyContact, FixedStepErrorsFallAtFirstOrder) {
     measured() << to_string(i) << " observed order " << order << "\n";
     EXPECT_GT(order, 0.8);
     EXPECT_LT(order, 1.2);
+    // The study's own summary (over steps taken, not factors) says the same.
+    for (const auto& l : ladder_summaries(s)) {
+      if (l.integrator != i) continue;
+      EXPECT_EQ(l.points, 4);
+      EXPECT_GT(l.order, 0.8);
+      EXPECT_LT(l.order, 1.2);
+      EXPECT_TRUE(std::isnan(l.exponent));  // fixed steps: no tolerance
+    }
     // The reference is far finer than the finest point: its own error is negligible.
     EXPECT_LT(s.reference.self_convergence, 0.1 * e.back());
   }
@@ -455,6 +463,10 @@ TEST(AccuracyOutput, WritesTablesAndReferenceAndRefusesOverwrite) {
   const auto csv = lines_of(dir / "accuracy.csv");
   ASSERT_EQ(csv.size(), 1 + report.cases[0].result.points.size());
   EXPECT_EQ(csv[0].rfind("case,integrator,setting_kind,setting,", 0), 0u);
+  EXPECT_NE(csv[0].find(",end_error,error_to_tolerance,median_time_s,"), std::string::npos);
+  std::string markdown;
+  for (const auto& line : lines_of(dir / "accuracy.md")) markdown += line + "\n";
+  EXPECT_NE(markdown.find("| integrator | points | observed order |"), std::string::npos);
 
   const auto file = io::h5::File::open_read(dir / "accuracy.h5");
   const auto root = file.root();
@@ -471,6 +483,17 @@ TEST(AccuracyOutput, WritesTablesAndReferenceAndRefusesOverwrite) {
       EXPECT_TRUE(std::isnan(errors[k]));
     } else {
       EXPECT_DOUBLE_EQ(errors[k], e);
+    }
+  }
+  const auto ladders = root.open_group("cases").open_group("base").open_group("ladders");
+  const auto summaries = ladder_summaries(report.cases[0].result);
+  const auto orders = ladders.open_dataset("observed_order").read_doubles();
+  ASSERT_EQ(orders.size(), summaries.size());
+  for (std::size_t k = 0; k < orders.size(); ++k) {
+    if (std::isnan(summaries[k].order)) {
+      EXPECT_TRUE(std::isnan(orders[k]));
+    } else {
+      EXPECT_DOUBLE_EQ(orders[k], summaries[k].order);
     }
   }
   const auto ref = root.open_group("cases").open_group("base").open_group("reference");
@@ -504,6 +527,42 @@ TEST(AccuracyOutput, TimeToReachAnError) {
   EXPECT_TRUE(std::isnan(cheapest_time(s, Integrator::forward_euler, 1.0)));
   EXPECT_EQ(measured_integrators(s),
             (std::vector<Integrator>{Integrator::implicit, Integrator::cvode}));
+}
+
+// The per-integrator summary on made-up ladders of known behaviour: a fixed-step ladder whose
+// error falls as steps^-2, an adaptive one whose error is 3 sqrt(tolerance) (as backward
+// Euler's with error-per-step control), points under the reference's resolution left out.
+TEST(AccuracyOutput, LadderSummaryFitsOrderAndTolerance) {
+  StudyResult s;
+  s.reference.self_convergence = 1e-9;  // resolution 1e-8
+  s.reference.interpolation_error = 1e-12;
+  const auto add = [&s](Integrator i, double value, long steps, double error) {
+    PointResult p;
+    p.setting.integrator = i;
+    p.setting.value = value;
+    p.ok = true;
+    p.counters.steps = steps;
+    p.error.max_error = error;
+    s.points.push_back(p);
+  };
+  for (long n : {10L, 20L, 40L, 80L}) add(Integrator::implicit, 1.0, n, 5.0 / double(n * n));
+  add(Integrator::implicit, 1.0, 1000000, 1e-9);  // under the resolution: not fitted
+  for (double tol : {1e-2, 1e-4, 1e-6})
+    add(Integrator::implicit_adaptive, tol, long(10 / std::sqrt(tol)), 3.0 * std::sqrt(tol));
+  const auto ladders = ladder_summaries(s);
+  ASSERT_EQ(ladders.size(), 2u);
+  EXPECT_EQ(ladders[0].integrator, Integrator::implicit);
+  EXPECT_EQ(ladders[0].points, 4);
+  EXPECT_NEAR(ladders[0].order, 2.0, 1e-12);
+  EXPECT_TRUE(std::isnan(ladders[0].exponent));
+  EXPECT_TRUE(std::isnan(ladders[0].least_ratio));
+  EXPECT_EQ(ladders[1].points, 3);
+  EXPECT_NEAR(ladders[1].exponent, 0.5, 1e-12);
+  EXPECT_NEAR(ladders[1].order, 1.0, 1e-3);              // (steps rounded to integers)
+  EXPECT_NEAR(ladders[1].least_ratio, 30.0, 1e-9);       // 3 sqrt(1e-2) / 1e-2
+  EXPECT_NEAR(ladders[1].greatest_ratio, 3000.0, 1e-6);  // 3 sqrt(1e-6) / 1e-6
+  EXPECT_TRUE(std::isnan(fitted_slope({1.0}, {2.0})));
+  EXPECT_TRUE(std::isnan(fitted_slope({1.0, 1.0}, {2.0, 3.0})));
 }
 
 // The subcommand end to end on a tiny scene: files written, a second run refused (exit 2).

@@ -61,6 +61,12 @@ std::string status_of(const PointResult& p) {
   return p.over_budget ? "stopped" : "failed";
 }
 
+// Max error over the tolerance asked for (adaptive, CVODE: rtol); NaN for fixed steps.
+double error_to_tolerance(const PointResult& p) {
+  if (study::is_fixed_step(p.setting.integrator) || !p.ok) return study::kNaN;
+  return p.error.max_error / p.setting.value;
+}
+
 std::string count_or_blank(const PointResult& p, long value) {
   return p.ok ? std::to_string(value) : "";
 }
@@ -74,7 +80,8 @@ std::ofstream open_text(const fs::path& path) {
 void write_csv(const fs::path& path, const AccuracyReport& report) {
   std::ofstream out = open_text(path);
   out << "case,integrator,setting_kind,setting,increments,steps,rejected,newton_iterations,"
-         "cutbacks,max_error,max_error_time,end_error,median_time_s,repeats,status,failure\n";
+         "cutbacks,max_error,max_error_time,end_error,error_to_tolerance,median_time_s,repeats,"
+         "status,failure\n";
   for (const auto& c : report.cases) {
     for (const auto& p : c.result.points) {
       const long inc = planned_increments(c.result, p);
@@ -85,8 +92,9 @@ void write_csv(const fs::path& path, const AccuracyReport& report) {
           << count_or_blank(p, p.counters.newton_iterations) << ','
           << count_or_blank(p, p.counters.cutbacks) << ',' << format("%.6e", p.error.max_error)
           << ',' << format("%.6e", p.error.max_error_time) << ','
-          << format("%.6e", p.error.end_error) << ',' << format("%.6e", p.median_seconds) << ','
-          << p.repeats << ',' << status_of(p) << ',' << csv_field(p.failure) << '\n';
+          << format("%.6e", p.error.end_error) << ',' << format("%.6e", error_to_tolerance(p))
+          << ',' << format("%.6e", p.median_seconds) << ',' << p.repeats << ',' << status_of(p)
+          << ',' << csv_field(p.failure) << '\n';
     }
   }
 }
@@ -197,6 +205,29 @@ void write_time_to_error_table(std::ostream& out, const StudyResult& study) {
   }
 }
 
+std::string ladder_name(const study::LadderSummary& s) {
+  return std::string(study::to_string(s.integrator)) + (s.uniform ? " (uniform)" : "");
+}
+
+void write_ladder_table(std::ostream& out, const StudyResult& study) {
+  const auto ladders = study::ladder_summaries(study);
+  if (ladders.empty()) return;
+  out << "\nPer integrator, over its points above the reference's resolution: the observed order "
+         "(-slope of log max error over log steps), how the max error follows the tolerance "
+         "(slope of log max error over log tolerance: 1 means proportional) and the max error "
+         "over the tolerance asked for:\n\n"
+         "| integrator | points | observed order | error ~ tolerance^ | max error / tolerance |\n"
+         "|---|---|---|---|---|\n";
+  for (const auto& s : ladders) {
+    out << "| " << ladder_name(s) << " | " << s.points << " | " << md_number(s.order, "%.2f")
+        << " | " << md_number(s.exponent, "%.2f") << " | "
+        << (std::isnan(s.least_ratio)
+                ? std::string("-")
+                : md_number(s.least_ratio, "%.2g") + " ... " + md_number(s.greatest_ratio, "%.2g"))
+        << " |\n";
+  }
+}
+
 void write_markdown(const fs::path& path, const AccuracyReport& report) {
   std::ofstream out = open_text(path);
   out << "# Work-precision study: " << report.scene_file << "\n\n";
@@ -222,6 +253,7 @@ void write_markdown(const fs::path& path, const AccuracyReport& report) {
                     : std::string("not available"))
         << "; interpolation error bound " << md_number(r.interpolation_error) << ".\n\n";
     write_points_table(out, s);
+    write_ladder_table(out, s);
     write_time_to_error_table(out, s);
     for (const auto& note : s.notes) out << "\n- " << note;
     if (!s.notes.empty()) out << '\n';
@@ -247,7 +279,7 @@ void write_column(const h5::Group& group, const std::string& name,
 void write_table(const h5::Group& group, const StudyResult& s, const std::string& time_unit) {
   std::vector<std::string> integrator, kind, status, failure;
   std::vector<double> setting, increments, steps, rejected, newton, cutbacks, max_error,
-      max_error_time, end_error, seconds, repeats, reached;
+      max_error_time, end_error, to_tolerance, seconds, repeats, reached;
   const double nan = study::kNaN;
   for (const auto& p : s.points) {
     integrator.emplace_back(study::to_string(p.setting.integrator));
@@ -264,6 +296,7 @@ void write_table(const h5::Group& group, const StudyResult& s, const std::string
     max_error.push_back(p.error.max_error);
     max_error_time.push_back(p.error.max_error_time);
     end_error.push_back(p.error.end_error);
+    to_tolerance.push_back(error_to_tolerance(p));
     seconds.push_back(p.median_seconds);
     repeats.push_back(p.repeats);
     reached.push_back(p.reached_time);
@@ -284,12 +317,40 @@ void write_table(const h5::Group& group, const StudyResult& s, const std::string
                "max over the output points of |value - reference| / error_scale");
   write_column(group, "max_error_time", max_error_time, time_unit, "where the max error is");
   write_column(group, "end_error", end_error, "1", "|value - reference| / error_scale at the end");
+  write_column(group, "error_to_tolerance", to_tolerance, "1",
+               "max_error / the tolerance (adaptive) or rtol (CVODE) asked for; NaN: fixed step");
   write_column(group, "median_time", seconds, "s", "median wall time of the repeated runs");
   write_column(group, "repeats", repeats, "1", "timed runs");
   write_column(group, "reached_time", reached, time_unit, "the last output time reached");
   write_strings(group, "status", status,
                 "ok | failed (the integrator gave up) | stopped (over the run-time budget)");
   write_strings(group, "failure", failure, "the integrator's message when failed");
+}
+
+// One row per integrator ladder (study::ladder_summaries).
+void write_ladders(const h5::Group& group, const StudyResult& s) {
+  std::vector<std::string> name;
+  std::vector<double> points, order, exponent, least, greatest;
+  for (const auto& l : study::ladder_summaries(s)) {
+    name.push_back(ladder_name(l));
+    points.push_back(l.points);
+    order.push_back(l.order);
+    exponent.push_back(l.exponent);
+    least.push_back(l.least_ratio);
+    greatest.push_back(l.greatest_ratio);
+  }
+  group.set_attribute("description",
+                      "per integrator, fitted over its points above 10 x the reference's "
+                      "resolution (self_convergence, interpolation_error)");
+  write_strings(group, "integrator", name, "the ladder (forward Euler's uniform one apart)");
+  write_column(group, "points", points, "1", "points fitted");
+  write_column(group, "observed_order", order, "1",
+               "-d log(max_error) / d log(steps); NaN: fewer than two points");
+  write_column(group, "tolerance_exponent", exponent, "1",
+               "d log(max_error) / d log(tolerance); 1: the error follows the tolerance; NaN: "
+               "fixed step");
+  write_column(group, "least_error_to_tolerance", least, "1", "min of max_error / tolerance");
+  write_column(group, "greatest_error_to_tolerance", greatest, "1", "max of max_error / tolerance");
 }
 
 void write_path(const h5::Group& parent, const std::string& name, const study::Trajectory& path,
@@ -335,6 +396,7 @@ void write_case(const h5::Group& cases, const AccuracyReport& report, const Accu
   g.set_attribute("notes", notes);
   const std::string time_unit = unit_named(report, "time");
   write_table(g.create_group("table"), s, time_unit);
+  write_ladders(g.create_group("ladders"), s);
   write_path(g, "reference", r.path, time_unit, c.quantity_unit, "the reference run, every step");
   if (r.cvode && r.cvode->ok) {
     write_path(g, "cvode_check", r.cvode_path, time_unit, c.quantity_unit,

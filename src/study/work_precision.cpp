@@ -731,6 +731,55 @@ double cheapest_time(const StudyResult& study, Integrator integrator, double err
   return best;
 }
 
+double fitted_slope(const std::vector<double>& x, const std::vector<double>& y) {
+  const auto n = static_cast<double>(x.size());
+  if (x.size() < 2 || x.size() != y.size()) return kNaN;
+  double mx = 0.0, my = 0.0;
+  for (std::size_t k = 0; k < x.size(); ++k) mx += x[k], my += y[k];
+  mx /= n, my /= n;
+  double sxx = 0.0, sxy = 0.0;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    sxx += (x[k] - mx) * (x[k] - mx);
+    sxy += (x[k] - mx) * (y[k] - my);
+  }
+  return sxx > 0.0 ? sxy / sxx : kNaN;
+}
+
+std::vector<LadderSummary> ladder_summaries(const StudyResult& study) {
+  const auto& r = study.reference;
+  const double resolution =
+      10.0 * std::max(std::isnan(r.self_convergence) ? 0.0 : r.self_convergence,
+                      std::isnan(r.interpolation_error) ? 0.0 : r.interpolation_error);
+  std::vector<LadderSummary> out;
+  for (const auto& p : study.points) {
+    const bool known = std::any_of(out.begin(), out.end(), [&](const LadderSummary& s) {
+      return s.integrator == p.setting.integrator && s.uniform == p.setting.uniform;
+    });
+    if (known) continue;
+    LadderSummary s;
+    s.integrator = p.setting.integrator;
+    s.uniform = p.setting.uniform;
+    std::vector<double> log_steps, log_error, log_tolerance;
+    for (const auto& q : study.points) {
+      if (q.setting.integrator != s.integrator || q.setting.uniform != s.uniform || !q.ok) continue;
+      const double e = q.error.max_error;
+      if (!(e > resolution) || !std::isfinite(e) || q.counters.steps <= 0) continue;
+      ++s.points;
+      log_steps.push_back(std::log(static_cast<double>(q.counters.steps)));
+      log_error.push_back(std::log(e));
+      if (is_fixed_step(s.integrator)) continue;
+      log_tolerance.push_back(std::log(q.setting.value));
+      const double ratio = e / q.setting.value;
+      s.least_ratio = std::isnan(s.least_ratio) ? ratio : std::min(s.least_ratio, ratio);
+      s.greatest_ratio = std::isnan(s.greatest_ratio) ? ratio : std::max(s.greatest_ratio, ratio);
+    }
+    s.order = -fitted_slope(log_steps, log_error);
+    if (!is_fixed_step(s.integrator)) s.exponent = fitted_slope(log_tolerance, log_error);
+    out.push_back(s);
+  }
+  return out;
+}
+
 std::vector<Integrator> measured_integrators(const StudyResult& study) {
   std::vector<Integrator> out;
   for (const auto& p : study.points) {

@@ -311,6 +311,25 @@ double cheapest_time(const StudyResult& study, Integrator integrator, double err
 // The integrators that have at least one successful point, in ladder order.
 std::vector<Integrator> measured_integrators(const StudyResult& study);
 
+// How one integrator's ladder behaved (issue 17): the order it showed and, for a tolerance
+// (adaptive, CVODE), how the error it reached compares with the one asked for. Fitted over its
+// successful points whose max error is above the reference's resolution (10 x the larger of
+// self_convergence and interpolation_error, where the reference's own error would flatten the
+// curve); NaN where fewer than two such points (with different steps, or settings) remain.
+struct LadderSummary {
+  Integrator integrator = Integrator::implicit;
+  bool uniform = false;          // forward Euler's uniform ladder (a curve of its own)
+  int points = 0;                // the points fitted
+  double order = kNaN;           // -d log(max error) / d log(steps): 1 for backward Euler
+  double exponent = kNaN;        // d log(max error) / d log(tolerance): 1 when the error follows it
+  double least_ratio = kNaN;     // min of max error / tolerance over the points
+  double greatest_ratio = kNaN;  // max of the same
+};
+std::vector<LadderSummary> ladder_summaries(const StudyResult& study);
+
+// The least-squares slope of y over x (NaN for fewer than two distinct x).
+double fitted_slope(const std::vector<double>& x, const std::vector<double>& y);
+
 // Whether the CVODE peer integrator was built in.
 bool cvode_available();
 
