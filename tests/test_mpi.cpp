@@ -248,7 +248,9 @@ bool lock_is_free(const fs::path& file) {
 void interrupt_and_continue_under_three(const fs::path& dir, int checkpoint_every,
                                         int interrupted_code,
                                         const std::function<int(pid_t, double)>& interrupt,
-                                        const std::function<void()>& check = {}) {
+                                        const std::function<void()>& check = {},
+                                        const std::vector<std::string>& first_options = {},
+                                        const std::vector<std::string>& restart_options = {}) {
   std::ofstream(dir / "reversal.yaml") << reversal_scene(150, checkpoint_every);
   double serial = 0.0;
   ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "ref.h5", "-q"},
@@ -259,16 +261,19 @@ void interrupt_and_continue_under_three(const fs::path& dir, int checkpoint_ever
   std::mt19937 rng(seed);
   // (2 ranks take about half the serial time)
   std::uniform_real_distribution<double> when(0.1 * serial, 0.4 * serial);
-  const pid_t launcher = subslip::testing::spawn_program(
-      dir, under_mpi(2, {"run", "reversal.yaml", "-o", "out.h5", "-q"}), dir / "mpi.log",
-      launcher_environment);
+  std::vector<std::string> first{"run", "reversal.yaml", "-o", "out.h5", "-q"};
+  first.insert(first.end(), first_options.begin(), first_options.end());
+  const pid_t launcher = subslip::testing::spawn_program(dir, under_mpi(2, first), dir / "mpi.log",
+                                                         launcher_environment);
   int code = subslip::testing::poll_child(launcher, [&] { return fs::exists(dir / "out.h5"); });
   if (code < 0) code = interrupt(launcher, when(rng));
   ASSERT_TRUE(code == interrupted_code || code == 0) << log_of(dir);
   if (code != 0) {
     EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
     if (check) check();
-    ASSERT_EQ(run_mpi(dir, 3, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
+    std::vector<std::string> again{"run", "--restart", "out.h5", "-q"};
+    again.insert(again.end(), restart_options.begin(), restart_options.end());
+    ASSERT_EQ(run_mpi(dir, 3, again), 0) << log_of(dir);
   } else {
     GTEST_LOG_(INFO) << "the run ended before it was interrupted";
   }
@@ -343,6 +348,20 @@ TEST(Mpi, RunStoppedUnderTwoRanksContinuesUnderThree) {
                   std::string::npos)
             << log;
       });
+  fs::remove_all(dir);
+}
+
+// The two ways of writing the file over ranks make the same file, checkpoints included: a run
+// stopped under 2 ranks whose output went through rank 0 (--gather-output) continues under 3
+// ranks writing together, to the serial run's file.
+TEST(Mpi, RunStoppedWritingThroughRankZeroContinuesWritingTogether) {
+  const fs::path dir = scratch_dir();
+  interrupt_and_continue_under_three(dir, 100000, 128 + SIGUSR1,
+                                     [](pid_t launcher, double delay) {
+                                       return subslip::testing::kill_after(launcher, delay,
+                                                                           SIGUSR1);
+                                     },
+                                     {}, {"--gather-output"}, {});
   fs::remove_all(dir);
 }
 
