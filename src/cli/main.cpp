@@ -663,11 +663,12 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   const auto run = [&](driver::CrystalSink* root_sink) {
     return driver::run_crystal_scene_on_team(scene, team, root_sink, options);
   };
-  const auto sink_options = [&] {
+  // The sink of the result file `path`: a new one, or one that continues (`restart`).
+  const auto sink_options = [&](const fs::path& path, bool restart) {
     io::CrystalSinkOptions to_file;
     to_file.flush_interval = std::chrono::duration<double>(a.flush_interval);
-    to_file.restart = output->restart();
-    to_file.restart_file = output->restart_file();
+    to_file.restart = restart;
+    to_file.restart_file = io::restart_file_for(path);
     to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
     return to_file;
   };
@@ -678,7 +679,8 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     parallel::on_root(
         team,
         [&] {
-          io::CrystalResultSink layout(scene, output->file, sink_options());
+          io::CrystalResultSink layout(scene, output->file,
+                                       sink_options(output->path, output->restart()));
           if (!output->restart()) output->header_written();
           layout.end_run();
           output->file.close();
@@ -686,10 +688,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
         },
         exit_code_of);
     team.broadcast(path, 0);
-    io::CrystalSinkOptions to_file;
-    to_file.restart = true;
-    to_file.restart_file = io::restart_file_for(path);
-    to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+    io::CrystalSinkOptions to_file = sink_options(path, true);  // (continues the layout)
     to_file.mpi = io::h5::MpiAccess{team.mpi_communicator(), team.rank()};
     to_file.ranks = team.size();
     std::optional<io::h5::Error> failure;
@@ -722,7 +721,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     return output->write([&] {
       std::optional<io::CrystalResultSink> sink;
       parallel::on_root(team, [&] {
-        sink.emplace(scene, output->file, sink_options());
+        sink.emplace(scene, output->file, sink_options(output->path, output->restart()));
         if (!output->restart()) output->header_written();
       });
       return run(&*sink);

@@ -255,9 +255,7 @@ ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_si
   team.broadcast(failure, owner);
   team.broadcast(error, owner);
   const io::ContactCase& c = scene.cases[index];
-  if (!error.empty())
-    parallel::stop_every_rank(team,
-                              case_failure(c, error) + " (MPI rank " + std::to_string(owner) + ")");
+  if (!error.empty()) parallel::stop_every_rank(team, case_failure(c, error), owner);
   std::vector<double> message;
   if (mine != nullptr) {
     if (owner != 0) team.send(message_of(*mine), 0);

@@ -303,9 +303,7 @@ CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::T
   team.broadcast(why, owner);
   team.broadcast(error, owner);
   const io::CrystalCase& c = scene.cases[index];
-  if (!error.empty())
-    parallel::stop_every_rank(team,
-                              case_failure(c, error) + " (MPI rank " + std::to_string(owner) + ")");
+  if (!error.empty()) parallel::stop_every_rank(team, case_failure(c, error), owner);
   CrystalCaseResult result{c.name, {}, why.empty() ? "" : case_failure(c, why)};
   Unpacked(head.values).get(result.summary);
   std::vector<double> states;

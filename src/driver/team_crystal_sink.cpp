@@ -156,7 +156,7 @@ void CollectiveCrystalSink::together(Work&& work) const {
   team_.broadcast(action, owner);
   team_.broadcast(reason, owner);
   if (kind[0] != 0.0) throw io::h5::Error(action, reason);
-  parallel::stop_every_rank(team_, action + " (MPI rank " + std::to_string(owner) + ")");
+  parallel::stop_every_rank(team_, action, owner);
 }
 
 CrystalSummary CollectiveCrystalSink::roots(const CrystalSummary& summary) const {

@@ -45,6 +45,7 @@ namespace {
 struct CollectiveFiles {
   int open = 0;
   int rank = 0;
+  Handle transfer;  // the collective transfer properties, made at the first write, kept while open
 };
 CollectiveFiles& collective_files() {
   static CollectiveFiles files;
@@ -162,15 +163,19 @@ enum class Part { shared, own };
 
 // The transfer properties of a write: collective MPI-IO while a collective file is open, else
 // the default (an invalid handle).
-Handle write_transfer() {
-  Handle none;
-  if (collective_files().open == 0) return none;
+// (made once per collective file, not at every write)
+hid_t write_transfer() {
+  CollectiveFiles& files = collective_files();
+  if (files.open == 0) return H5P_DEFAULT;
 #ifdef H5_HAVE_PARALLEL
-  Handle dxpl = own(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "create transfer properties");
-  check(H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE), "set collective transfer");
-  return dxpl;
+  if (!files.transfer.valid()) {
+    Handle dxpl = own(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "create transfer properties");
+    check(H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE), "set collective transfer");
+    files.transfer = std::move(dxpl);
+  }
+  return files.transfer.get();
 #else
-  return none;
+  return H5P_DEFAULT;
 #endif
 }
 
@@ -178,18 +183,14 @@ Handle write_transfer() {
 // collective write of shared values every rank but 0 takes part with an empty selection.
 void write_selection(hid_t dataset, hid_t memory_type, hid_t memory_space, hid_t file_space,
                      const void* data, Part part, const std::string& what) {
-  const Handle transfer = write_transfer();
-  if (!transfer.valid()) {
-    check(H5Dwrite(dataset, memory_type, memory_space, file_space, H5P_DEFAULT, data), what);
-    return;
-  }
-  if (part == Part::shared && collective_files().rank != 0) {
+  const hid_t transfer = write_transfer();
+  if (transfer != H5P_DEFAULT && part == Part::shared && collective_files().rank != 0) {
     Handle nothing = own(H5Dget_space(dataset), H5Sclose, "dataset space");
     check(H5Sselect_none(nothing.get()), "select nothing");
-    check(H5Dwrite(dataset, memory_type, nothing.get(), nothing.get(), transfer.get(), data), what);
+    check(H5Dwrite(dataset, memory_type, nothing.get(), nothing.get(), transfer, data), what);
     return;
   }
-  check(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer.get(), data), what);
+  check(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, data), what);
 }
 
 // Groups (and the root) track creation order, so that readers list cases and attributes in
@@ -1143,7 +1144,8 @@ File::~File() {
 }
 
 void File::forget_collective() noexcept {
-  if (collective_) --collective_files().open;
+  CollectiveFiles& files = collective_files();
+  if (collective_ && --files.open == 0) files.transfer.reset();
   collective_ = false;
 }
 

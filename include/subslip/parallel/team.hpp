@@ -96,6 +96,11 @@ inline bool& root_failure_shared() {
   throw std::runtime_error(what);
 }
 
+// The same for a failure rank `owner` met and broadcast: the message names that rank.
+[[noreturn]] inline void stop_every_rank(const Team& team, const std::string& what, int owner) {
+  stop_every_rank(team, what + " (MPI rank " + std::to_string(owner) + ")");
+}
+
 // Runs `work` on the root only, then tells every rank whether it succeeded: when it threw, the
 // root rethrows its exception and every other rank throws StoppedByRoot, so that no rank waits
 // in a collective the root never reaches. Collective.
