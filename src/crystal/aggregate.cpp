@@ -8,6 +8,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <numbers>
 #include <sstream>
@@ -446,8 +447,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         << " (after " << rep.iterations << " iterations)";
     if (rep.system >= 0) {
       const VecN r = loading_ratio(phase_, s);
-      msg << "; start state: mu = " << s.mu(rep.system) << ", r = " << r(rep.system)
-          << ", r_s = " << s.r_s(rep.system) << ", slip = " << s.slip(rep.system);
+      // Full precision: near the limits (r_s -> 1, r -> r_hat) six digits would read "1".
+      msg << std::setprecision(17) << "; start state: mu = " << s.mu(rep.system)
+          << ", r = " << r(rep.system) << ", r_s = " << s.r_s(rep.system)
+          << ", slip = " << s.slip(rep.system);
     }
     return msg.str();
   }
