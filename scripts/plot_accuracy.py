@@ -19,6 +19,9 @@ STYLE = {  # integrator -> (label, marker, colour)
     "forward_euler": ("forward Euler (fixed step)", "s", "tab:red"),
     "implicit": ("implicit (fixed step)", "o", "tab:blue"),
     "implicit_adaptive": ("implicit (adaptive)", "D", "tab:green"),
+    "extrapolated_2": ("extrapolated, order 2", "v", "tab:orange"),
+    "extrapolated_3": ("extrapolated, order 3", "<", "tab:brown"),
+    "extrapolated_4": ("extrapolated, order 4", ">", "tab:olive"),
     "cvode": ("CVODE (BDF)", "^", "tab:purple"),
 }
 

@@ -82,9 +82,10 @@ struct ContactRun {
 };
 
 ContactRun run_contact(const contact::ContactModel& m, const std::vector<contact::Segment>& segs,
-                       double tolerance) {
+                       double tolerance, int order = 1) {
   contact::IntegratorOptions opt;
   opt.tolerance = tolerance;
+  opt.order = order;
   ContactRun out;
   out.segment_ends.resize(segs.size());
   out.steps_per_segment.assign(segs.size(), 0);
@@ -156,6 +157,51 @@ TEST(AdaptiveContact, ErrorFallsWithToleranceOverPeakHoldAndReversal) {
   measured() << "contact, " << same_count.stats.increments
              << " fixed steps: max error at segment ends " << same_count_error << "\n";
   EXPECT_LT(previous_error, same_count_error);
+}
+
+// The extrapolated integrators (order 2 .. 4) advance with their best solution and estimate
+// the error of the second best: the global error then follows the tolerance itself, not its
+// square root. Reference: fixed steps, 2e5 and 4e5 per segment, Richardson-extrapolated (an
+// independent integration: no adaptive step, no estimate).
+TEST(AdaptiveContact, ExtrapolatedErrorFollowsTheTolerance) {
+  const auto m = paper_model();
+  const ContactRun coarse = run_contact(m, demanding_history(200000), 0.0);
+  const ContactRun fine = run_contact(m, demanding_history(400000), 0.0);
+  ContactRun reference = fine;
+  double spread = 0.0;
+  for (size_t k = 0; k < fine.segment_ends.size(); ++k) {
+    const double correction =
+        fine.segment_ends[k].traction_ratio() - coarse.segment_ends[k].traction_ratio();
+    reference.segment_ends[k].traction_t *= (fine.segment_ends[k].traction_ratio() + correction) /
+                                            fine.segment_ends[k].traction_ratio();
+    spread = std::max(spread, std::abs(correction));
+  }
+  measured() << "contact reference: Richardson correction " << spread << "\n";
+  double smallest_error = 1e300;
+  for (int order : {2, 3, 4}) {
+    const double tolerances[] = {1e-3, 1e-5, 1e-7};
+    std::vector<double> errors;
+    for (double tol : tolerances) {
+      const ContactRun run = run_contact(m, demanding_history(1), tol, order);
+      const double error = end_error(run, reference) / m.law.friction.mu_s;
+      measured() << "contact, order " << order << ", tolerance " << tol << ": "
+                 << run.stats.increments << " steps, " << run.stats.rejected
+                 << " rejected, max error at segment ends / mu_s " << error << "\n";
+      EXPECT_TRUE(run.all_admissible);
+      EXPECT_EQ(run.stats.cutbacks, 0);
+      EXPECT_LT(error, 10.0 * tol) << "order " << order << ", tolerance " << tol;
+      errors.push_back(error);
+      smallest_error = std::min(smallest_error, error);
+    }
+    // Over the four decades the error falls about as the tolerance (slope 1); backward Euler's
+    // estimate gives its square root (slope 0.5).
+    const double slope = std::log(errors.front() / errors.back()) /
+                         std::log(tolerances[0] / tolerances[std::size(tolerances) - 1]);
+    measured() << "contact, order " << order << ": error ~ tolerance^" << slope << "\n";
+    EXPECT_GT(slope, 0.75) << "order " << order;
+  }
+  // The reference resolves the smallest error measured.
+  EXPECT_LT(spread, 0.1 * smallest_error);
 }
 
 TEST(AdaptiveContact, PeakFromOneIncrementMatchesFineFixedSteps) {
@@ -255,7 +301,8 @@ struct CrystalRun {
   crystal::AggregateStats stats;
 };
 
-CrystalRun run_crystal(const std::vector<crystal::LoadSegment>& segs, double tolerance) {
+CrystalRun run_crystal(const std::vector<crystal::LoadSegment>& segs, double tolerance,
+                       int order = 1) {
   const int saved = omp_get_max_threads();
   omp_set_num_threads(1);
   // A general orientation: multiple slip sets in during the run.
@@ -264,6 +311,7 @@ CrystalRun run_crystal(const std::vector<crystal::LoadSegment>& segs, double tol
       {crystal::single_crystal_orientation(crystal::Vec3(-1, 2, 3), crystal::Vec3(3, 0, 1))});
   crystal::AggregateOptions opt;
   opt.tolerance = tolerance;
+  opt.order = order;
   // Mixed control accepts a step whose free stresses are within stress_tolerance x scale of
   // their targets (or within what the grain solves resolve, when that is coarser); that error is
   // a strain error the next step starts from, so a long run drifts by up to (steps x
@@ -288,35 +336,63 @@ std::vector<crystal::LoadSegment> crystal_history(int increments) {
 
 }  // namespace
 
+namespace {
+
+// Reference: fixed steps, 5000 and 10000 per segment, extrapolated (Richardson) to zero step
+// as backward Euler's error is first order: 2 y(h/2) - y(h). The size of that correction,
+// |y(h/2) - y(h)|, bounds the error of the finer run and measures the reference's own spread.
+struct CrystalReference {
+  std::vector<double> axial_stress_at_ends;
+  double spread = 0.0;  // in units of tau0
+  long steps = 0, cutbacks = 0;
+};
+
+const CrystalReference& crystal_reference() {
+  static const CrystalReference reference = [] {
+    const CrystalRun coarse = run_crystal(crystal_history(5000), 0.0);
+    const CrystalRun fine = run_crystal(crystal_history(10000), 0.0);
+    CrystalReference r;
+    r.axial_stress_at_ends.resize(fine.axial_stress_at_ends.size());
+    for (size_t k = 0; k < r.axial_stress_at_ends.size(); ++k) {
+      const double correction = fine.axial_stress_at_ends[k] - coarse.axial_stress_at_ends[k];
+      r.axial_stress_at_ends[k] = fine.axial_stress_at_ends[k] + correction;
+      r.spread = std::max(r.spread, std::abs(correction) / 20.0);
+    }
+    r.steps = fine.stats.increments;
+    r.cutbacks = fine.stats.cutbacks;
+    return r;
+  }();
+  return reference;
+}
+
+// The largest error of the axial stress at the segment ends, in units of tau0.
+double crystal_error(const CrystalRun& run) {
+  const std::vector<double>& reference = crystal_reference().axial_stress_at_ends;
+  double error = 0.0;
+  for (size_t k = 0; k < run.axial_stress_at_ends.size(); ++k)
+    error = std::max(error, std::abs(run.axial_stress_at_ends[k] - reference[k]));
+  return error / 20.0;
+}
+
+}  // namespace
+
 TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
-  // Reference: fixed steps, 5000 and 10000 per segment, extrapolated (Richardson) to zero step
-  // as backward Euler's error is first order: 2 y(h/2) - y(h). The size of that correction,
-  // |y(h/2) - y(h)|, bounds the error of the finer run and measures the reference's own spread.
-  const CrystalRun coarse = run_crystal(crystal_history(5000), 0.0);
-  const CrystalRun fine = run_crystal(crystal_history(10000), 0.0);
-  std::vector<double> reference(fine.axial_stress_at_ends.size());
-  double spread = 0.0;
-  for (size_t k = 0; k < reference.size(); ++k) {
-    const double correction = fine.axial_stress_at_ends[k] - coarse.axial_stress_at_ends[k];
-    reference[k] = fine.axial_stress_at_ends[k] + correction;
-    spread = std::max(spread, std::abs(correction) / 20.0);  // in units of tau0
-  }
+  const CrystalReference& ref = crystal_reference();
+  const std::vector<double>& reference = ref.axial_stress_at_ends;
+  const double spread = ref.spread;
   double previous_error = 1e300;
   for (double tol : {1e-2, 1e-4}) {
     const CrystalRun run = run_crystal(crystal_history(1), tol);
-    double error = 0.0;
-    for (size_t k = 0; k < run.axial_stress_at_ends.size(); ++k)
-      error = std::max(error, std::abs(run.axial_stress_at_ends[k] - reference[k]));
-    error /= 20.0;  // in units of tau0
+    const double error = crystal_error(run);
     measured() << "crystal, tolerance " << tol << ": " << run.stats.increments << " steps, "
                << run.stats.rejected << " rejected, " << run.stats.cutbacks
                << " cutbacks, max stress error at segment ends / tau0 " << error << "\n";
     EXPECT_LT(error, previous_error / 3.0) << "tolerance " << tol;
-    EXPECT_LT(run.stats.increments, fine.stats.increments / 20);
+    EXPECT_LT(run.stats.increments, ref.steps / 20);
     previous_error = error;
   }
-  measured() << "crystal reference: " << fine.stats.increments << " fixed steps, "
-             << fine.stats.cutbacks << " cutbacks, Richardson correction / tau0 " << spread << "\n";
+  measured() << "crystal reference: " << ref.steps << " fixed steps, " << ref.cutbacks
+             << " cutbacks, Richardson correction / tau0 " << spread << "\n";
   // The reference is an order of magnitude closer to the exact answer than the tightest
   // adaptive run, so the errors above are the adaptive runs' own.
   EXPECT_LT(spread, previous_error / 10.0);
@@ -324,6 +400,56 @@ TEST(AdaptiveCrystal, ErrorFallsWithToleranceThroughYieldHoldAndReversal) {
   // The hold relaxes the axial stress, the reversal unloads it.
   EXPECT_LT(reference[2], reference[1]);
   EXPECT_LT(reference[3], reference[2]);
+}
+
+// The extrapolated integrators on the crystal (mixed control, yield, hold, reversal): the error
+// stays below the tolerance and falls in proportion to it, with far fewer steps than backward
+// Euler needs at the same tolerance.
+TEST(AdaptiveCrystal, ExtrapolatedErrorFollowsTheTolerance) {
+  const CrystalReference& ref = crystal_reference();
+  for (int order : {2, 3}) {
+    double previous_error = 1e300;
+    // (Above 1e-5 the segments, in few steps, are already that accurate.)
+    for (double tol : {1e-5, 1e-7}) {
+      const CrystalRun run = run_crystal(crystal_history(1), tol, order);
+      const double error = crystal_error(run);
+      measured() << "crystal, order " << order << ", tolerance " << tol << ": "
+                 << run.stats.increments << " steps, " << run.stats.rejected << " rejected, "
+                 << run.stats.cutbacks << " cutbacks, max stress error at segment ends / tau0 "
+                 << error << "\n";
+      EXPECT_LT(error, 10.0 * tol) << "order " << order << ", tolerance " << tol;
+      EXPECT_LT(error, previous_error / 10.0) << "order " << order << ", tolerance " << tol;
+      EXPECT_LT(run.stats.increments, ref.steps / 100);
+      previous_error = std::max(error, 10.0 * ref.spread);
+    }
+  }
+}
+
+// Several grains under mixed control: the combination of the solutions (grains, orientations,
+// the macroscopic state) and its error estimate do not depend on the thread count.
+TEST(AdaptiveCrystal, ExtrapolatedRunIsBitwiseIndependentOfThreads) {
+  const auto orientations = crystal::random_orientations(6, 11);
+  crystal::AggregateOptions opt;
+  opt.tolerance = 1e-4;
+  opt.order = 3;
+  const auto run = [&](int threads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    auto agg = crystal::build_taylor_aggregate(fcc_copper(), orientations);
+    std::vector<crystal::MacroState> out;
+    agg->run({uniaxial(1e-3, 5.0, 1), uniaxial(-1e-3, 2.0, 1)}, opt,
+             [&](const crystal::MacroState& m, const crystal::GrainFields&) { out.push_back(m); });
+    omp_set_num_threads(saved);
+    return out;
+  };
+  const auto one = run(1), two = run(2);
+  ASSERT_EQ(one.size(), two.size());
+  ASSERT_GT(one.size(), 5u);
+  for (size_t k = 0; k < one.size(); ++k) {
+    EXPECT_EQ(one[k].time, two[k].time);
+    EXPECT_TRUE(one[k].stress == two[k].stress) << "output " << k;
+    EXPECT_TRUE(one[k].deformation_gradient == two[k].deformation_gradient) << "output " << k;
+  }
 }
 
 TEST(AdaptiveCrystal, SegmentTimeResolvesStepsTheAbsoluteTimeCannot) {
@@ -392,6 +518,18 @@ TEST(AdaptiveScene, ForwardEulerWithAToleranceIsRefusedWithItsLine) {
   EXPECT_NE(what.find("method: implicit"), std::string::npos) << what;
   EXPECT_NE(input_error_text(kContactHead + "integrator: {tolerance: 0}\n").find("tolerance"),
             std::string::npos);
+}
+
+TEST(AdaptiveScene, OrderNeedsAToleranceAndAKnownOrder) {
+  const auto scene = subslip::io::parse_contact_scene(subslip::io::YamlDocument::from_string(
+      kContactHead + "integrator: {tolerance: 1.0e-5, order: 3}\n", "s.yaml"));
+  EXPECT_EQ(scene.cases[0].integrator.order, 3);
+  const std::string fixed = input_error_text(kContactHead + "integrator: {order: 2}\n");
+  EXPECT_NE(fixed.find("s.yaml:11: integrator.order"), std::string::npos) << fixed;
+  EXPECT_NE(fixed.find("tolerance"), std::string::npos) << fixed;
+  const std::string high =
+      input_error_text(kContactHead + "integrator: {tolerance: 1.0e-5, order: 5}\n");
+  EXPECT_NE(high.find("integrator.order"), std::string::npos) << high;
 }
 
 TEST(AdaptiveScene, ShippedAdaptiveSceneRunsEverySegmentInFewSteps) {

@@ -183,7 +183,7 @@ TEST(OutputPoints, AdaptiveStepsEndOnEveryStopWithoutShrinking) {
   EXPECT_TRUE(shrink.accept(1e-3));
   EXPECT_DOUBLE_EQ(shrink.planned_step(), 0.09);
   // Resumed part-way (a restart), the stops already passed are not stops again.
-  AdaptiveSegment resumed(10.0, 0.1, 1e-3, 0.7, 2);
+  AdaptiveSegment resumed(10.0, 0.1, 1e-3, 2, 0.7, 2);
   resumed.set_stops(stops);
   EXPECT_FALSE(resumed.at_stop());
   EXPECT_DOUBLE_EQ(resumed.end_time(), 0.8);

@@ -166,14 +166,21 @@ TEST(Restart, AggregateContinuesBitwiseFromACheckpoint) {
 }
 
 TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
-  const CrystalScene scene =
-      scene_of(crystal_scene(4, 10, "integrator: {method: implicit, tolerance: 1.0e-3}\n"));
-  const CrystalCase& c = scene.cases.at(0);
-  ASSERT_GT(c.options.tolerance, 0.0);
-  // The step size the next increment tries is part of the state.
-  for (long stop : {3L, 9L}) {
-    SCOPED_TRACE("stopped after increment " + std::to_string(stop));
-    check_resume_is_bitwise(c, stop);
+  // Backward Euler's estimate (order 1) and the extrapolated integrator (order 3).
+  for (int order : {1, 3}) {
+    SCOPED_TRACE("order " + std::to_string(order));
+    const CrystalScene scene =
+        scene_of(crystal_scene(4, 10,
+                               "integrator: {method: implicit, tolerance: 1.0e-3, order: " +
+                                   std::to_string(order) + "}\n"));
+    const CrystalCase& c = scene.cases.at(0);
+    ASSERT_GT(c.options.tolerance, 0.0);
+    ASSERT_EQ(c.options.order, order);
+    // The step size the next increment tries is part of the state.
+    for (long stop : {3L, 9L}) {
+      SCOPED_TRACE("stopped after increment " + std::to_string(stop));
+      check_resume_is_bitwise(c, stop);
+    }
   }
 }
 

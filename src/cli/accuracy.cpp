@@ -34,7 +34,8 @@ fs::path output_dir(const AccuracyArgs& a) {
 
 Integrator parse_integrator(const std::string& name) {
   for (Integrator i : {Integrator::forward_euler, Integrator::implicit,
-                       Integrator::implicit_adaptive, Integrator::cvode}) {
+                       Integrator::implicit_adaptive, Integrator::extrapolated_2,
+                       Integrator::extrapolated_3, Integrator::extrapolated_4, Integrator::cvode}) {
     if (study::to_string(i) == name) return i;
   }
   throw InputError("--integrators", 0, "", "unknown integrator '" + name + "'");
@@ -69,6 +70,11 @@ study::StudyOptions study_options(const AccuracyArgs& a) {
         break;
       case Integrator::implicit_adaptive:
         l.values = a.adaptive;
+        break;
+      case Integrator::extrapolated_2:
+      case Integrator::extrapolated_3:
+      case Integrator::extrapolated_4:
+        l.values = a.extrapolated;
         break;
       case Integrator::cvode:
         l.values = a.cvode;
@@ -203,7 +209,8 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
   cmd->add_flag("-q,--quiet", a.quiet, "Print nothing but errors");
   cmd->add_option("--case", a.cases, "Study only these cases of a swept scene");
   cmd->add_option("--integrators", a.integrators, "Integrators to study")
-      ->check(CLI::IsMember({"forward_euler", "implicit", "implicit_adaptive", "cvode"}))
+      ->check(CLI::IsMember({"forward_euler", "implicit", "implicit_adaptive", "extrapolated_2",
+                             "extrapolated_3", "extrapolated_4", "cvode"}))
       ->capture_default_str();
   cmd->add_option("--fe", a.forward_euler,
                   "Forward Euler increment factors (relative to the scene); default: 1, 4, 16, "
@@ -216,6 +223,10 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
       ->check(cli::positive())
       ->capture_default_str();
   cmd->add_option("--adaptive", a.adaptive, "Adaptive implicit tolerances")
+      ->check(cli::above_and_at_most(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--extrapolated", a.extrapolated,
+                  "Tolerances of the extrapolated implicit integrators (orders 2, 3 and 4)")
       ->check(cli::above_and_at_most(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--cvode", a.cvode, "CVODE relative tolerances")

@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 
+#include "subslip/integrators/extrapolation.hpp"
 #include "subslip/integrators/scalar_root.hpp"
 #include "subslip/integrators/step_control.hpp"
 
@@ -343,6 +344,113 @@ double local_error(const law::SubloadingFrictionLaw& law, const ContactStiffness
   return 0.5 * dt * c.alpha_t * change.norm() / yield;
 }
 
+// The state variables an extrapolated step combines; the rest (time, slip, f_n) is kinematics,
+// the same in every solution of the step.
+using Combined = Eigen::Matrix<double, 6, 1>;
+
+Combined combined_part(const ContactState& s) {
+  Combined v;
+  v << s.traction_t, s.law.mu, s.law.r_s, s.vp_slip, s.vp_rate;
+  return v;
+}
+
+// The extrapolated state: `kinematics` (the one-step solution) with the combined variables
+// `v`, r recomputed from them. The combination can leave the admissible set only at the order
+// of its error; where it does the constraint is restored (r_s <= r, r_s < 1 for the cot form,
+// which a step from r_s >= 1 cannot leave; rates >= 0), and r >= r_hat or mu <= 0 fail the step.
+StepAttempt extrapolated_state(const law::SubloadingFrictionLaw& law, ContactState kinematics,
+                               const Combined& v, const ContactState& finest) {
+  ContactState& s = kinematics;
+  s.traction_t = v.head<2>();
+  s.law.mu = v(2);
+  s.law.r_s = v(3);
+  s.vp_slip = v(4);
+  s.vp_rate = std::max(v(5), 0.0);
+  s.r =
+      s.traction_n > 0.0 && s.law.mu > 0.0 ? s.traction_t.norm() / (s.traction_n * s.law.mu) : 0.0;
+  if (!(s.law.r_s < 1.0) && finest.law.r_s < 1.0) s.law.r_s = finest.law.r_s;
+  s.law.r_s = std::clamp(s.law.r_s, 0.0, s.r);
+  StepAttempt out{s, 0, true, {}};
+  out.why = inadmissible_reason(law, s);
+  out.ok = out.why.empty();
+  return out;
+}
+
+// The extrapolated error estimate |best - second| (extrapolation.hpp) in units of the yield:
+// the traction over f_n mu, mu relative, and r_s.
+double extrapolation_error(const Combined& difference, const ContactState& s) {
+  const double yield = s.traction_n * s.law.mu;
+  const double traction = yield > 0.0 ? difference.head<2>().norm() / yield : 0.0;
+  return std::max({traction, std::abs(difference(2)) / s.law.mu, std::abs(difference(3))});
+}
+
+// Whether a step from s0 switched between sticking and sliding: one of its `order` solutions
+// ends in the other phase (`sliding`: whether each does).
+bool switches_phase(const ContactState& s0,
+                    const std::array<bool, integrators::kMaxExtrapolationOrder>& sliding,
+                    int order) {
+  const bool start = s0.vp_rate > 0.0;
+  return std::any_of(sliding.begin(), sliding.begin() + order, [&](bool b) { return b != start; });
+}
+
+struct ExtrapolatedStep {
+  StepAttempt attempt;
+  double error = 0.0;
+};
+
+// What the extrapolated estimate resolves: the states it combines are exact to a few ulps of
+// r (at most r_hat) and to the flow-rule tolerance (|dG/dr| >= 1: a residual delta leaves at
+// most delta in r), and the tableau's weights (|sum| up to 28 at order 4) amplify that.
+double extrapolation_resolution(const law::SubloadingFrictionLaw& law,
+                                const IntegratorOptions& opt) {
+  constexpr double kEps = std::numeric_limits<double>::epsilon();
+  const double largest_ratio = std::max(1.0, law.parameters().overstress.r_hat);
+  return 32.0 * (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
+}
+
+// One step of the extrapolated integrator from s0 at time t0 into the segment to t1: backward
+// Euler with 1, 2, .., order substeps, combined (integrators/extrapolation.hpp).
+ExtrapolatedStep extrapolated_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                                   const IntegratorOptions& opt, const Segment& seg,
+                                   double fn_start, const ContactState& s0, double t0, double t1) {
+  std::array<Combined, integrators::kMaxExtrapolationOrder> solutions;
+  ContactState one_step, finest;
+  int iterations = 0;
+  std::array<bool, integrators::kMaxExtrapolationOrder> sliding{};  // at the end, per solution
+  for (int j = 1; j <= opt.order; ++j) {
+    ContactState s = s0;
+    double t = t0;
+    for (int i = 1; i <= j; ++i) {
+      const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
+      const double h = end - t;
+      const StepAttempt a =
+          implicit_step(law, c, s, seg.velocity * h, normal_traction_at(seg, c, fn_start, end), h,
+                        opt.residual_tolerance);
+      iterations += a.iterations;
+      if (!a.ok) return {{s, iterations, false, a.why}, 0.0};
+      s = a.state;
+      t = end;
+    }
+    solutions[static_cast<size_t>(j - 1)] = combined_part(s);
+    sliding[static_cast<size_t>(j - 1)] = s.vp_rate > 0.0;
+    if (j == 1) one_step = s;
+    finest = s;
+  }
+  const auto e = integrators::extrapolate_implicit_euler(solutions, opt.order);
+  ExtrapolatedStep out{extrapolated_state(law, one_step, e.best, finest), 0.0};
+  out.attempt.iterations = iterations;
+  if (!out.attempt.ok) return out;
+  out.error = extrapolation_error(e.best - e.second, out.attempt.state);
+  if (switches_phase(s0, sliding, opt.order)) {
+    // A switch between sticking and sliding inside the step: the solution has a kink there and
+    // no error expansion in powers of the step, so the estimate is backward Euler's own (one
+    // substep against two): a step with a switch is shortened until that meets the tolerance.
+    out.error =
+        std::max(out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state));
+  }
+  return out;
+}
+
 // One segment with adaptive steps. The first step is the segment's first increment; the step
 // then follows the error estimate, and a failed step (no convergence, inadmissible state) is
 // halved like a cutback.
@@ -352,18 +460,30 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
                           const OutputCallback& on_output) {
   const ContactStiffness& c = model.stiffness;
   const double fn_start = s.traction_n;
-  integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance);
+  const bool extrapolated = opt.order >= 2;
+  const double resolution = extrapolation_resolution(law, opt);
+  integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance,
+                                     extrapolated ? opt.order : 2);
   if (seg.output_at_times) clock.set_stops(seg.output_times);
   for (;;) {
     const double h = clock.step();
-    const Vec2 du = seg.velocity * h;
-    const double fn1 = normal_traction_at(seg, c, fn_start, clock.end_time());
-    const StepAttempt a = implicit_step(law, c, s, du, fn1, h, opt.residual_tolerance);
+    StepAttempt a;
+    double error = 0.0;
+    if (extrapolated) {
+      ExtrapolatedStep e =
+          extrapolated_step(law, c, opt, seg, fn_start, s, clock.time(), clock.end_time());
+      a = std::move(e.attempt);
+      error = e.error;
+    } else {
+      const Vec2 du = seg.velocity * h;
+      const double fn1 = normal_traction_at(seg, c, fn_start, clock.end_time());
+      a = implicit_step(law, c, s, du, fn1, h, opt.residual_tolerance);
+      error = a.ok ? local_error(law, c, s, a.state, du, fn1, h) : 0.0;
+    }
     stats.iterations += a.iterations;
-    const double error = a.ok ? local_error(law, c, s, a.state, du, fn1, h) : 0.0;
     if (!a.ok || !(error <= opt.tolerance)) {
       a.ok ? ++stats.rejected : ++stats.cutbacks;
-      if (!clock.refuse(!a.ok, error)) {
+      if (!clock.refuse(!a.ok, error, extrapolated ? resolution : 0.0)) {
         throw StepFailure(failure_message(s, clock.refusals(), h,
                                           !a.ok ? a.why
                                           : clock.at_noise_floor()

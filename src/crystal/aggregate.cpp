@@ -1,6 +1,8 @@
 #include "subslip/crystal/aggregate.hpp"
 
 #include "subslip/crystal/free_components.hpp"
+#include "subslip/crystal/rotation.hpp"
+#include "subslip/integrators/extrapolation.hpp"
 #include "subslip/integrators/step_control.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -86,6 +88,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     tangents_.resize(n);
     reports_.resize(n);
     warm_.resize(n);
+    extrapolation_errors_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
     std::array<parallel::ExactSum, 1> total;
     for (double w : weights_) total[0].add(w);
@@ -268,27 +271,37 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     if (resume != nullptr && resume->position.segment_time >= seg.duration) return;
+    const int estimate_order = opt.order >= 2 ? opt.order : 2;
     integrators::AdaptiveSegment clock =
         resume != nullptr
             ? integrators::AdaptiveSegment(seg.duration, resume->position.next_step, opt.tolerance,
-                                           resume->position.segment_time,
+                                           estimate_order, resume->position.segment_time,
                                            resume->position.increment)
             : integrators::AdaptiveSegment(
                   seg.duration, increment_lengths(seg.duration, seg.increments, seg.growth).front(),
-                  opt.tolerance);
+                  opt.tolerance, estimate_order);
     if (seg.output_at_times) clock.set_stops(seg.output_times);
+    const bool extrapolated = opt.order >= 2;
     for (;;) {
       const double h = clock.step();
-      const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
-      const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
       Eigen::VectorXd u_try = u;
       std::string why;
-      const bool solved = try_step(seg, fc, target, h, u_try, opt, why);
-      const ErrorEstimate error = solved ? local_error(h) : ErrorEstimate{};
+      bool solved = false;
+      ErrorEstimate error;
+      if (extrapolated) {
+        solved = extrapolated_step(seg, fc, stress_start, clock, u_try, opt, why);
+        if (solved) error = extrapolation_error();
+      } else {
+        const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
+        const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
+        solved = try_step(seg, fc, target, h, u_try, opt, why);
+        if (solved) error = local_error(h);
+      }
       if (!solved || !(error.value <= opt.tolerance)) {
         solved ? ++stats_.rejected : ++stats_.cutbacks;
         if (solved) why = describe_error(error);
-        if (!clock.refuse(!solved, error.value)) {
+        if (!clock.refuse(!solved, error.value,
+                          extrapolated ? extrapolation_resolution(fc, opt) : 0.0)) {
           if (clock.at_noise_floor()) why = clock.noise_floor_message() + " (" + why + ")";
           std::ostringstream msg;
           msg << "crystal step failed at time " << macro_.time << " after " << clock.refusals()
@@ -299,7 +312,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       }
       const bool last = clock.last();
       u = u_try;
-      commit(seg, fc, u, h);
+      if (extrapolated) {
+        std::swap(committed_, trial_);
+        macro_ = extrapolated_macro_;
+      } else {
+        commit(seg, fc, u, h);
+      }
       const bool stop = clock.accept(error.value);
       macro_.segment_time = clock.time();
       ++stats_.increments;
@@ -331,16 +349,24 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // largest, in grain order, per rank and then over the ranks in rank order (the same estimate
   // at any rank count).
   ErrorEstimate local_error(double dt) const {
+    return worst_error([&](size_t g) {
+      const VecN rate_change = trial_[g].rate - committed_[g].rate;
+      const VecN crss = committed_[g].mu.cwiseProduct(phase_.tau0);
+      return VecN((0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(crss));
+    });
+  }
+
+  // The largest of every grain's and system's error (error_of(g): per system), the same at any
+  // thread or rank count: a NaN wins, then the first of the largest in grain order.
+  template <class PerGrain>
+  ErrorEstimate worst_error(PerGrain&& error_of) const {
     ErrorEstimate worst;
     const auto keep_worse = [&worst](double value, size_t grain, int system) {
       if (!std::isnan(worst.value) && (std::isnan(value) || value > worst.value))
         worst = {value, grain, system};
     };
     for (size_t g = 0; g < committed_.size(); ++g) {
-      const VecN rate_change = trial_[g].rate - committed_[g].rate;
-      const VecN crss = committed_[g].mu.cwiseProduct(phase_.tau0);
-      const VecN error =
-          (0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(crss);
+      const VecN error = error_of(g);
       for (int a = 0; a < phase_.slip_count; ++a) keep_worse(error(a), offset_ + g, a);
     }
     if (team_.size() == 1) return worst;
@@ -351,6 +377,167 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     for (size_t r = 0; r < all.size(); r += 3)
       keep_worse(all[r], static_cast<size_t>(all[r + 1]), static_cast<int>(all[r + 2]));
     return worst;
+  }
+
+  // One step of the extrapolated integrator (AggregateOptions::order = k >= 2, see
+  // integrators/extrapolation.hpp) over the clock's step: the aggregate is taken from its
+  // committed state with 1, 2, .., k backward Euler substeps (mixed control solved in each), and
+  // the k results are combined into trial_ and extrapolated_macro_; committed_ and macro_ are
+  // left as they were. False (and why) when a substep fails or the combination is inadmissible.
+  // `u`: the free components of L, from the last substep of the finest solution.
+  bool extrapolated_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                         const Mat3& stress_start, const integrators::AdaptiveSegment& clock,
+                         Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
+    const int order = opt.order;
+    step_start_ = committed_;
+    const MacroState macro_start = macro_;
+    const Eigen::VectorXd u_start = u;
+    const double t0 = clock.time();
+    const double t1 = clock.end_time();
+    bool ok = true;
+    for (int j = 1; j <= order && ok; ++j) {
+      u = u_start;
+      double t = t0;
+      for (int i = 1; i <= j && ok; ++i) {
+        const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
+        const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
+        const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
+        ok = try_step(seg, fc, target, end - t, u, opt, why);
+        if (ok) commit(seg, fc, u, end - t);
+        t = end;
+      }
+      if (!ok) break;
+      solutions_[static_cast<size_t>(j - 1)] = committed_;
+      solution_macros_[static_cast<size_t>(j - 1)] = macro_;
+      committed_ = step_start_;
+      macro_ = macro_start;
+    }
+    if (!ok) {
+      committed_ = step_start_;
+      macro_ = macro_start;
+      return false;
+    }
+    combine_solutions(order);
+    return every_grain_ok(why);
+  }
+
+  // trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
+  // estimates in extrapolation_errors_, the restoring reports in reports_.
+  void combine_solutions(int order) {
+    const auto k = static_cast<size_t>(order);
+    const long n = static_cast<long>(committed_.size());
+#pragma omp parallel for schedule(static) if (n > 1)
+    for (long g = 0; g < n; ++g) {
+      const auto gi = static_cast<size_t>(g);
+      std::array<Vec6, integrators::kMaxExtrapolationOrder> stress;
+      std::array<VecN, integrators::kMaxExtrapolationOrder> mu, r_s, slip, rate;
+      std::array<Vec3, integrators::kMaxExtrapolationOrder> turn;
+      const GrainState<N>& finest = solutions_[k - 1][gi];
+      for (size_t j = 0; j < k; ++j) {
+        const GrainState<N>& s = solutions_[j][gi];
+        stress[j] = s.stress, mu[j] = s.mu, r_s[j] = s.r_s, slip[j] = s.slip, rate[j] = s.rate;
+        // Orientations are combined as rotation vectors relative to the finest one.
+        turn[j] = rotation_log(s.orientation * finest.orientation.transpose());
+      }
+      for (size_t j = k; j < turn.size(); ++j) {  // unused rows, kept finite
+        stress[j] = stress[0], mu[j] = mu[0], r_s[j] = r_s[0], slip[j] = slip[0];
+        rate[j] = rate[0], turn[j] = turn[0];
+      }
+      using integrators::extrapolate_implicit_euler;
+      const auto e_stress = extrapolate_implicit_euler(stress, order);
+      const auto e_mu = extrapolate_implicit_euler(mu, order);
+      const auto e_rs = extrapolate_implicit_euler(r_s, order);
+      GrainState<N>& out = trial_[gi];
+      out.stress = e_stress.best;
+      out.mu = e_mu.best;
+      out.r_s = e_rs.best;
+      out.slip = extrapolate_implicit_euler(slip, order).best;
+      out.rate = extrapolate_implicit_euler(rate, order).best;
+      out.orientation =
+          rotation_exp(extrapolate_implicit_euler(turn, order).best) * finest.orientation;
+      reports_[gi] = restore_extrapolated_state(phase_, finest, out);
+      extrapolation_errors_[gi] =
+          system_errors(e_stress.best - e_stress.second, e_mu.best - e_mu.second,
+                        e_rs.best - e_rs.second, out.mu);
+      if (switches_phase(step_start_[gi], gi, order)) {
+        // A system switched between elastic and slipping inside the step: the solution has a
+        // kink there and no error expansion in powers of the step, so the estimate is backward
+        // Euler's own (one substep against two): such a step is shortened until that meets the
+        // tolerance.
+        const GrainState<N>& one = solutions_[0][gi];
+        const GrainState<N>& two = solutions_[1][gi];
+        extrapolation_errors_[gi] = extrapolation_errors_[gi].cwiseMax(
+            system_errors(one.stress - two.stress, one.mu - two.mu, one.r_s - two.r_s, out.mu));
+      }
+    }
+    combine_macro(order);
+  }
+
+  // An error estimate per system from differences of the stress, mu and r_s, on what the state
+  // determines: resolved shear stresses over the CRSS, the CRSS relative, r_s.
+  VecN system_errors(const Vec6& stress, const VecN& mu, const VecN& r_s,
+                     const VecN& mu_now) const {
+    const VecN crss = mu_now.cwiseProduct(phase_.tau0);
+    const VecN tau = (phase_.schmid.transpose() * stress).cwiseAbs();
+    return tau.cwiseQuotient(crss)
+        .cwiseMax(mu.cwiseAbs().cwiseQuotient(mu_now))
+        .cwiseMax(r_s.cwiseAbs());
+  }
+
+  // Whether a system of grain g switched between elastic and slipping in the step from `start`:
+  // it slips (a non-zero rate) at the end of one of the `order` solutions and not at the start,
+  // or the other way round.
+  bool switches_phase(const GrainState<N>& start, size_t g, int order) const {
+    for (int j = 0; j < order; ++j) {
+      const VecN& rate = solutions_[static_cast<size_t>(j)][g].rate;
+      for (int a = 0; a < phase_.slip_count; ++a)
+        if ((rate(a) != 0.0) != (start.rate(a) != 0.0)) return true;
+    }
+    return false;
+  }
+
+  // The macroscopic state of the combination: F and L extrapolated like the grains (with mixed
+  // control they differ between the solutions), the strain from F, the stress averaged anew.
+  void combine_macro(int order) {
+    const auto k = static_cast<size_t>(order);
+    std::array<Mat3, integrators::kMaxExtrapolationOrder> f, l, strain;
+    for (size_t j = 0; j < f.size(); ++j) {
+      const MacroState& m = solution_macros_[std::min(j, k - 1)];
+      f[j] = m.deformation_gradient, l[j] = m.velocity_gradient, strain[j] = m.strain;
+    }
+    extrapolated_macro_ = solution_macros_[0];  // time and segment: the same in every solution
+    extrapolated_macro_.deformation_gradient =
+        integrators::extrapolate_implicit_euler(f, order).best;
+    extrapolated_macro_.velocity_gradient = integrators::extrapolate_implicit_euler(l, order).best;
+    extrapolated_macro_.strain = phase_.kinematics == Kinematics::small_strain
+                                     ? integrators::extrapolate_implicit_euler(strain, order).best
+                                     : log_strain(extrapolated_macro_.deformation_gradient);
+    extrapolated_macro_.stress = symmetric_from_mandel(average_stress(trial_));
+  }
+
+  // What the extrapolated estimate resolves (as for the contact point): the grains' states are
+  // exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
+  // control, to the free stresses' tolerance over the smallest CRSS (mu no lower than the
+  // smaller of mu_s and mu_k: the law moves it between them); the tableau's weights amplify that.
+  double extrapolation_resolution(const std::vector<FreeComponent>& fc,
+                                  const AggregateOptions& opt) const {
+    constexpr double kEps = std::numeric_limits<double>::epsilon();
+    double largest_ratio = 1.0, smallest_mu = std::numeric_limits<double>::infinity();
+    for (const auto& law : phase_.laws) {
+      const auto& p = law.parameters();
+      largest_ratio = std::max(largest_ratio, p.overstress.r_hat);
+      smallest_mu = std::min({smallest_mu, p.friction.mu_s, p.friction.mu_k});
+    }
+    double mixed = 0.0;
+    if (!fc.empty()) {
+      const double scale = std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff());
+      mixed = opt.stress_tolerance * scale / (smallest_mu * phase_.tau0.minCoeff());
+    }
+    return 32.0 * (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
+  }
+
+  ErrorEstimate extrapolation_error() const {
+    return worst_error([&](size_t g) { return extrapolation_errors_[g]; });
   }
 
   std::string describe_error(const ErrorEstimate& e) const {
@@ -419,6 +606,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       if (rep.ok) warm_[gi] = trial_[gi].rate;
     }
     stats_.grain_solves += static_cast<long>(total_);
+    return every_grain_ok(why);
+  }
+
+  // Whether every grain's report (reports_) is ok; else why, for the first failing grain. The
+  // reports' Newton iterations are added to the statistics.
+  bool every_grain_ok(std::string& why) {
     // Serial, then over the ranks: the iterations, and the first failing grain (by index).
     constexpr auto kNone = std::numeric_limits<std::int64_t>::max();
     std::array<std::int64_t, 1> iterations{0}, failed{kNone};
@@ -763,6 +956,13 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;
   std::vector<VecN> warm_;  // slip rates of each grain's last successful solve (solve_grains)
+  // The extrapolated integrator's work space (extrapolated_step): the start state, the solutions
+  // with 1 .. k substeps, the combined macroscopic state and per-grain error estimates.
+  std::vector<GrainState<N>> step_start_;
+  std::array<std::vector<GrainState<N>>, integrators::kMaxExtrapolationOrder> solutions_;
+  std::array<MacroState, integrators::kMaxExtrapolationOrder> solution_macros_;
+  MacroState extrapolated_macro_;
+  std::vector<VecN> extrapolation_errors_;
   std::vector<double> weights_;
   MacroState macro_;
   AggregateStats stats_;

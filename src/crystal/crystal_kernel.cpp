@@ -676,6 +676,20 @@ typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N
 }
 
 template <int N>
+GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
+                                           GrainState<N>& s) {
+  const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
+  const typename SlipTypes<N>::VecN r = loading_ratio_of(ph, s.stress, s.mu, fn);
+  for (int a = 0; a < ph.slip_count; ++a) {
+    if (!(s.r_s(a) < 1.0) && finest.r_s(a) < 1.0) s.r_s(a) = finest.r_s(a);
+    s.r_s(a) = std::clamp(s.r_s(a), 0.0, r(a));
+  }
+  GrainStepReport rep;
+  rep.ok = admissible_state(ph, s, r, fn, rep, OpenPlanes::resolved);
+  return rep;
+}
+
+template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                     Tangent* tangent,
@@ -899,6 +913,8 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                                   const Mat3&, double, GrainState<N>&, Tangent*, \
                                                   integrators::ExplicitStability);               \
   template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);           \
+  template GrainStepReport restore_extrapolated_state<N>(const Phase<N>&, const GrainState<N>&,  \
+                                                         GrainState<N>&);                        \
   template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);             \
   template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,       \
                                const Mat3&, GrainRates<N>&);

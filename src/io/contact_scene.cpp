@@ -131,7 +131,7 @@ std::vector<contact::Segment> parse_loading(const CheckedNode& node,
 contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& node) {
   contact::IntegratorOptions opt;
   if (!node) return opt;
-  node->allow_keys({"method", "max_cutbacks", "residual_tolerance", "tolerance"});
+  node->allow_keys({"method", "max_cutbacks", "residual_tolerance", "tolerance", "order"});
   if (auto m = node->optional("method")) {
     opt.method = m->as_enum<contact::Method>({{"implicit", contact::Method::implicit},
                                               {"forward_euler", contact::Method::forward_euler}});
@@ -145,6 +145,7 @@ contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
       tol->fail("adaptive stepping needs method: implicit");
     opt.tolerance = node->get_double("tolerance", 0.0, Range::in_open_interval(0.0, 1.0));
   }
+  opt.order = parse_adaptive_order(*node, opt.tolerance);
   return opt;
 }
 

@@ -614,7 +614,7 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
   crystal::AggregateOptions opt;
   if (!node) return opt;
   node->allow_keys({"method", "tolerance", "residual_tolerance", "max_iterations", "max_cutbacks",
-                    "stress_tolerance", "max_mixed_iterations"});
+                    "stress_tolerance", "max_mixed_iterations", "order"});
   if (auto m = node->optional("method")) {
     opt.method = m->as_enum<crystal::CrystalMethod>(
         {{"implicit", crystal::CrystalMethod::implicit},
@@ -627,6 +627,7 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
       tol->fail("adaptive stepping needs method: implicit");
     opt.tolerance = node->get_double("tolerance", 0.0, Range::in_open_interval(0.0, 1.0));
   }
+  opt.order = parse_adaptive_order(*node, opt.tolerance);
   opt.grain.tolerance =
       node->get_double("residual_tolerance", opt.grain.tolerance, Range::positive());
   opt.grain.max_iterations =

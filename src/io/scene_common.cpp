@@ -1,5 +1,7 @@
 #include "subslip/io/scene_common.hpp"
 
+#include "subslip/integrators/extrapolation.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -88,6 +90,15 @@ void check_increment_lengths(const CheckedNode& segment, double duration, int in
             "the smallest increment underflows double precision; use fewer increments, a "
             "growth closer to 1 or a longer segment");
   }
+}
+
+int parse_adaptive_order(const CheckedNode& integrator, double tolerance) {
+  const auto order = integrator.optional("order");
+  if (!order) return 1;
+  if (!(tolerance > 0.0))
+    order->fail("order is that of adaptive stepping: give a tolerance (method: implicit)");
+  return integrator.get_int("order", 1,
+                            Range::in_closed_interval(1, integrators::kMaxExtrapolationOrder));
 }
 
 std::string scene_kind(const YamlDocument& document,

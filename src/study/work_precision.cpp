@@ -202,6 +202,12 @@ std::string_view to_string(Integrator integrator) {
       return "implicit";
     case Integrator::implicit_adaptive:
       return "implicit_adaptive";
+    case Integrator::extrapolated_2:
+      return "extrapolated_2";
+    case Integrator::extrapolated_3:
+      return "extrapolated_3";
+    case Integrator::extrapolated_4:
+      return "extrapolated_4";
     case Integrator::cvode:
       return "cvode";
   }
@@ -214,11 +220,27 @@ std::string_view setting_kind(Integrator integrator) {
     case Integrator::implicit:
       return "increment factor";
     case Integrator::implicit_adaptive:
+    case Integrator::extrapolated_2:
+    case Integrator::extrapolated_3:
+    case Integrator::extrapolated_4:
       return "tolerance";
     case Integrator::cvode:
       return "rtol";
   }
   return "?";
+}
+
+int extrapolation_order(Integrator integrator) {
+  switch (integrator) {
+    case Integrator::extrapolated_2:
+      return 2;
+    case Integrator::extrapolated_3:
+      return 3;
+    case Integrator::extrapolated_4:
+      return 4;
+    default:
+      return 1;
+  }
 }
 
 bool is_fixed_step(Integrator integrator) {
@@ -314,8 +336,12 @@ RunResult ContactProblem::run(const Setting& setting, Report report,
         break;
       }
       case Integrator::implicit_adaptive:
+      case Integrator::extrapolated_2:
+      case Integrator::extrapolated_3:
+      case Integrator::extrapolated_4:
         opt.method = contact::Method::implicit;
         opt.tolerance = setting.value;
+        opt.order = extrapolation_order(setting.integrator);
         out.counters =
             counters_of(contact::run_history(model_, outputs_for(segments_, report), opt, record));
         break;
@@ -406,9 +432,13 @@ RunResult CrystalProblem::run(const Setting& setting, Report report,
         out.counters = counters_of(aggregate->run(segments, opt, record));
         break;
       }
-      case Integrator::implicit_adaptive: {
+      case Integrator::implicit_adaptive:
+      case Integrator::extrapolated_2:
+      case Integrator::extrapolated_3:
+      case Integrator::extrapolated_4: {
         opt.method = crystal::CrystalMethod::implicit;
         opt.tolerance = setting.value;
+        opt.order = extrapolation_order(setting.integrator);
         auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);
         out.counters = counters_of(aggregate->run(outputs_for(segments_, report), opt, record));
         break;

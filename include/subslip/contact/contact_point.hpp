@@ -75,6 +75,12 @@ struct IntegratorOptions {
   // below `tolerance`; the step grows and shrinks with it. A segment's increments then only
   // set its first step, and every accepted step is an increment (output_every applies).
   double tolerance = 0.0;
+  // With a tolerance: 1 is backward Euler with the estimate above (its error follows the square
+  // root of the tolerance); 2 .. 4 is backward Euler extrapolated to that order
+  // (integrators/extrapolation.hpp: every step taken with 1, 2, .., order substeps and
+  // combined), whose estimate is the difference of its two best solutions in units of the yield
+  // traction (traction, mu relative, r_s) and whose error follows the tolerance.
+  int order = 1;
 };
 
 // Work done by one increment, for reporting.

@@ -61,6 +61,11 @@ struct AggregateOptions {
   // below `tolerance` for every grain; the step grows and shrinks with it. A segment's
   // increments then only set its first step, and every accepted step is an increment.
   double tolerance = 0.0;
+  // With a tolerance: 1 is backward Euler with the estimate above; 2 .. 4 (the extrapolation's
+  // kMaxExtrapolationOrder) is backward Euler extrapolated to that order
+  // (integrators/extrapolation.hpp), with the estimate the difference of its two best solutions
+  // (resolved shear stresses over the CRSS, CRSS relative, r_s).
+  int order = 1;
 };
 
 // What an observer sees at an output step.

@@ -161,6 +161,15 @@ template <int N>
 void grain_rates(const Phase<N>& ph, const GrainState<N>& s, const SlipRates<N>& slip,
                  const Mat3& L, GrainRates<N>& out);
 
+// Makes a combination of implicit steps' end states (an extrapolated step) a state of the law:
+// r_s restored to [0, r] (and taken from `finest`, the best single solution, where it reached 1
+// and the finest did not). The combination leaves the admissible set only by the order of its
+// error. The report is not ok (naming the system) where the state is still inadmissible
+// (r >= r_hat, mu <= 0, non-finite): the step is then redone shorter.
+template <int N>
+GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
+                                           GrainState<N>& s);
+
 // Dynamic loading ratio r_a = |tau_a| / (mu_a f_n,a) of a state, per system.
 template <int N>
 typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s);

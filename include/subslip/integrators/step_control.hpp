@@ -1,9 +1,11 @@
 // Step-size control shared by the adaptive drivers (contact point, crystal aggregate).
 //
-// Both implicit integrators are backward-Euler-like: the local error of a step of length dt is
-// about dt^2/2 |y''|, estimated by dt/2 |y'(end) - y'(start)|. A step whose estimate exceeds the
-// tolerance is redone shorter; an accepted step sets the next one. The factor is the classic
-// 0.9 (tol/err)^(1/2) (error ~ dt^2), clamped so that one estimate never moves the step too far.
+// Backward Euler's local error of a step of length dt is about dt^2/2 |y''|, estimated by
+// dt/2 |y'(end) - y'(start)|: an estimate of order 2 (it falls as dt^2). The extrapolated
+// integrators (extrapolation.hpp) estimate the error of their second-best solution, of order k
+// for the order-k integrator. A step whose estimate exceeds the tolerance is redone shorter; an
+// accepted step sets the next one. The factor is the classic 0.9 (tol/err)^(1/q) for an estimate
+// of order q, clamped so that one estimate never moves the step too far.
 #pragma once
 
 #include <algorithm>
@@ -25,11 +27,14 @@ struct StepFactorLimits {
 inline constexpr StepFactorLimits kAfterAccepted{0.2, 4.0};
 inline constexpr StepFactorLimits kAfterRejected{0.1, 0.9};
 
-// The factor to scale the step by, given the local error estimate and the tolerance. A zero
-// error estimate (nothing changes) grows the step by the largest factor.
-inline double step_factor(double error, double tolerance, StepFactorLimits limits) {
+// The factor to scale the step by, given the local error estimate, its order (it falls as
+// dt^order) and the tolerance. A zero error estimate (nothing changes) grows the step by the
+// largest factor.
+inline double step_factor(double error, double tolerance, int order, StepFactorLimits limits) {
   if (!(error > 0.0)) return limits.largest;
-  return std::clamp(0.9 * std::sqrt(tolerance / error), limits.smallest, limits.largest);
+  const double ratio = tolerance / error;
+  const double power = order == 2 ? std::sqrt(ratio) : std::pow(ratio, 1.0 / order);
+  return std::clamp(0.9 * power, limits.smallest, limits.largest);
 }
 
 // Whether a forward Euler step checks its stability limit (dt lambda <= 2) and is refused
@@ -40,8 +45,8 @@ enum class ExplicitStability { refuse_unstable_steps, unchecked };
 // Consecutive refused attempts (rejected or failed) of one step before a driver gives up.
 inline constexpr int kMaxRefusedAttempts = 200;
 
-// The noise floor of the error estimate. A true local error falls as dt^2, so after the step
-// shrank by kFloorShrink over rejected attempts it should be 1e-6 of what it was; an estimate
+// The noise floor of the error estimate. A true local error falls as dt^2 (or faster), so after the
+// step shrank by kFloorShrink over rejected attempts it should be 1e-6 of what it was; an estimate
 // that has not even halved is round-off in the rates it compares (near r_hat, or at rates
 // resolved no better than the Newton tolerance), and no shorter step will meet the tolerance.
 inline constexpr double kFloorShrink = 1e3;
@@ -98,12 +103,20 @@ inline std::vector<FixedStep> fixed_steps(std::span<const double> increments,
 // pass one is shortened to end exactly on it.
 class AdaptiveSegment {
  public:
-  AdaptiveSegment(double duration, double first_step, double tolerance)
-      : duration_(duration), dt_(first_step), tolerance_(tolerance) {}
+  // `order`: that of the error estimate (2 for backward Euler's, k for the order-k
+  // extrapolation's).
+  AdaptiveSegment(double duration, double first_step, double tolerance, int order = 2)
+      : duration_(duration), dt_(first_step), tolerance_(tolerance), order_(order) {}
   // Resuming a segment part-way (a restart): `time` into it, `accepted` steps taken, and the
   // step planned next.
-  AdaptiveSegment(double duration, double next_step, double tolerance, double time, long accepted)
-      : duration_(duration), dt_(next_step), tolerance_(tolerance), t_(time), accepted_(accepted) {}
+  AdaptiveSegment(double duration, double next_step, double tolerance, int order, double time,
+                  long accepted)
+      : duration_(duration),
+        dt_(next_step),
+        tolerance_(tolerance),
+        order_(order),
+        t_(time),
+        accepted_(accepted) {}
 
   // Times into the segment (increasing, in (0, duration]) that steps must end on; those up to
   // the current time are passed already.
@@ -143,7 +156,7 @@ class AdaptiveSegment {
     if (stop) ++next_stop_;
     ++accepted_;
     refusals_ = 0;
-    const double factor = step_factor(error, tolerance_, kAfterAccepted);
+    const double factor = step_factor(error, tolerance_, order_, kAfterAccepted);
     dt_ = h * factor;
     if (shortened && factor >= 1.0) dt_ = std::max(dt_, planned);
     return stop;
@@ -151,15 +164,29 @@ class AdaptiveSegment {
   // A refused attempt shortens the step: by the error estimate when it was too large, by half
   // when the step failed outright. False when the driver should give up: too many refusals in
   // a row, or a step too short to advance the time.
-  // Also false at the estimate's noise floor (see kFloorShrink; then at_noise_floor()).
-  bool refuse(bool failed, double error) {
+  // Also false at the estimate's noise floor (then at_noise_floor()). `resolution` is the
+  // round-off level of the estimate where the driver knows it: the extrapolated integrators
+  // compare states, resolved to a few ulps and the Newton tolerances, and an estimate at that
+  // level is the floor. Where it is 0 (backward Euler's estimate compares rates, whose
+  // resolution the driver does not know) the floor is an estimate that does not fall as the step
+  // shrinks (kFloorShrink). Outside their asymptotic range (a nonlinear relaxation at the start
+  // of a hold, many time scales inside one step) the extrapolated estimates can stay flat over
+  // a 1000-fold shrink, so the second rule would stop them where shorter steps do help.
+  bool refuse(bool failed, double error, double resolution = 0.0) {
     const double h = step();
+    if (resolution > 0.0) {
+      dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, order_, kAfterRejected);
+      ++refusals_;
+      noise_floor_ = !failed && error <= resolution;
+      if (noise_floor_) floor_start_ = floor_end_ = {h, resolution};
+      return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+    }
     if (failed) {
       floor_start_ = {};  // a failed attempt has no estimate: start again after it
     } else if (refusals_ == 0 || floor_start_.error == 0.0) {
       floor_start_ = {h, error};
     }
-    dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, kAfterRejected);
+    dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, order_, kAfterRejected);
     ++refusals_;
     noise_floor_ = !failed && floor_start_.error > 0.0 && h <= floor_start_.step / kFloorShrink &&
                    error >= 0.5 * floor_start_.error;
@@ -170,6 +197,14 @@ class AdaptiveSegment {
   // Why a driver stops at the noise floor, for its failure message.
   std::string noise_floor_message() const {
     char buf[320];
+    if (floor_start_.step == floor_end_.step && floor_start_.error == floor_end_.error) {
+      std::snprintf(buf, sizeof buf,
+                    "the local error estimate is at the round-off of what it compares (%.3g at "
+                    "dt = %.3g): the tolerance %.3g is below what double precision resolves "
+                    "here; use a tolerance above %.3g",
+                    floor_end_.error, floor_end_.step, tolerance_, floor_end_.error);
+      return buf;
+    }
     std::snprintf(buf, sizeof buf,
                   "the local error estimate no longer falls as the step shrinks (%.3g at dt = "
                   "%.3g, %.3g at dt = %.3g): the tolerance %.3g is below what double precision "
@@ -183,6 +218,7 @@ class AdaptiveSegment {
   double duration_;
   double dt_;
   double tolerance_;
+  int order_;
   std::span<const double> stops_;
   std::size_t next_stop_ = 0;
   double t_ = 0.0;

@@ -129,6 +129,11 @@ std::size_t count_output_states(const std::vector<Segment>& segments) {
   return n;
 }
 
+// The `order` of an `integrator` block (1: backward Euler's own estimate, 2 .. 4: extrapolated;
+// integrators/extrapolation.hpp), given its adaptive tolerance (0: fixed increments, where an
+// order is an error).
+int parse_adaptive_order(const CheckedNode& integrator, double tolerance);
+
 // The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
 std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);
 

@@ -35,7 +35,19 @@ namespace subslip::study {
 
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-enum class Integrator { forward_euler, implicit, implicit_adaptive, cvode };
+// implicit_adaptive: backward Euler with its own error estimate; extrapolated_k: backward Euler
+// Richardson-extrapolated to order k (integrators/extrapolation.hpp), adaptive.
+enum class Integrator {
+  forward_euler,
+  implicit,
+  implicit_adaptive,
+  extrapolated_2,
+  extrapolated_3,
+  extrapolated_4,
+  cvode
+};
+// The order of the adaptive implicit integrator's extrapolation (1: none).
+int extrapolation_order(Integrator integrator);
 std::string_view to_string(Integrator integrator);
 // What a setting's value means for this integrator: "increment factor", "tolerance" or "rtol".
 std::string_view setting_kind(Integrator integrator);
