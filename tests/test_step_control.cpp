@@ -1,11 +1,17 @@
-// The adaptive step clock (integrators/step_control.hpp): the noise floor of the error estimate
+// The adaptive step clock (integrators/step_control.hpp) and the extrapolation tableau
+// (integrators/extrapolation.hpp). The clock: the noise floor of the error estimate
 // (issue 15, item 6). A true local error falls as dt^2 when a rejected step is retried shorter;
 // an estimate that stays put while the step shrinks by 1e3 is round-off, and the clock stops
 // there with a message naming the tolerance, instead of crawling down to dt ~ 1e-20.
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <string>
 
+#include "subslip/integrators/extrapolation.hpp"
 #include "subslip/integrators/step_control.hpp"
 
 using subslip::integrators::AdaptiveSegment;
@@ -51,4 +57,86 @@ TEST(StepControl, FailedAttemptsAreNoNoiseFloor) {
   EXPECT_FALSE(clock.at_noise_floor());
   EXPECT_TRUE(clock.refuse(false, 3e-9));  // the first estimate: the start of a new run
   EXPECT_FALSE(clock.at_noise_floor());
+}
+
+// With the estimate's resolution given (the extrapolated integrators), a flat estimate above it
+// keeps shrinking the step (no 1000-fold rule), and one at the resolution stops with its message.
+TEST(StepControl, KnownResolutionDecidesTheNoiseFloor) {
+  AdaptiveSegment clock(1.0, 1e-2, 1e-9, 3);
+  for (int k = 0; k < 12; ++k) ASSERT_TRUE(clock.refuse(false, 1e-6, 1e-11)) << "refusal " << k;
+  EXPECT_LT(clock.step(), 1e-2 / 1e6);  // shrunk far below 1000-fold, still going
+  EXPECT_FALSE(clock.refuse(false, 1e-11, 1e-11));
+  EXPECT_TRUE(clock.at_noise_floor());
+  const std::string why = clock.noise_floor_message();
+  EXPECT_NE(why.find("round-off"), std::string::npos) << why;
+  EXPECT_NE(why.find("1e-09"), std::string::npos) << why;
+}
+
+// The step factor of an estimate of order q: the step that would meet the tolerance exactly,
+// 0.9 (tol/err)^(1/q), within the limits.
+TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {
+  using subslip::integrators::kAfterAccepted;
+  using subslip::integrators::step_factor;
+  EXPECT_EQ(step_factor(1e-8, 1e-6, 2, kAfterAccepted), 4.0);  // 0.9 x 10, at most 4
+  EXPECT_EQ(step_factor(1e-9, 1e-6, 3, kAfterAccepted), 4.0);
+  EXPECT_NEAR(step_factor(16e-6, 1e-6, 4, kAfterAccepted), 0.45, 1e-14);
+  EXPECT_NEAR(step_factor(8e-6, 1e-6, 3, kAfterAccepted), 0.45, 1e-14);
+}
+
+// ---- the extrapolation tableau (integrators/extrapolation.hpp) ----
+
+namespace {
+
+using Vec1 = Eigen::Matrix<double, 1, 1>;
+
+// Results y_j = y + sum_m e_m (H/j)^m of j substeps, as backward Euler's error expansion has it.
+std::array<Vec1, 4> expanded_results(double y, const std::array<double, 4>& e, double h) {
+  std::array<Vec1, 4> out;
+  for (int j = 1; j <= 4; ++j) {
+    double v = y;
+    for (int m = 1; m <= 4; ++m) v += e[static_cast<size_t>(m - 1)] * std::pow(h / j, m);
+    out[static_cast<size_t>(j - 1)](0) = v;
+  }
+  return out;
+}
+
+}  // namespace
+
+// Order k removes the error terms up to H^(k-1) exactly; the second-best removes up to H^(k-2),
+// so best - second is the H^(k-1) term's leftover: it falls as H^(k-1) ... and best's error as H^k.
+TEST(Extrapolation, TableauRemovesTheLeadingErrorTerms) {
+  using subslip::integrators::extrapolate_implicit_euler;
+  for (int k = 2; k <= 4; ++k) {
+    std::array<double, 4> e{0.0, 0.0, 0.0, 0.0};
+    for (int m = 0; m < k - 1; ++m) e[static_cast<size_t>(m)] = 1.0 + m;  // up to H^(k-1)
+    const auto r = extrapolate_implicit_euler(expanded_results(2.0, e, 0.1), k);
+    EXPECT_NEAR(r.best(0), 2.0, 1e-14) << "order " << k;
+    EXPECT_GT(std::abs(r.second(0) - 2.0), 1e-6) << "order " << k;  // keeps the H^(k-1) term
+    // With an H^k term the best is off by O(H^k): halving H divides it by 2^k.
+    std::array<double, 4> f{0.0, 0.0, 0.0, 0.0};
+    f[static_cast<size_t>(k - 1)] = 1.0;
+    const double big = extrapolate_implicit_euler(expanded_results(0.0, f, 0.1), k).best(0);
+    const double small = extrapolate_implicit_euler(expanded_results(0.0, f, 0.05), k).best(0);
+    EXPECT_NEAR(big / small, std::pow(2.0, k), 1e-9) << "order " << k;
+  }
+}
+
+// Backward Euler's results on y' = lambda y combined: the amplification over a step vanishes as
+// lambda H -> -infinity (stiff modes are damped) and stays below 1 on the negative real axis.
+TEST(Extrapolation, StiffModesAreDampedAtAnyStep) {
+  using subslip::integrators::extrapolate_implicit_euler;
+  for (int k = 2; k <= 4; ++k) {
+    for (double z : {-1e-3, -0.5, -1.0, -3.0, -10.0, -1e3, -1e8}) {
+      std::array<Vec1, 4> y;
+      for (int j = 1; j <= 4; ++j) y[static_cast<size_t>(j - 1)](0) = std::pow(1.0 - z / j, -j);
+      const double amplification = extrapolate_implicit_euler(y, k).best(0);
+      EXPECT_LT(std::abs(amplification), 1.0) << "order " << k << ", lambda H = " << z;
+      if (z <= -1e3) {
+        EXPECT_LT(std::abs(amplification), 30.0 / -z) << "order " << k;
+      }
+      if (z == -1e-3) {
+        EXPECT_NEAR(amplification, std::exp(z), 1e-9) << "order " << k;
+      }
+    }
+  }
 }

@@ -400,12 +400,13 @@ struct ExtrapolatedStep {
 
 // What the extrapolated estimate resolves: the states it combines are exact to a few ulps of
 // r (at most r_hat) and to the flow-rule tolerance (|dG/dr| >= 1: a residual delta leaves at
-// most delta in r), and the tableau's weights (|sum| up to 28 at order 4) amplify that.
+// most delta in r), and the estimate's weights amplify that (estimate_noise_gain).
 double extrapolation_resolution(const law::SubloadingFrictionLaw& law,
                                 const IntegratorOptions& opt) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
   const double largest_ratio = std::max(1.0, law.parameters().overstress.r_hat);
-  return 32.0 * (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
+  return integrators::estimate_noise_gain(opt.order) *
+         (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
 }
 
 // One step of the extrapolated integrator from s0 at time t0 into the segment to t1: backward

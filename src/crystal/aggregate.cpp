@@ -518,7 +518,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // What the extrapolated estimate resolves (as for the contact point): the grains' states are
   // exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
   // control, to the free stresses' tolerance over the smallest CRSS (mu no lower than the
-  // smaller of mu_s and mu_k: the law moves it between them); the tableau's weights amplify that.
+  // smaller of mu_s and mu_k: the law moves it between them); the estimate's weights amplify
+  // that (estimate_noise_gain).
   double extrapolation_resolution(const std::vector<FreeComponent>& fc,
                                   const AggregateOptions& opt) const {
     constexpr double kEps = std::numeric_limits<double>::epsilon();
@@ -533,7 +534,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const double scale = std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff());
       mixed = opt.stress_tolerance * scale / (smallest_mu * phase_.tau0.minCoeff());
     }
-    return 32.0 * (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
+    return integrators::estimate_noise_gain(opt.order) *
+           (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
   }
 
   ErrorEstimate extrapolation_error() const {
