@@ -49,8 +49,8 @@ std::string contact_unit(const std::vector<std::string>& keys, const Units& u) {
   if (key == "distance") return u.length;
   if (key == "duration") return u.time;
   if (key == "mu" || key == "direction" || key == "increments" || key == "growth" ||
-      key == "output_every" || key == "tolerance" || key == "residual_tolerance" ||
-      key == "max_cutbacks")
+      key == "output_every" || key == "tolerance" || key == "order" ||
+      key == "residual_tolerance" || key == "max_cutbacks")
     return "1";
   return "";
 }
@@ -66,8 +66,9 @@ std::string crystal_unit(const std::vector<std::string>& keys, const Units& u) {
   if (key == "initial_mu" || key == "c_over_a" || key == "ratio" || key == "coplanar" ||
       key == "non_coplanar" || key == "strain" || key == "increments" || key == "growth" ||
       key == "output_every" || key == "count" || key == "seed" || key == "tolerance" ||
-      key == "residual_tolerance" || key == "stress_tolerance" || key == "max_iterations" ||
-      key == "max_cutbacks" || key == "max_mixed_iterations" || key == "checkpoint_every")
+      key == "order" || key == "residual_tolerance" || key == "stress_tolerance" ||
+      key == "max_iterations" || key == "max_cutbacks" || key == "max_mixed_iterations" ||
+      key == "checkpoint_every")
     return "1";
   return "";
 }

@@ -84,6 +84,7 @@ void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) 
                   c.integrator.method == contact::Method::implicit ? "implicit" : "forward_euler");
   g.set_attribute("residual_tolerance", c.integrator.residual_tolerance);
   g.set_attribute("tolerance", c.integrator.tolerance);  // 0: fixed increments
+  g.set_attribute("order", c.integrator.order);          // 1: backward Euler's estimate
   g.set_attribute("max_cutbacks", c.integrator.max_cutbacks);
 }
 

@@ -231,6 +231,7 @@ void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
                   o.method == crystal::CrystalMethod::implicit ? "implicit" : "forward_euler");
   g.set_attribute("residual_tolerance", o.grain.tolerance);
   g.set_attribute("tolerance", o.tolerance);  // 0: fixed increments
+  g.set_attribute("order", o.order);          // 1: backward Euler's estimate
   g.set_attribute("max_iterations", o.grain.max_iterations);
   g.set_attribute("max_cutbacks", o.max_cutbacks);
   g.set_attribute("stress_tolerance", o.stress_tolerance);
