@@ -462,7 +462,7 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
   const ContactStiffness& c = model.stiffness;
   const double fn_start = s.traction_n;
   const bool extrapolated = opt.order >= 2;
-  const double resolution = extrapolation_resolution(law, opt);
+  const double resolution = extrapolated ? extrapolation_resolution(law, opt) : 0.0;
   integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance,
                                      extrapolated ? opt.order : 2);
   if (seg.output_at_times) clock.set_stops(seg.output_times);
@@ -484,7 +484,7 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
     stats.iterations += a.iterations;
     if (!a.ok || !(error <= opt.tolerance)) {
       a.ok ? ++stats.rejected : ++stats.cutbacks;
-      if (!clock.refuse(!a.ok, error, extrapolated ? resolution : 0.0)) {
+      if (!clock.refuse(!a.ok, error, resolution)) {
         throw StepFailure(failure_message(s, clock.refusals(), h,
                                           !a.ok ? a.why
                                           : clock.at_noise_floor()

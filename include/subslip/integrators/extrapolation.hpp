@@ -58,6 +58,7 @@ Extrapolated<Vector> extrapolate_implicit_euler(
 // expansion (round-off, Newton tolerances): the sum of abs(weight of y_j in best - second), 2, 4
 // and 9.3 for orders 2, 3 and 4. The estimate cannot resolve less than that times those errors.
 inline double estimate_noise_gain(int order) {
+  assert(order >= 2 && order <= kMaxExtrapolationOrder);
   using Scalar = std::array<double, 1>;
   struct One {  // a one-component vector for the tableau
     Scalar v{};
