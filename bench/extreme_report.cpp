@@ -196,12 +196,17 @@ std::string contact_inadmissible(const ct::ContactState& s, const law::LawParame
   return why.str();
 }
 
+// The order of every adaptive run (--order: 1 is backward Euler's estimate, 2 .. 4 the
+// extrapolated integrator); set once from the command line.
+int adaptive_order = 1;
+
 CaseRun run_contact(const io::ContactCase& c, int split_by, double tolerance) {
   CaseRun out;
   const auto& p = c.model.law;
   out.scale = c.model.initial_normal_traction * p.friction.mu_s;
   ct::IntegratorOptions opt = c.integrator;
   if (tolerance >= 0.0) opt.tolerance = tolerance;
+  if (opt.tolerance > 0.0) opt.order = adaptive_order;
   const bool rate_dependent = p.overstress.form != law::OverstressForm::rate_independent;
   std::vector<double> segment_start(1, 0.0);
   for (const auto& seg : c.segments) segment_start.push_back(segment_start.back() + seg.duration);
@@ -267,6 +272,7 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, double tolerance,
   const std::vector<double> r_hat = system_r_hat(c.phase);
   cr::AggregateOptions opt = c.options;
   if (tolerance >= 0.0) opt.tolerance = tolerance;
+  if (opt.tolerance > 0.0) opt.order = adaptive_order;
   const auto t0 = std::chrono::steady_clock::now();
   cr::RunControl limit;
   if (seconds > 0.0)
@@ -851,6 +857,9 @@ int main(int argc, char** argv) {
                  "wall-time limit of the adaptive reference run of a crystal case; a case whose "
                  "reference takes longer is reported as not judged")
       ->check(CLI::PositiveNumber);
+  app.add_option("--order", adaptive_order,
+                 "order of every adaptive run: 1 backward Euler's estimate, 2 .. 4 extrapolated")
+      ->check(CLI::Range(1, 4));
   CLI11_PARSE(app, argc, argv);
   omp_set_num_threads(1);  // small aggregates: a parallel region per step costs more than it gains
 
