@@ -113,6 +113,22 @@ TEST(RunSize, TooLargeForMemoryIsRefusedAtTheOrientations) {
   EXPECT_NE(e.message.find("use fewer grains"), std::string::npos) << e.what();
 }
 
+// The extrapolated integrator of order k holds k + 1 more copies of every grain's state (the
+// step's start and its k solutions): the estimate grows by that, and only for it.
+TEST(RunSize, ExtrapolatedIntegratorCountsItsStateCopies) {
+  const auto memory = [](const std::string& integrator) {
+    const YamlDocument d =
+        YamlDocument::from_string(crystal_text(1000, "10") + integrator, "s.yaml");
+    return estimate_crystal_run(parse_crystal_scene(d), 0).memory_bytes;
+  };
+  const double fixed = memory("");
+  const double backward_euler = memory("integrator: {method: implicit, tolerance: 1.0e-4}\n");
+  const double order3 = memory("integrator: {method: implicit, tolerance: 1.0e-4, order: 3}\n");
+  EXPECT_EQ(backward_euler, fixed);
+  // 1000 grains x 4 copies x (15 + 4 x 12 values) x 8 bytes
+  EXPECT_EQ(order3 - fixed, 1000.0 * 4.0 * 63.0 * 8.0);
+}
+
 TEST(RunSize, ContactEstimateAndRefusal) {
   const std::string text = R"(scene: contact
 units: {stress: MPa, length: mm, time: min}

@@ -802,6 +802,12 @@ constexpr double kCaseOverheadBytes = 64e3;
 // (2e4 -> 2e5 grains), against 4 x 504 + 128 bytes = 2.1 kB estimated.
 constexpr double kStateCopies = 4.0;
 
+// The further copies the extrapolated integrator of order k holds (AggregateOptions::order): the
+// step's start state and its k solutions (integrators/extrapolation.hpp).
+double extrapolation_copies(const crystal::AggregateOptions& o) {
+  return o.tolerance > 0.0 && o.order >= 2 ? static_cast<double>(o.order + 1) : 0.0;
+}
+
 // The output rows of each of the case's segments.
 std::vector<std::size_t> segment_rows(const CrystalCase& c) {
   std::vector<std::size_t> rows;
@@ -837,7 +843,8 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
     size.finish_bytes += bytes - chunk_slack;
     const double per_grain =
         8.0 * crystal::checkpoint_values_per_grain(static_cast<int>(slip_count));
-    const double memory = grains * (kStateCopies * per_grain + 8.0 * 16.0) +
+    const double copies = kStateCopies + extrapolation_copies(c.options);
+    const double memory = grains * (copies * per_grain + 8.0 * 16.0) +
                           static_cast<double>(c.output.grains.size() * kGrainBlockBytes);
     if (memory > size.memory_bytes) {
       size.memory_bytes = memory;
