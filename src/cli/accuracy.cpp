@@ -33,12 +33,15 @@ fs::path output_dir(const AccuracyArgs& a) {
 }
 
 Integrator parse_integrator(const std::string& name) {
-  for (Integrator i : {Integrator::forward_euler, Integrator::implicit,
-                       Integrator::implicit_adaptive, Integrator::extrapolated_2,
-                       Integrator::extrapolated_3, Integrator::extrapolated_4, Integrator::cvode}) {
+  for (Integrator i : study::kAllIntegrators)
     if (study::to_string(i) == name) return i;
-  }
   throw InputError("--integrators", 0, "", "unknown integrator '" + name + "'");
+}
+
+std::vector<std::string> integrator_names() {
+  std::vector<std::string> names;
+  for (Integrator i : study::kAllIntegrators) names.emplace_back(study::to_string(i));
+  return names;
 }
 
 study::StudyOptions study_options(const AccuracyArgs& a) {
@@ -209,8 +212,7 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
   cmd->add_flag("-q,--quiet", a.quiet, "Print nothing but errors");
   cmd->add_option("--case", a.cases, "Study only these cases of a swept scene");
   cmd->add_option("--integrators", a.integrators, "Integrators to study")
-      ->check(CLI::IsMember({"forward_euler", "implicit", "implicit_adaptive", "extrapolated_2",
-                             "extrapolated_3", "extrapolated_4", "cvode"}))
+      ->check(CLI::IsMember(integrator_names()))
       ->capture_default_str();
   cmd->add_option("--fe", a.forward_euler,
                   "Forward Euler increment factors (relative to the scene); default: 1, 4, 16, "

@@ -216,6 +216,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       cursor_.free(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
   }
 
+  // The prescribed stresses at `progress` (0 .. 1) through a segment: ramped linearly from the
+  // segment's start to its targets.
+  static Mat3 stress_target_at(const LoadSegment& seg, const Mat3& stress_start, double progress) {
+    return stress_start + (seg.stress_target - stress_start) * progress;
+  }
+
   void end_increment(int index, long done, double t, double next_step, const RunControl& control) {
     cursor_.position = {index, done, t, next_step};
     if (control.after_increment) control.after_increment(cursor_.position, macro_);
@@ -271,7 +277,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     if (resume != nullptr && resume->position.segment_time >= seg.duration) return;
-    const int estimate_order = opt.order >= 2 ? opt.order : 2;
+    const int estimate_order = integrators::estimate_order(opt.order);
     integrators::AdaptiveSegment clock =
         resume != nullptr
             ? integrators::AdaptiveSegment(seg.duration, resume->position.next_step, opt.tolerance,
@@ -293,8 +299,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         if (solved) error = extrapolation_error();
       } else {
         const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
-        const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
-        solved = try_step(seg, fc, target, h, u_try, opt, why);
+        solved =
+            try_step(seg, fc, stress_target_at(seg, stress_start, progress), h, u_try, opt, why);
         if (solved) error = local_error(h);
       }
       if (!solved || !(error.value <= opt.tolerance)) {
@@ -401,8 +407,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       for (int i = 1; i <= j && ok; ++i) {
         const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
         const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
-        const Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
-        ok = try_step(seg, fc, target, end - t, u, opt, why);
+        ok = try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u, opt, why);
         if (ok) commit(seg, fc, u, end - t);
         t = end;
       }
@@ -501,7 +506,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   void combine_macro(int order) {
     const auto k = static_cast<size_t>(order);
     std::array<Mat3, integrators::kMaxExtrapolationOrder> f, l, strain;
-    for (size_t j = 0; j < f.size(); ++j) {
+    for (size_t j = 0; j < f.size(); ++j) {  // (unused rows: the finest, kept finite)
       const MacroState& m = solution_macros_[std::min(j, k - 1)];
       f[j] = m.deformation_gradient, l[j] = m.velocity_gradient, strain[j] = m.strain;
     }
@@ -562,9 +567,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const Piece p = todo.back();
       todo.pop_back();
       const double progress = std::min(1.0, (t_local + p.dt) / seg.duration);
-      Mat3 target = stress_start + (seg.stress_target - stress_start) * progress;
       std::string why;
-      if (try_step(seg, fc, target, p.dt, u, opt, why)) {
+      if (try_step(seg, fc, stress_target_at(seg, stress_start, progress), p.dt, u, opt, why)) {
         commit(seg, fc, u, p.dt);
         t_local += p.dt;
         ++stats_.substeps;

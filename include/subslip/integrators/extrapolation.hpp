@@ -34,8 +34,9 @@ struct Extrapolated {
   Vector second;  // T[k][k-2], order k - 1: best - second estimates second's local error
 };
 
-// `solutions[j]` is the result of j + 1 substeps, j = 0 .. order - 1 (order >= 2). Vector is any
-// type with +, - and scalar *, / (an Eigen vector).
+// `solutions[j]` is the result of j + 1 substeps, j = 0 .. order - 1 (order >= 2; the entries
+// beyond are copied, not used: fill them with any value). Vector is any type with +, - and
+// scalar *, / (an Eigen vector).
 template <class Vector>
 Extrapolated<Vector> extrapolate_implicit_euler(
     const std::array<Vector, kMaxExtrapolationOrder>& solutions, int order) {
@@ -52,6 +53,13 @@ Extrapolated<Vector> extrapolate_implicit_euler(
     }
   }
   return {row[static_cast<size_t>(order - 1)], second};
+}
+
+// The order of the adaptive integrator's error estimate (how it falls with the step, what the
+// step control needs): k for the order-k extrapolation, 2 for backward Euler's own estimate
+// (`order` 1: dt/2 |y'(end) - y'(start)|).
+constexpr int estimate_order(int order) {
+  return order >= 2 ? order : 2;
 }
 
 // How much the estimate best - second amplifies errors of the solutions that do not follow the

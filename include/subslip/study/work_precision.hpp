@@ -46,6 +46,10 @@ enum class Integrator {
   extrapolated_4,
   cvode
 };
+inline constexpr Integrator kAllIntegrators[] = {
+    Integrator::forward_euler,  Integrator::implicit,       Integrator::implicit_adaptive,
+    Integrator::extrapolated_2, Integrator::extrapolated_3, Integrator::extrapolated_4,
+    Integrator::cvode};
 // The order of the adaptive implicit integrator's extrapolation (1: none).
 int extrapolation_order(Integrator integrator);
 std::string_view to_string(Integrator integrator);
