@@ -25,6 +25,7 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "small_tmpfs.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/result_file.hpp"
 
@@ -119,6 +120,60 @@ TEST(Mpi, MixedControlReversalAtAnyRankCountIsTheSerialRun) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "reversal.yaml") << reversal_scene(30);
   expect_ranks_give_the_serial_run(dir, "reversal.yaml");
+  fs::remove_all(dir);
+}
+
+// The reversal scene with adaptive steps: planned for the rows of 8 increments, it writes
+// several hundred.
+std::string adaptive_reversal_scene() {
+  std::string scene = reversal_scene(4);
+  const std::string fixed = "integrator: {method: implicit,";
+  scene.replace(scene.find(fixed), fixed.size(),
+                "integrator: {method: implicit, tolerance: 1.0e-4,");
+  return scene;
+}
+
+// An adaptive run writes more rows than it planned for, so every series grows while the ranks
+// write the file together: each growth is collective (space claimed by rank 0 for all, the
+// extent set by all), at 2, 3 and 4 ranks alike (3 and 4 hung or failed before the space was
+// claimed through rank 0), and the file is the serial one.
+TEST(Mpi, AdaptiveRunGrowingItsSeriesAtAnyRankCountIsTheSerialRun) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "adaptive.yaml") << adaptive_reversal_scene();
+  expect_ranks_give_the_serial_run(dir, "adaptive.yaml");
+  ASSERT_EQ(run_mpi(dir, 3, {"run", "adaptive.yaml", "-o", "ranks3.h5", "-q"}), 0) << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "serial.h5", dir / "ranks3.h5");
+  // More rows than the 8 increments planned: the series did grow.
+  const h5::File serial = h5::File::open_read(dir / "serial.h5");
+  EXPECT_GT(serial.root().open_dataset("cases/base/macro/time").shape().front(), 100u);
+  fs::remove_all(dir);
+}
+
+// A full disk while the ranks grow the series together: every rank stops with the one message
+// naming the reason, the rows written stay readable, and the run continues (--restart, on a disk
+// with room, under another rank count) to the serial run's file.
+TEST(Mpi, FullDiskWhileRanksGrowTheFileStopsCleanlyAndRestarts) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "adaptive.yaml") << adaptive_reversal_scene();
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "adaptive.yaml", "-o", "serial.h5", "-q"},
+                                          dir / "serial.log"),
+            0)
+      << subslip::testing::read_text(dir / "serial.log");
+  {
+    const subslip::testing::SmallTmpfs disk(dir / "disk", fs::file_size(dir / "serial.h5") / 2);
+    if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here: " << disk.why();
+    ASSERT_EQ(run_mpi(dir, 3, {"run", "adaptive.yaml", "-o", "disk/out.h5", "-q"}), 1)
+        << log_of(dir);
+    const std::string log = log_of(dir);
+    EXPECT_EQ(log.rfind("subslip: error: disk/out.h5: cannot grow dataset", 0), 0u) << log;
+    EXPECT_NE(log.find("No space left on device"), std::string::npos) << log;
+    EXPECT_EQ(log.find("HDF5-DIAG"), std::string::npos) << log;
+    fs::copy_file(dir / "disk/out.h5", dir / "continued.h5");
+  }
+  EXPECT_EQ(h5::File::open_read(dir / "continued.h5").root().attribute_int("completed"), 0);
+  ASSERT_EQ(run_mpi(dir, 2, {"run", "adaptive.yaml", "--restart", "continued.h5", "-q"}), 0)
+      << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "serial.h5", dir / "continued.h5");
   fs::remove_all(dir);
 }
 

@@ -9,7 +9,6 @@
 // on device") where the test may mount one, skipped where mounting is not permitted.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <sys/mount.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -24,6 +23,7 @@
 #include "child_process.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "small_tmpfs.hpp"
 #include "subslip/io/h5_writer.hpp"
 
 namespace fs = std::filesystem;
@@ -156,33 +156,7 @@ TEST(WriteFailure, VerbosePrintsHdf5Stack) {
   fs::remove_all(dir);
 }
 
-namespace {
-
-// A tmpfs of `bytes` mounted on `dir` for the life of this object; mounted() is false where
-// the test may not mount one (not root, or no CAP_SYS_ADMIN in a container).
-class SmallTmpfs {
- public:
-  SmallTmpfs(const fs::path& dir, std::uintmax_t bytes) : dir_(dir) {
-    fs::create_directories(dir_);
-    const std::string options = "size=" + std::to_string(bytes);
-    mounted_ = ::mount("tmpfs", dir_.c_str(), "tmpfs", MS_NOSUID | MS_NODEV, options.c_str()) == 0;
-    if (!mounted_) why_ = std::strerror(errno);
-  }
-  ~SmallTmpfs() {
-    if (mounted_) ::umount2(dir_.c_str(), MNT_DETACH);
-  }
-  SmallTmpfs(const SmallTmpfs&) = delete;
-  SmallTmpfs& operator=(const SmallTmpfs&) = delete;
-  bool mounted() const { return mounted_; }
-  const std::string& why() const { return why_; }
-
- private:
-  fs::path dir_;
-  bool mounted_ = false;
-  std::string why_;
-};
-
-}  // namespace
+namespace {}  // namespace
 
 // A full disk (ENOSPC) while the series grow: as with the file-size limit.
 TEST(WriteFailure, FullTmpfsWhileGrowingKeepsRows) {
@@ -190,7 +164,7 @@ TEST(WriteFailure, FullTmpfsWhileGrowingKeepsRows) {
   write_file(dir / "scene.yaml", adaptive_scene());
   const std::uintmax_t full = full_size(dir);
   {
-    const SmallTmpfs disk(dir / "disk", full / 2);
+    const subslip::testing::SmallTmpfs disk(dir / "disk", full / 2);
     if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here: " << disk.why();
     const Outcome r = run_limited(dir, {"scene.yaml", "-o", "disk/out.h5"}, 0);
     expect_one_clear_message(r, "disk/out.h5", "No space left on device");
@@ -205,7 +179,7 @@ TEST(WriteFailure, FullTmpfsDuringLayoutLeavesNothing) {
   const fs::path dir = subslip::testing::scratch_dir("write_failure");
   write_file(dir / "scene.yaml", adaptive_scene());
   {
-    const SmallTmpfs disk(dir / "disk", 48 * 1024);
+    const subslip::testing::SmallTmpfs disk(dir / "disk", 48 * 1024);
     if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here: " << disk.why();
     const Outcome r = run_limited(dir, {"scene.yaml", "-o", "disk/out.h5"}, 0);
     expect_one_clear_message(r, "disk/out.h5", "No space left on device");

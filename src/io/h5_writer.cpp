@@ -45,6 +45,7 @@ namespace {
 struct CollectiveFiles {
   int open = 0;
   int rank = 0;
+  const void* communicator = nullptr;  // the ranks' MPI_Comm (MpiAccess), while one is open
   Handle transfer;  // the collective transfer properties, made at the first write, kept while open
 };
 CollectiveFiles& collective_files() {
@@ -812,25 +813,55 @@ FileEnd file_end(hid_t object, const std::string& what) {
   return end;
 }
 
-// A collective file: its MPI-IO handle preallocates (every rank calls it, as every rank grows
-// the dataset). Space already claimed stays: MPI-IO has no collective give-back that is safe
-// while HDF5 holds the file, and HDF5 truncates the file to its end when it closes it.
+#ifdef H5_HAVE_PARALLEL
+void check_mpi(int error, const std::string& what) {
+  if (error == MPI_SUCCESS) return;
+  char reason[MPI_MAX_ERROR_STRING];
+  int length = 0;
+  MPI_Error_string(error, reason, &length);
+  throw Error(what, std::string(reason, static_cast<std::size_t>(length)));
+}
+
+// Claims `bytes` past `end` of the file that holds `object`, through a descriptor of its own:
+// 0 or the system's error number (never throws: the other ranks wait for the outcome).
+int claim_space_past(hid_t object, std::uint64_t end, std::uint64_t bytes) noexcept {
+  const ssize_t length = H5Fget_name(object, nullptr, 0);
+  if (length <= 0) return EBADF;
+  std::vector<char> path(static_cast<std::size_t>(length) + 1, '\0');
+  if (H5Fget_name(object, path.data(), path.size()) < 0) return EBADF;
+  const int fd = ::open(path.data(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) return errno;
+  const int error = ::posix_fallocate(fd, static_cast<off_t>(end), static_cast<off_t>(bytes));
+  ::close(fd);
+  return error;
+}
+#endif
+
+// A collective file: rank 0 claims the space through a descriptor of its own and tells every
+// rank the outcome, so that all of them either grow the dataset or stop with the same error.
+// (MPI_File_preallocate is no substitute: Open MPI's OMPIO fails it on all but one rank, with
+// MPI_ERR_OTHER, and a rank that leaves the collective sequence of a growth hangs the others;
+// HDF5 1.10's H5Fget_filesize fails on an MPI-IO file.) The end is the largest size any rank
+// sees: each looks at its own moment, and another may already be writing the next rows. Space
+// claimed and not used stays until HDF5 truncates the file to its end when it closes it.
 void claim_collective_file_space([[maybe_unused]] hid_t object,
                                  [[maybe_unused]] std::uint64_t bytes, const std::string& what) {
 #ifdef H5_HAVE_PARALLEL
   Handle file = own(H5Iget_file_id(object), H5Fclose, what + ": file of the dataset");
-  hsize_t size = 0;
-  check(H5Fget_filesize(file.get(), &size), what + ": file size");
   void* handle = nullptr;
   check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), what + ": MPI-IO file handle");
-  const int error =
-      MPI_File_preallocate(*static_cast<MPI_File*>(handle), static_cast<MPI_Offset>(size + bytes));
-  if (error != MPI_SUCCESS) {
-    char reason[MPI_MAX_ERROR_STRING];
-    int length = 0;
-    MPI_Error_string(error, reason, &length);
-    throw Error(what, std::string(reason, static_cast<std::size_t>(length)));
-  }
+  const MPI_Comm comm = *static_cast<const MPI_Comm*>(collective_files().communicator);
+  MPI_Offset seen = 0;
+  check_mpi(MPI_File_get_size(*static_cast<MPI_File*>(handle), &seen), what + ": file size");
+  MPI_Offset end = 0;
+  check_mpi(MPI_Allreduce(&seen, &end, 1, MPI_OFFSET, MPI_MAX, comm),
+            what + ": file size over the ranks");
+  int error = 0;
+  if (collective_files().rank == 0)
+    error = claim_space_past(file.get(), static_cast<std::uint64_t>(end), bytes);
+  check_mpi(MPI_Bcast(&error, 1, MPI_INT, 0, comm), what + ": outcome over the ranks");
+  // (EINVAL / EOPNOTSUPP: a file system that cannot say in advance; the growth is tried.)
+  if (error != 0 && error != EINVAL && error != EOPNOTSUPP) throw Error(what, std::strerror(error));
 #else
   throw Error(what, "collective writes need parallel HDF5");
 #endif
@@ -1186,6 +1217,7 @@ File File::open_write(const std::filesystem::path& path, const MpiAccess* mpi) {
                            MPI_INFO_NULL),
           what + ": MPI-IO access");
     collective_files().rank = mpi->rank;
+    collective_files().communicator = mpi->communicator;
 #else
     throw Error(what + " by MPI ranks", "this build's HDF5 library is serial");
 #endif
