@@ -406,6 +406,18 @@ TEST(Mpi, RunStoppedUnderTwoRanksContinuesUnderThree) {
   fs::remove_all(dir);
 }
 
+// SIGUSR1 the moment the result file exists (the root has just laid it out; the other ranks may
+// be behind): every rank has its handler by then (run_crystal installs them on all ranks before
+// the root creates the file), so the run stops cleanly after its first increment and continues
+// under 3 ranks, as above.
+TEST(Mpi, RunStoppedAsSoonAsItsFileExistsContinuesUnderThree) {
+  const fs::path dir = scratch_dir();
+  interrupt_and_continue_under_three(dir, 100000, 128 + SIGUSR1, [](pid_t launcher, double) {
+    return subslip::testing::kill_after(launcher, 0.0, SIGUSR1);
+  });
+  fs::remove_all(dir);
+}
+
 // The two ways of writing the file over ranks make the same file, checkpoints included: a run
 // stopped under 2 ranks whose output went through rank 0 (--gather-output) continues under 3
 // ranks writing together, to the serial run's file.

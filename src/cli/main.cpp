@@ -17,6 +17,7 @@
 #include "validators.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -607,6 +608,14 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
                 const parallel::Team& team) {
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
+  // From here a stop signal waits for the end of an increment, also one that comes while the
+  // file is laid out. Every rank has its handlers before the root creates the file (the
+  // reduction waits for all): a signal that finds the file can stop no rank the hard way.
+  const StopSignals signals;
+  if (team.size() > 1) {
+    std::array<double, 1> handlers_ready{0.0};
+    team.max(handlers_ready);
+  }
   // Ranks that will write the file together keep only their blocks of the orientations.
   io::OrientationSharing sharing;
   if (team.size() > 1 && io::h5::parallel_hdf5() && !a.gather_output)
@@ -647,7 +656,6 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   }
   cli::ProgressReporter progress(team.is_root() ? progress_mode(a) : cli::ProgressMode::none,
                                  stderr, crystal_work(scene));
-  const StopSignals signals;
   driver::CrystalRunOptions options;
   options.checkpoint_every = checkpoint_every;
   options.stop_requested = [] { return StopSignals::received(); };
