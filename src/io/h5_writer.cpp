@@ -813,6 +813,12 @@ FileEnd file_end(hid_t object, const std::string& what) {
   return end;
 }
 
+// The outcome of posix_fallocate for a growth: EINVAL / EOPNOTSUPP mean a file system that
+// cannot say in advance, and the growth is tried; any other error stops it.
+void check_claim(int error, const std::string& what) {
+  if (error != 0 && error != EINVAL && error != EOPNOTSUPP) throw Error(what, std::strerror(error));
+}
+
 #ifdef H5_HAVE_PARALLEL
 void check_mpi(int error, const std::string& what) {
   if (error == MPI_SUCCESS) return;
@@ -851,17 +857,21 @@ void claim_collective_file_space([[maybe_unused]] hid_t object,
   void* handle = nullptr;
   check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), what + ": MPI-IO file handle");
   const MPI_Comm comm = *static_cast<const MPI_Comm*>(collective_files().communicator);
-  MPI_Offset seen = 0;
-  check_mpi(MPI_File_get_size(*static_cast<MPI_File*>(handle), &seen), what + ": file size");
-  MPI_Offset end = 0;
-  check_mpi(MPI_Allreduce(&seen, &end, 1, MPI_OFFSET, MPI_MAX, comm),
+  // [size seen, MPI error of that]: no rank throws before the reduction, which every rank makes.
+  long long seen[2] = {0, 0};
+  MPI_Offset size = 0;
+  seen[1] = MPI_File_get_size(*static_cast<MPI_File*>(handle), &size);
+  seen[0] = static_cast<long long>(size);
+  long long agreed[2] = {0, 0};
+  check_mpi(MPI_Allreduce(seen, agreed, 2, MPI_LONG_LONG, MPI_MAX, comm),
             what + ": file size over the ranks");
+  check_mpi(static_cast<int>(seen[1]), what + ": file size");  // (MPI error codes are >= 0)
+  if (agreed[1] != MPI_SUCCESS) throw Error(what + ": file size", "unknown on another rank");
   int error = 0;
   if (collective_files().rank == 0)
-    error = claim_space_past(file.get(), static_cast<std::uint64_t>(end), bytes);
+    error = claim_space_past(file.get(), static_cast<std::uint64_t>(agreed[0]), bytes);
   check_mpi(MPI_Bcast(&error, 1, MPI_INT, 0, comm), what + ": outcome over the ranks");
-  // (EINVAL / EOPNOTSUPP: a file system that cannot say in advance; the growth is tried.)
-  if (error != 0 && error != EINVAL && error != EOPNOTSUPP) throw Error(what, std::strerror(error));
+  check_claim(error, what);
 #else
   throw Error(what, "collective writes need parallel HDF5");
 #endif
@@ -872,8 +882,7 @@ void claim_file_space(hid_t object, std::uint64_t bytes, const std::string& what
   const FileEnd end = file_end(object, what);
   const int error =
       ::posix_fallocate(end.fd, static_cast<off_t>(end.size), static_cast<off_t>(bytes));
-  // (EINVAL / EOPNOTSUPP: a file system that cannot say in advance; the growth is tried.)
-  if (error != 0 && error != EINVAL && error != EOPNOTSUPP) throw Error(what, std::strerror(error));
+  check_claim(error, what);
 }
 
 // Gives back what a growth claimed and HDF5 did not use: the file ends where HDF5's data do.
@@ -1176,7 +1185,10 @@ File::~File() {
 
 void File::forget_collective() noexcept {
   CollectiveFiles& files = collective_files();
-  if (collective_ && --files.open == 0) files.transfer.reset();
+  if (collective_ && --files.open == 0) {
+    files.transfer.reset();
+    files.communicator = nullptr;
+  }
   collective_ = false;
 }
 
