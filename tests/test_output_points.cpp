@@ -189,6 +189,28 @@ TEST(OutputPoints, AdaptiveStepsEndOnEveryStopWithoutShrinking) {
   EXPECT_DOUBLE_EQ(resumed.end_time(), 0.8);
 }
 
+// A planned step can land exactly on a stop without being shortened to it: from t = 0.1 a step
+// of 0.2 ends at 0.1 + 0.2, while 0.2 < (0.1 + 0.2) - 0.1 in floating point. That step ended on
+// the stop: it is reported, and the next step is not one of length 0 (which failed the grain
+// solve of a reference computed at a run's times).
+TEST(OutputPoints, AStepLandingExactlyOnAStopEndsThere) {
+  const std::vector<double> stops = {0.1 + 0.2, 10.0};
+  AdaptiveSegment clock(10.0, 0.2, 1e-3, 2, 0.1, 1);
+  clock.set_stops(stops);
+  EXPECT_TRUE(clock.accept(0.0));
+  EXPECT_EQ(clock.time(), stops[0]);
+  EXPECT_GT(clock.step(), 0.0);
+  EXPECT_EQ(clock.end_time(), clock.time() + clock.step());
+  // A stop an ulp beyond a planned step's end is that end: no step of 1e-161 s after it.
+  const double t = 2.7305e-145;
+  const std::vector<double> near = {std::nextafter(t, 1.0), 1.0};
+  AdaptiveSegment tiny(1.0, t / 2.0, 1e-3, 2, t / 2.0, 1);
+  tiny.set_stops(near);
+  EXPECT_TRUE(tiny.accept(0.0));
+  EXPECT_EQ(tiny.time(), near[0]);
+  EXPECT_GT(tiny.step(), t);
+}
+
 TEST(OutputPoints, SpacingsGiveTheirPoints) {
   const std::vector<ClockSegment> one{{2.0, 5.0}};  // a clock of 0 .. 10
   auto points = [&](const std::string& yaml) {

@@ -47,12 +47,16 @@ std::vector<std::string> integrator_names() {
 study::StudyOptions study_options(const AccuracyArgs& a) {
   study::StudyOptions o;
   if (a.reference_tolerance > 0.0) {
-    o.reference = {Integrator::implicit_adaptive, a.reference_tolerance};
+    static constexpr Integrator kOfOrder[] = {
+        Integrator::implicit_adaptive, Integrator::extrapolated_2, Integrator::extrapolated_3,
+        Integrator::extrapolated_4};
+    o.reference = {kOfOrder[a.reference_order - 1], a.reference_tolerance};
   } else {
     const double finest = *std::max_element(a.implicit.begin(), a.implicit.end());
     o.reference = {Integrator::implicit,
                    a.reference_factor > 0.0 ? a.reference_factor : 16.0 * finest};
   }
+  o.reference_at_run_times = a.reference_at_run_times;
   o.cvode_check_rtol = a.cvode_check_rtol;
   o.cvode_check_seconds = a.cvode_check_seconds;
   o.repeat = a.repeat;
@@ -158,8 +162,10 @@ std::vector<StudyCase> crystal_cases(const AccuracyArgs& a, const io::YamlDocume
     if (!selected(a, c.name)) continue;
     out.push_back(
         {c.name, scene.units.stress,
-         std::make_unique<study::CrystalProblem>(c.phase, c.orientations, c.segments, c.options,
-                                                 driver::loading_component(c.segments))});
+         std::make_unique<study::CrystalProblem>(
+             c.phase, c.orientations, c.segments, c.options, driver::loading_component(c.segments),
+             a.measure == "stress" ? study::CrystalProblem::Measure::stress
+                                   : study::CrystalProblem::Measure::state)});
   }
   return out;
 }
@@ -243,10 +249,28 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
                                  "Increment factor of the implicit reference, extrapolated with "
                                  "half of it (default: 16 x the largest --implicit factor)")
                      ->check(cli::positive());
-  cmd->add_option("--reference-tolerance", a.reference_tolerance,
-                  "Instead: an adaptive implicit reference at this tolerance")
-      ->check(cli::above_and_at_most(0.0, 1.0))
-      ->excludes(factor);
+  auto* tolerance = cmd->add_option("--reference-tolerance", a.reference_tolerance,
+                                    "Instead: an adaptive implicit reference at this tolerance")
+                        ->check(cli::above_and_at_most(0.0, 1.0))
+                        ->excludes(factor);
+  cmd->add_option("--reference-order", a.reference_order,
+                  "Order of the adaptive reference: 1 backward Euler's estimate, 2 .. 4 "
+                  "extrapolated (whose estimate is on what the state determines)")
+      ->check(CLI::Range(1, 4))
+      ->needs(tolerance)
+      ->capture_default_str();
+  cmd->add_flag("--reference-at-run-times", a.reference_at_run_times,
+                "Crystal: compare every run with the adaptive reference recomputed with its "
+                "steps ending at exactly that run's times (no interpolation; each point costs a "
+                "reference and its 10x looser companion more)")
+      ->needs(tolerance);
+  cmd->add_option("--measure", a.measure,
+                  "Crystal: what the error is measured on besides the loading component: "
+                  "'state', every grain's r, ln(CRSS) and r_s of each system (what the "
+                  "extrapolated estimate bounds); 'stress', every grain's stress (where the "
+                  "split of slip among systems, and so each CRSS, is not determined)")
+      ->check(CLI::IsMember({"state", "stress"}))
+      ->capture_default_str();
   cmd->add_option("--cvode-check-rtol", a.cvode_check_rtol,
                   "rtol of the CVODE run that cross-checks the reference")
       ->check(cli::above_and_at_most(0.0, 1.0))

@@ -24,9 +24,12 @@ struct AccuracyArgs {
   std::vector<double> adaptive{1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
   std::vector<double> extrapolated{1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
   std::vector<double> cvode{1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
-  double reference_factor = 0.0;     // 0: 16 x the largest implicit factor
-  double reference_tolerance = 0.0;  // > 0: an adaptive reference instead
-  double cvode_atol = 1e-10;         // atol_scale of the CVODE ladder (at most the rtol)
+  double reference_factor = 0.0;        // 0: 16 x the largest implicit factor
+  double reference_tolerance = 0.0;     // > 0: an adaptive reference instead
+  int reference_order = 1;              // of the adaptive reference (2 .. 4: extrapolated)
+  bool reference_at_run_times = false;  // crystal: the reference recomputed at each run's times
+  std::string measure = "state";        // crystal: "state" (r, ln CRSS, r_s) or "stress"
+  double cvode_atol = 1e-10;            // atol_scale of the CVODE ladder (at most the rtol)
   double cvode_check_rtol = 1e-12;
   double cvode_check_seconds = 120.0;
   int repeat = 5;

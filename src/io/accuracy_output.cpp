@@ -80,7 +80,8 @@ std::ofstream open_text(const fs::path& path) {
 void write_csv(const fs::path& path, const AccuracyReport& report) {
   std::ofstream out = open_text(path);
   out << "case,integrator,setting_kind,setting,increments,steps,rejected,newton_iterations,"
-         "cutbacks,max_error,max_error_time,end_error,error_to_tolerance,median_time_s,repeats,"
+         "cutbacks,max_error,max_error_time,max_error_on,reference_error,end_error,error_to_"
+         "tolerance,median_time_s,repeats,"
          "status,failure\n";
   for (const auto& c : report.cases) {
     for (const auto& p : c.result.points) {
@@ -91,10 +92,10 @@ void write_csv(const fs::path& path, const AccuracyReport& report) {
           << count_or_blank(p, p.counters.rejected) << ','
           << count_or_blank(p, p.counters.newton_iterations) << ','
           << count_or_blank(p, p.counters.cutbacks) << ',' << format("%.6e", p.error.max_error)
-          << ',' << format("%.6e", p.error.max_error_time) << ','
-          << format("%.6e", p.error.end_error) << ',' << format("%.6e", error_to_tolerance(p))
-          << ',' << format("%.6e", p.median_seconds) << ',' << p.repeats << ',' << status_of(p)
-          << ',' << csv_field(p.failure) << '\n';
+          << ',' << format("%.6e", p.error.max_error_time) << ',' << csv_field(p.max_error_on)
+          << ',' << format("%.6e", p.reference_error) << ',' << format("%.6e", p.error.end_error)
+          << ',' << format("%.6e", error_to_tolerance(p)) << ',' << format("%.6e", p.median_seconds)
+          << ',' << p.repeats << ',' << status_of(p) << ',' << csv_field(p.failure) << '\n';
     }
   }
 }
@@ -154,8 +155,8 @@ std::string md_number(double x, const char* fmt = "%.2e") {
 
 void write_points_table(std::ostream& out, const StudyResult& study) {
   out << "| integrator | setting | increments | steps | rejected | Newton iterations | cutbacks | "
-         "max error | at t | end error | median time [s] | runs |\n"
-         "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+         "max error | at t | on | its reference's error | end error | median time [s] | runs |\n"
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& p : study.points) {
     const long inc = planned_increments(study, p);
     out << "| " << study::to_string(p.setting.integrator) << " | " << md_setting(p) << " | "
@@ -164,10 +165,11 @@ void write_points_table(std::ostream& out, const StudyResult& study) {
       out << p.counters.steps << " | " << p.counters.rejected << " | "
           << p.counters.newton_iterations << " | " << p.counters.cutbacks << " | "
           << md_number(p.error.max_error) << " | " << md_number(p.error.max_error_time, "%.3g")
-          << " | " << md_number(p.error.end_error) << " | ";
+          << " | " << (p.max_error_on.empty() ? "-" : p.max_error_on) << " | "
+          << md_number(p.reference_error) << " | " << md_number(p.error.end_error) << " | ";
     } else {
       out << "- | - | - | - | " << status_of(p)
-          << " (last point t = " << md_number(p.reached_time, "%.3g") << ") | - | - | ";
+          << " (last point t = " << md_number(p.reached_time, "%.3g") << ") | - | - | - | - | ";
     }
     out << md_number(p.median_seconds, "%.3g") << " | " << p.repeats << " |\n";
   }
@@ -365,7 +367,7 @@ void write_path(const h5::Group& parent, const std::string& name, const study::T
   const h5::Group g = parent.create_group(name);
   g.set_attribute("description", description);
   write_column(g, "time", path.time, time_unit, "time");
-  write_column(g, "value", path.value, unit, "the measured quantity");
+  write_column(g, "value", path.headline(), unit, "the measured quantity (channel 0)");
   std::vector<double> segment(path.segment.begin(), path.segment.end());
   write_column(g, "segment", segment, "index", "loading segment, -1 for the initial state");
 }

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -92,24 +93,31 @@ std::pair<std::size_t, std::size_t> interpolation_nodes(const std::vector<double
 // Local cubic interpolation on nodes (t strictly increasing), clamped to their span: the cubic
 // through the four nodes around x (j-1 .. j+2 for x in [t_j, t_j+1], shifted inward at the ends
 // of the nodes; fewer nodes, lower degree, also where outer nodes are packed much closer than
-// the bracket). Exact for cubics; the error falls as h^4 where the path is smooth.
-double local_cubic_at(const std::vector<double>& t, const std::vector<double>& y, double x) {
+// the bracket). Exact for cubics; the error falls as h^4 where the path is smooth. Every channel
+// of the node-major values y (width per node) is interpolated with the same weights.
+void local_cubic_at(const std::vector<double>& t, const std::vector<double>& y, int width, double x,
+                    std::span<double> out) {
+  const auto w = static_cast<std::size_t>(width);
+  const auto copy_node = [&](std::size_t k) {
+    std::copy(y.begin() + static_cast<std::ptrdiff_t>(k * w),
+              y.begin() + static_cast<std::ptrdiff_t>((k + 1) * w), out.begin());
+  };
   const std::size_t n = t.size();
-  if (n == 1 || x <= t.front()) return y.front();
-  if (x >= t.back()) return y.back();
+  if (n == 1 || x <= t.front()) return copy_node(0);
+  if (x >= t.back()) return copy_node(n - 1);
   const auto upper = std::upper_bound(t.begin(), t.end(), x);
   const std::size_t j = static_cast<std::size_t>(upper - t.begin()) - 1;
-  if (x == t[j]) return y[j];
+  if (x == t[j]) return copy_node(j);
   const auto [first, last] = interpolation_nodes(t, j);
-  double sum = 0.0;
+  std::fill(out.begin(), out.end(), 0.0);
   for (std::size_t a = first; a <= last; ++a) {
     double weight = 1.0;
     for (std::size_t b = first; b <= last; ++b) {
       if (b != a) weight *= (x - t[b]) / (t[a] - t[b]);
     }
-    sum += weight * y[a];
+    const double* node = y.data() + a * w;
+    for (std::size_t c = 0; c < w; ++c) out[c] += weight * node[c];
   }
-  return sum;
 }
 
 // CVODE at a relative tolerance rtol and absolute tolerances of min(rtol, atol_scale) times
@@ -186,7 +194,7 @@ std::string stopped_message(double time, double seconds) {
 struct LastTime {
   const PointObserver& observe;
   double last = kNaN;
-  void operator()(double t, double v, int segment) {
+  void operator()(double t, std::span<const double> v, int segment) {
     last = t;
     observe(t, v, segment);
   }
@@ -248,9 +256,24 @@ bool is_fixed_step(Integrator integrator) {
 }
 
 void Trajectory::add(double t, double v, int seg) {
+  add(t, std::span<const double>(&v, 1), seg);
+}
+
+void Trajectory::add(double t, std::span<const double> v, int seg) {
+  if (time.empty()) width = static_cast<int>(v.size());
+  if (v.size() != static_cast<std::size_t>(width)) {
+    throw std::invalid_argument("a trajectory point has " + std::to_string(v.size()) +
+                                " channels, the path " + std::to_string(width));
+  }
   time.push_back(t);
-  value.push_back(v);
+  value.insert(value.end(), v.begin(), v.end());
   segment.push_back(seg);
+}
+
+std::vector<double> Trajectory::headline() const {
+  std::vector<double> out(size());
+  for (std::size_t k = 0; k < size(); ++k) out[k] = at(k)[0];
+  return out;
 }
 
 RunResult record(const Problem& problem, const Setting& setting, Report report, Trajectory& path,
@@ -259,7 +282,7 @@ RunResult record(const Problem& problem, const Setting& setting, Report report, 
   const auto start = Clock::now();
   long reported = 0;
   try {
-    return problem.run(setting, report, [&](double t, double v, int seg) {
+    return problem.run(setting, report, [&](double t, std::span<const double> v, int seg) {
       path.add(t, v, seg);
       if (++reported % kBudgetCheckInterval == 0 && seconds_since(start) > budget_seconds)
         throw OverBudget{t};
@@ -311,13 +334,14 @@ std::string ContactProblem::error_scale_description() const {
   return "mu_s (the static friction coefficient: the yield ratio f_t/f_n of a fresh contact)";
 }
 
-RunResult ContactProblem::run(const Setting& setting, Report report,
-                              const PointObserver& observe) const {
+RunResult ContactProblem::run(const Setting& setting, Report report, const PointObserver& observe,
+                              const StopTimes&) const {
   RunResult out;
   const auto start = Clock::now();
   LastTime seen{observe};
   const auto record = [&seen](const contact::ContactState& s, int segment) {
-    seen(s.time, s.traction_ratio(), segment);
+    const double ratio = s.traction_ratio();
+    seen(s.time, std::span<const double>(&ratio, 1), segment);
   };
   contact::IntegratorOptions opt = options_;
   opt.tolerance = 0.0;
@@ -366,12 +390,15 @@ RunResult ContactProblem::run(const Setting& setting, Report report,
 CrystalProblem::CrystalProblem(crystal::PhaseDescription phase,
                                std::vector<crystal::Orientation> orientations,
                                std::vector<crystal::LoadSegment> segments,
-                               crystal::AggregateOptions options, std::pair<int, int> component)
+                               crystal::AggregateOptions options, std::pair<int, int> component,
+                               Measure measure)
     : phase_(std::move(phase)),
       orientations_(std::move(orientations)),
       segments_(std::move(segments)),
       options_(options),
-      component_(component) {}
+      component_(component),
+      slip_count_(crystal::checked_slip_count(phase_)),
+      measure_(measure) {}
 
 bool CrystalProblem::supports(Integrator integrator) const {
   // The rate-independent form has no slip rate for forward Euler or an ODE solver.
@@ -395,25 +422,101 @@ std::string CrystalProblem::quantity() const {
   return "sigma_" + std::to_string(component_.first + 1) + std::to_string(component_.second + 1);
 }
 
-double CrystalProblem::error_scale(const Trajectory& reference) const {
+std::vector<double> CrystalProblem::error_scales(const Trajectory& reference) const {
   double largest = 0.0;
-  for (double v : reference.value) largest = std::max(largest, std::abs(v));
-  return largest > 0.0 ? largest : 1.0;
+  for (double v : reference.headline()) largest = std::max(largest, std::abs(v));
+  largest = largest > 0.0 ? largest : 1.0;
+  std::vector<double> scales(static_cast<std::size_t>(reference.width),
+                             measure_ == Measure::stress ? largest : 1.0);
+  scales[0] = largest;
+  return scales;
 }
 
 std::string CrystalProblem::error_scale_description() const {
-  return "the largest |" + quantity() +
-         "| of the reference along the path (the flow stress the test reaches)";
+  const std::string flow = "the largest |" + quantity() +
+                           "| of the reference along the path (the flow stress the test reaches)";
+  if (measure_ == Measure::stress) return flow + ", for every grain's stress as well";
+  return flow + "; every grain's r, ln(CRSS) and r_s of each slip system: 1";
 }
 
-RunResult CrystalProblem::run(const Setting& setting, Report report,
-                              const PointObserver& observe) const {
+namespace {
+constexpr int kPerSystem = 3;  // r, ln(mu tau0), r_s
+constexpr const char* kStressNames[6] = {"sigma_11", "sigma_22", "sigma_33",
+                                         "sigma_23", "sigma_13", "sigma_12"};
+}  // namespace
+
+std::string CrystalProblem::channel_name(int channel) const {
+  if (channel <= 0) return quantity();
+  const int k = channel - 1;
+  if (measure_ == Measure::stress)
+    return "grain " + std::to_string(k / 6) + " " + kStressNames[k % 6];
+  const int system = (k / kPerSystem) % slip_count_;
+  const int grain = k / kPerSystem / slip_count_;
+  static constexpr const char* kWhat[kPerSystem] = {"r", "ln(CRSS)", "r_s"};
+  return "grain " + std::to_string(grain) + " system " + std::to_string(system) + " " +
+         kWhat[k % kPerSystem];
+}
+
+namespace {
+
+// The segments with output at the stops only (times into each segment), for an adaptive run.
+std::vector<crystal::LoadSegment> with_stops(std::vector<crystal::LoadSegment> segments,
+                                             const StopTimes& stops) {
+  std::vector<double> starts(segments.size());
+  double start = 0.0;  // (accumulated as the aggregate accumulates it)
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    starts[k] = start;
+    start += segments[k].duration;
+    segments[k].output_at_times = true;
+    segments[k].output_times.clear();
+  }
+  for (const auto& [segment, time] : stops) {
+    if (segment < 0 || static_cast<std::size_t>(segment) >= segments.size()) continue;
+    auto& s = segments[static_cast<std::size_t>(segment)];
+    s.output_times.push_back(std::clamp(time - starts[static_cast<std::size_t>(segment)],
+                                        std::numeric_limits<double>::min(), s.duration));
+  }
+  for (auto& s : segments) {
+    std::sort(s.output_times.begin(), s.output_times.end());
+    s.output_times.erase(std::unique(s.output_times.begin(), s.output_times.end()),
+                         s.output_times.end());
+    if (s.output_times.empty() || s.output_times.back() < s.duration)
+      s.output_times.push_back(s.duration);  // every segment reports its end
+  }
+  return segments;
+}
+
+}  // namespace
+
+RunResult CrystalProblem::run(const Setting& setting, Report report, const PointObserver& observe,
+                              const StopTimes& stops) const {
   RunResult out;
   const auto start = Clock::now();
   LastTime seen{observe};
   const auto [i, j] = component_;
-  const auto record = [&seen, i, j](const crystal::MacroState& m, const crystal::GrainFields&) {
-    seen(m.time, m.stress(i, j), m.segment);
+  // Reused from point to point (the observer runs between steps, never concurrently).
+  std::vector<double> ratio, crss, r_s, channels;
+  const auto record = [&](const crystal::MacroState& m, const crystal::GrainFields& grains) {
+    if (measure_ == Measure::stress) {
+      channels.resize(1 + 6 * static_cast<std::size_t>(grains.grain_count()));
+      channels[0] = m.stress(i, j);
+      grains.stress(channels.data() + 1);
+      seen(m.time, channels, m.segment);
+      return;
+    }
+    const auto n = static_cast<std::size_t>(grains.grain_count()) *
+                   static_cast<std::size_t>(grains.slip_count());
+    ratio.resize(n), crss.resize(n), r_s.resize(n), channels.resize(1 + kPerSystem * n);
+    grains.ratio(ratio.data());
+    grains.crss(crss.data());
+    grains.subloading_ratio(r_s.data());
+    channels[0] = m.stress(i, j);
+    for (std::size_t k = 0; k < n; ++k) {
+      channels[1 + kPerSystem * k] = ratio[k];
+      channels[2 + kPerSystem * k] = std::log(crss[k]);
+      channels[3 + kPerSystem * k] = r_s[k];
+    }
+    seen(m.time, channels, m.segment);
   };
   crystal::AggregateOptions opt = options_;
   opt.tolerance = 0.0;
@@ -440,7 +543,9 @@ RunResult CrystalProblem::run(const Setting& setting, Report report,
         opt.tolerance = setting.value;
         opt.order = extrapolation_order(setting.integrator);
         auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);
-        out.counters = counters_of(aggregate->run(outputs_for(segments_, report), opt, record));
+        const auto segments =
+            stops.empty() ? outputs_for(segments_, report) : with_stops(segments_, stops);
+        out.counters = counters_of(aggregate->run(segments, opt, record));
         break;
       }
       case Integrator::cvode:
@@ -462,7 +567,7 @@ RunResult CrystalProblem::run(const Setting& setting, Report report,
 
 // ---- interpolation and errors
 
-PathInterpolant::PathInterpolant(const Trajectory& path) {
+PathInterpolant::PathInterpolant(const Trajectory& path) : width_(path.width) {
   for (std::size_t k = 0; k < path.size(); ++k) {
     const int seg = path.segment[k];
     if (pieces_.empty() || pieces_.back().segment != seg) {
@@ -470,12 +575,14 @@ PathInterpolant::PathInterpolant(const Trajectory& path) {
       p.segment = seg;
       if (k > 0) {  // the segment starts where the previous one ended
         p.t.push_back(path.time[k - 1]);
-        p.y.push_back(path.value[k - 1]);
+        const auto v = path.at(k - 1);
+        p.y.insert(p.y.end(), v.begin(), v.end());
       }
       pieces_.push_back(std::move(p));
     }
     pieces_.back().t.push_back(path.time[k]);
-    pieces_.back().y.push_back(path.value[k]);
+    const auto v = path.at(k);
+    pieces_.back().y.insert(pieces_.back().y.end(), v.begin(), v.end());
   }
 }
 
@@ -485,41 +592,75 @@ const PathInterpolant::Piece* PathInterpolant::piece_of(int segment) const {
   return nullptr;
 }
 
-double PathInterpolant::at(double t, int segment) const {
+void PathInterpolant::at(double t, int segment, std::span<double> out) const {
   const Piece* p = piece_of(segment);
   if (p == nullptr) {
     throw std::out_of_range("reference path has no segment " + std::to_string(segment));
   }
-  return local_cubic_at(p->t, p->y, t);
+  if (out.size() != static_cast<std::size_t>(width_)) {
+    throw std::invalid_argument("a path of " + std::to_string(out.size()) +
+                                " channels compared with a reference of " + std::to_string(width_));
+  }
+  local_cubic_at(p->t, p->y, width_, t, out);
 }
 
-double PathInterpolant::estimated_error() const {
+double PathInterpolant::at(double t, int segment) const {
+  std::vector<double> out(static_cast<std::size_t>(width_));
+  at(t, segment, out);
+  return out[0];
+}
+
+double PathInterpolant::estimated_error(std::span<const double> scales) const {
+  const auto w = static_cast<std::size_t>(width_);
+  const auto scale = [&](std::size_t c) { return scales.empty() ? 1.0 : scales[c]; };
   double worst = 0.0;
+  std::vector<double> value(w);
   for (const auto& p : pieces_) {
     const std::size_t n = p.t.size();
     if (n < 5) continue;
     std::vector<double> t2, y2;
-    for (std::size_t k = 0; k < n; k += 2) {
+    const auto keep = [&](std::size_t k) {
       t2.push_back(p.t[k]);
-      y2.push_back(p.y[k]);
-    }
-    if ((n - 1) % 2 != 0) {  // keep the last node
-      t2.push_back(p.t[n - 1]);
-      y2.push_back(p.y[n - 1]);
-    }
+      y2.insert(y2.end(), p.y.begin() + static_cast<std::ptrdiff_t>(k * w),
+                p.y.begin() + static_cast<std::ptrdiff_t>((k + 1) * w));
+    };
+    for (std::size_t k = 0; k < n; k += 2) keep(k);
+    if ((n - 1) % 2 != 0) keep(n - 1);  // keep the last node
     for (std::size_t k = 1; k + 1 < n; k += 2) {
-      worst = std::max(worst, std::abs(local_cubic_at(t2, y2, p.t[k]) - p.y[k]));
+      local_cubic_at(t2, y2, width_, p.t[k], value);
+      for (std::size_t c = 0; c < w; ++c)
+        worst = std::max(worst, std::abs(value[c] - p.y[k * w + c]) / scale(c));
     }
   }
   return worst;
 }
 
-void ErrorAccumulator::add(double time, double value, int segment) {
-  const double d = std::abs(value - reference_.at(time, segment)) / scale_;
+ErrorAccumulator::ErrorAccumulator(const PathInterpolant& reference, std::vector<double> scales)
+    : reference_(reference),
+      scales_(std::move(scales)),
+      interpolated_(static_cast<std::size_t>(reference.width())) {
+  if (scales_.size() != interpolated_.size()) {
+    throw std::invalid_argument("one error scale per channel of the reference is needed");
+  }
+}
+
+void ErrorAccumulator::add(double time, std::span<const double> values, int segment) {
+  reference_.at(time, segment, interpolated_);
+  double d = 0.0;
+  int channel = 0;
+  for (std::size_t c = 0; c < values.size(); ++c) {
+    const double dc = std::abs(values[c] - interpolated_[c]) / scales_[c];
+    if (std::isnan(dc) || dc > d) {  // a NaN wins
+      d = dc;
+      channel = static_cast<int>(c);
+      if (std::isnan(dc)) break;
+    }
+  }
   // The first point sets the maximum; a NaN sticks.
   if (!std::isnan(e_.max_error) && (!any_ || !(d <= e_.max_error))) {
     e_.max_error = d;
     e_.max_error_time = time;
+    e_.max_error_channel = channel;
   }
   e_.end_error = d;
   any_ = true;
@@ -530,27 +671,40 @@ ErrorMeasure ErrorAccumulator::result(bool complete) const {
   return e_;
 }
 
+ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference,
+                           const std::vector<double>& scales, bool complete) {
+  ErrorAccumulator acc(reference, scales);
+  for (std::size_t k = 0; k < run.size(); ++k) acc.add(run.time[k], run.at(k), run.segment[k]);
+  return acc.result(complete);
+}
+
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
                            bool complete) {
-  ErrorAccumulator acc(reference, scale);
-  for (std::size_t k = 0; k < run.size(); ++k) acc.add(run.time[k], run.value[k], run.segment[k]);
-  return acc.result(complete);
+  return measure_error(run, reference, std::vector<double>{scale}, complete);
 }
 
 Trajectory richardson(const Trajectory& fine, const Trajectory& coarse) {
   // The correction y_h - y_2h is known at the coarse points (fine nodes there); it is small and
   // smooth, so interpolating it to the other fine nodes adds only a small fraction of itself.
   const PathInterpolant f(fine);
+  const auto w = static_cast<std::size_t>(fine.width);
+  std::vector<double> v(w);
   Trajectory correction;
   for (std::size_t k = 0; k < coarse.size(); ++k) {
     const double t = coarse.time[k];
-    correction.add(t, f.at(t, coarse.segment[k]) - coarse.value[k], coarse.segment[k]);
+    f.at(t, coarse.segment[k], v);
+    const auto c = coarse.at(k);
+    for (std::size_t i = 0; i < w; ++i) v[i] -= c[i];
+    correction.add(t, v, coarse.segment[k]);
   }
   const PathInterpolant c(correction);
   Trajectory out;
   for (std::size_t k = 0; k < fine.size(); ++k) {
     const double t = fine.time[k];
-    out.add(t, fine.value[k] + c.at(t, fine.segment[k]), fine.segment[k]);
+    c.at(t, fine.segment[k], v);
+    const auto y = fine.at(k);
+    for (std::size_t i = 0; i < w; ++i) v[i] += y[i];
+    out.add(t, v, fine.segment[k]);
   }
   return out;
 }
@@ -564,22 +718,61 @@ double median(std::vector<double> values) {
 
 // ---- the study
 
+namespace {
+
+// The (segment, time) of every point of a run.
+StopTimes stops_of(const Trajectory& run) {
+  StopTimes stops;
+  stops.reserve(run.size());
+  for (std::size_t k = 0; k < run.size(); ++k) stops.emplace_back(run.segment[k], run.time[k]);
+  return stops;
+}
+
+// The reference (options.reference, adaptive) and its 10x looser companion at a run's times;
+// throws ReferenceFailure when either fails.
+void reference_at(const Problem& problem, const StudyOptions& options, const StopTimes& stops,
+                  Trajectory& reference, Trajectory& companion) {
+  const Setting looser{options.reference.integrator, 10.0 * options.reference.value};
+  const PointObserver keep_reference = [&](double t, std::span<const double> v, int seg) {
+    reference.add(t, v, seg);
+  };
+  const PointObserver keep_companion = [&](double t, std::span<const double> v, int seg) {
+    companion.add(t, v, seg);
+  };
+  reference = {}, companion = {};
+  for (const auto& [setting, keep] :
+       {std::pair{options.reference, &keep_reference}, std::pair{looser, &keep_companion}}) {
+    const RunResult r = problem.run(setting, Report::every_step, *keep, stops);
+    if (!r.ok) {
+      throw ReferenceFailure("the reference (" + std::string(to_string(setting.integrator)) + " " +
+                             format_setting(setting) + ") at a run's times failed: " + r.failure);
+    }
+  }
+}
+
+}  // namespace
+
 PointResult measure_point(const Problem& problem, const Setting& setting,
-                          const PathInterpolant& reference, double scale,
+                          const PathInterpolant& reference, const std::vector<double>& scales,
                           const StudyOptions& options) {
   PointResult p;
   p.setting = setting;
-  ErrorAccumulator error(reference, scale);
+  const bool own_reference = options.reference_at_run_times && problem.supports_stops() &&
+                             !is_fixed_step(options.reference.integrator);
+  ErrorAccumulator error(reference, scales);
+  Trajectory path;  // kept only when the run gets its own reference
   long reported = 0;
   // A run that overruns the budget is stopped from its observer.
   const auto start = Clock::now();
   RunResult measured;
   try {
-    measured = problem.run(setting, Report::every_step, [&](double t, double v, int seg) {
-      error.add(t, v, seg);
-      if (++reported % kBudgetCheckInterval == 0 && seconds_since(start) > options.max_run_seconds)
-        throw OverBudget{t};
-    });
+    measured =
+        problem.run(setting, Report::every_step, [&](double t, std::span<const double> v, int seg) {
+          own_reference ? path.add(t, v, seg) : error.add(t, v, seg);
+          if (++reported % kBudgetCheckInterval == 0 &&
+              seconds_since(start) > options.max_run_seconds)
+            throw OverBudget{t};
+        });
   } catch (const OverBudget& stop) {
     p.failure = stopped_message(stop.time, seconds_since(start));
     p.reached_time = stop.time;
@@ -594,7 +787,15 @@ PointResult measure_point(const Problem& problem, const Setting& setting,
   p.ok = measured.ok;
   p.failure = measured.failure;
   p.reached_time = measured.last_time;
-  p.error = error.result(measured.ok);
+  if (own_reference && measured.ok) {
+    Trajectory at_run, companion;
+    reference_at(problem, options, stops_of(path), at_run, companion);
+    const PathInterpolant exact(at_run);
+    p.error = measure_error(path, exact, scales, true);
+    p.reference_error = measure_error(companion, exact, scales, true).max_error;
+  } else {
+    p.error = error.result(measured.ok);
+  }
   if (measured.ok && !std::isfinite(p.error.max_error)) {
     p.ok = false;
     p.failure = "non-finite value in the path";
@@ -602,7 +803,7 @@ PointResult measure_point(const Problem& problem, const Setting& setting,
   if (!p.ok) return p;  // the time to failure is no result
   // The timed runs report only the scene's output points, so that the time is the
   // integrator's, not the error measurement's.
-  const PointObserver nothing = [](double, double, int) {};
+  const PointObserver nothing = [](double, std::span<const double>, int) {};
   std::vector<double> times;
   double spent = 0.0;
   do {
@@ -674,16 +875,17 @@ ReferenceResult run_reference(const Problem& problem, const StudyOptions& option
     Trajectory looser;
     if (record(problem, ref.check, Report::every_step, looser).ok) check = std::move(looser);
   }
-  ref.scale = problem.error_scale(ref.path);
+  ref.scales = problem.error_scales(ref.path);
+  ref.scale = ref.scales.front();
   const PathInterpolant interpolant(ref.path);
-  ref.interpolation_error = interpolant.estimated_error() / ref.scale;
-  if (check) ref.self_convergence = measure_error(*check, interpolant, ref.scale, true).max_error;
+  ref.interpolation_error = interpolant.estimated_error(ref.scales);
+  if (check) ref.self_convergence = measure_error(*check, interpolant, ref.scales, true).max_error;
   if (problem.supports(Integrator::cvode)) {
     const Setting check{Integrator::cvode, options.cvode_check_rtol, false, 1.0};
     ref.cvode =
         record(problem, check, Report::every_step, ref.cvode_path, options.cvode_check_seconds);
     if (ref.cvode->ok) {
-      ref.cvode_difference = measure_error(ref.cvode_path, interpolant, ref.scale, true).max_error;
+      ref.cvode_difference = measure_error(ref.cvode_path, interpolant, ref.scales, true).max_error;
     }
   }
   return ref;
@@ -743,7 +945,11 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
         }
       }
       out.points.push_back(
-          measure_point(problem, setting, reference, out.reference.scale, options));
+          measure_point(problem, setting, reference, out.reference.scales, options));
+      if (out.points.back().error.max_error_channel >= 0) {
+        out.points.back().max_error_on =
+            problem.channel_name(out.points.back().error.max_error_channel);
+      }
       say(options, describe_point(out.points.back()));
       previous = out.points.size() - 1;
       if (out.points.back().over_budget) break;  // finer points only take longer
@@ -793,7 +999,10 @@ std::vector<LadderSummary> ladder_summaries(const StudyResult& study) {
     for (const auto& q : study.points) {
       if (q.setting.integrator != s.integrator || q.setting.uniform != s.uniform || !q.ok) continue;
       const double e = q.error.max_error;
-      if (!(e > resolution) || !std::isfinite(e) || q.counters.steps <= 0) continue;
+      // A run compared with its own reference (at its times, no interpolation): that one's
+      // resolution.
+      const double floor = std::isnan(q.reference_error) ? resolution : 10.0 * q.reference_error;
+      if (!(e > floor) || !std::isfinite(e) || q.counters.steps <= 0) continue;
       ++s.points;
       log_steps.push_back(std::log(static_cast<double>(q.counters.steps)));
       log_error.push_back(std::log(e));

@@ -126,8 +126,14 @@ class AdaptiveSegment {
     while (next_stop_ < stops_.size() && stops_[next_stop_] <= t_) ++next_stop_;
   }
 
-  // The step tried now ends on the next stop.
-  bool at_stop() const { return next_stop_ < stops_.size() && dt_ >= stops_[next_stop_] - t_; }
+  // The step tried now ends on the next stop: it would reach it, or end within round-off of it
+  // (kSameTime of the stop's time: a stop computed from another run's times, 1e-145 s into a
+  // segment, may lie an ulp beyond this run's step end, and a step of 1e-161 s to reach it is
+  // no step a solver resolves).
+  bool at_stop() const {
+    return next_stop_ < stops_.size() &&
+           dt_ >= stops_[next_stop_] - t_ - kSameTime * stops_[next_stop_];
+  }
   bool last() const { return at_stop() ? stops_[next_stop_] >= duration_ : dt_ >= duration_ - t_; }
   // The step to try now: the planned one, or what is left to the next stop or the segment end.
   double step() const {
@@ -149,11 +155,15 @@ class AdaptiveSegment {
   // shorten the next one unless its error asks for that.
   bool accept(double error) {
     const double h = step();
-    const bool stop = at_stop();
+    bool stop = at_stop();
     const bool shortened = stop && !last() && h < dt_;
     const double planned = dt_;
     t_ = end_time();
     if (stop) ++next_stop_;
+    // A step not shortened to a stop can still end exactly on it (t + dt rounds to the stop
+    // while dt < stop - t): it ended there, and the stop is behind it.
+    for (; next_stop_ < stops_.size() && stops_[next_stop_] <= t_ * (1.0 + kSameTime); ++next_stop_)
+      stop = true;
     ++accepted_;
     refusals_ = 0;
     const double factor = step_factor(error, tolerance_, order_, kAfterAccepted);

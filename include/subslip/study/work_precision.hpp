@@ -7,12 +7,17 @@
 // an integer f each original increment is split into exactly f. Adaptive integrators (implicit
 // with a tolerance, CVODE) take a tolerance.
 //
-// Errors. The measured quantity is f_t/f_n (contact) or the stress component along the loading
-// direction (crystal). A measuring run reports every step it takes; at each, the reference is
-// interpolated (PathInterpolant) and the error is |value - reference| / scale, the scale being
-// the yield scale of the problem (contact: mu_s; crystal: the largest |stress| of the reference
-// along the path). Reported: the maximum over the run's steps, where it is, and the error at the
-// end. Timing runs are separate and report only the scene's output points.
+// Errors. A run reports, at every step it takes, a vector of measured values (channels). Channel 0
+// is the headline quantity: f_t/f_n (contact) or the stress component along the loading
+// direction (crystal). A crystal adds, for every grain and slip system, what the extrapolated
+// integrator's error estimate bounds (the quantities the state determines, issue 17): the
+// loading ratio r (resolved shear over the CRSS), ln of the CRSS (its relative error) and r_s.
+// At each step the reference is interpolated (PathInterpolant) and the error is the largest over
+// the channels of |value - reference| / scale, each channel with its own scale (channel 0: the
+// yield scale of the problem, mu_s or the largest |stress| of the reference along the path; the
+// dimensionless crystal channels: 1). Reported: the maximum over the run's steps, where and on
+// which channel it is, and the error at the end. Timing runs are separate and report only the
+// scene's output points.
 #pragma once
 
 #include <cstddef>
@@ -20,6 +25,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -69,14 +75,21 @@ struct Setting {
   double atol_scale = 1e-10;
 };
 
-// One observed path: the measured quantity at the reported points of a run.
+// One observed path: the measured channels at the reported points of a run.
 struct Trajectory {
+  int width = 1;  // channels per point (set by the first point added)
   std::vector<double> time;
-  std::vector<double> value;
-  std::vector<int> segment;  // loading segment of each point, -1 for the initial state
+  std::vector<double> value;  // point-major: value[k * width + c]
+  std::vector<int> segment;   // loading segment of each point, -1 for the initial state
 
-  void add(double t, double v, int seg);
+  void add(double t, double v, int seg);  // one channel
+  void add(double t, std::span<const double> v, int seg);
   std::size_t size() const { return time.size(); }
+  std::span<const double> at(std::size_t k) const {
+    return {value.data() + k * static_cast<std::size_t>(width), static_cast<std::size_t>(width)};
+  }
+  // Channel 0 of every point (the headline quantity).
+  std::vector<double> headline() const;
 };
 
 // The work of one run.
@@ -103,23 +116,33 @@ enum class Report {
                  // step): the timed runs
 };
 
-// Receives each reported point: time, measured value, loading segment (-1: initial state).
-using PointObserver = std::function<void(double time, double value, int segment)>;
+// Times at which a run must end a step and report (segment, time), in path order: a reference
+// computed at exactly a measured run's times needs no interpolation.
+using StopTimes = std::vector<std::pair<int, double>>;
+
+// Receives each reported point: time, measured channels, loading segment (-1: initial state).
+using PointObserver = std::function<void(double time, std::span<const double> values, int segment)>;
 
 // A case the study can run at any setting. run() never throws for a numerical failure: the
 // failure is returned (forward Euler at coarse steps diverges, and that is a result).
 class Problem {
  public:
   virtual ~Problem() = default;
-  virtual RunResult run(const Setting& setting, Report report,
-                        const PointObserver& observe) const = 0;
+  virtual RunResult run(const Setting& setting, Report report, const PointObserver& observe,
+                        const StopTimes& stops = {}) const = 0;
   virtual bool supports(Integrator integrator) const = 0;
+  // Whether run() honours `stops` with an adaptive integrator: its steps end there, and only
+  // those points (and the initial state) are reported.
+  virtual bool supports_stops() const { return false; }
   // The increments of the unrefined scene, summed over segments (the base of the factors).
   virtual long base_increments() const = 0;
-  virtual std::string quantity() const = 0;  // "f_t/f_n", "sigma_33", ...
-  // The yield scale that divides every error, from the reference path.
-  virtual double error_scale(const Trajectory& reference) const = 0;
+  virtual std::string quantity() const = 0;  // channel 0: "f_t/f_n", "sigma_33", ...
+  // The scale that divides each channel's error, from the reference path (channel 0: the yield
+  // scale of the problem).
+  virtual std::vector<double> error_scales(const Trajectory& reference) const = 0;
   virtual std::string error_scale_description() const = 0;
+  // What channel c is ("sigma_33", "grain 3 system 7 r", ...).
+  virtual std::string channel_name(int channel) const = 0;
 };
 
 // Runs `setting` and keeps every reported point in `path`; a run still going after
@@ -140,12 +163,16 @@ class ContactProblem final : public Problem {
  public:
   ContactProblem(contact::ContactModel model, std::vector<contact::Segment> segments,
                  contact::IntegratorOptions options);
-  RunResult run(const Setting& setting, Report report, const PointObserver& observe) const override;
+  RunResult run(const Setting& setting, Report report, const PointObserver& observe,
+                const StopTimes& stops = {}) const override;
   bool supports(Integrator integrator) const override;
   long base_increments() const override;
   std::string quantity() const override { return "f_t/f_n"; }
-  double error_scale(const Trajectory&) const override { return model_.law.friction.mu_s; }
+  std::vector<double> error_scales(const Trajectory&) const override {
+    return {model_.law.friction.mu_s};
+  }
   std::string error_scale_description() const override;
+  std::string channel_name(int) const override { return quantity(); }
 
  private:
   contact::ContactModel model_;
@@ -153,20 +180,30 @@ class ContactProblem final : public Problem {
   contact::IntegratorOptions options_;
 };
 
-// One crystal case (a Taylor aggregate, a single crystal being one grain); the quantity is the
-// Cauchy stress component (i, j) along the loading direction, the scale the reference's largest
-// |sigma_ij|.
+// One crystal case (a Taylor aggregate, a single crystal being one grain); channel 0 is the
+// Cauchy stress component (i, j) along the loading direction, its scale the reference's largest
+// |sigma_ij|; then, grain by grain and system by system, r, ln(mu tau0) and r_s (scale 1: r is in
+// units of the CRSS, the difference of logarithms is the relative error of the CRSS).
+//
+// Measure::stress instead: after channel 0, every grain's Cauchy stress (six components, sample
+// frame), with channel 0's scale. For laws whose slip is split among systems that round-off
+// cannot tell apart (nearly rate-independent, every system yielding at once), each system's
+// CRSS follows its own slip and is not determined, while the stress is.
 class CrystalProblem final : public Problem {
  public:
+  enum class Measure { state, stress };
   CrystalProblem(crystal::PhaseDescription phase, std::vector<crystal::Orientation> orientations,
                  std::vector<crystal::LoadSegment> segments, crystal::AggregateOptions options,
-                 std::pair<int, int> component);
-  RunResult run(const Setting& setting, Report report, const PointObserver& observe) const override;
+                 std::pair<int, int> component, Measure measure = Measure::state);
+  RunResult run(const Setting& setting, Report report, const PointObserver& observe,
+                const StopTimes& stops = {}) const override;
   bool supports(Integrator integrator) const override;
+  bool supports_stops() const override { return true; }
   long base_increments() const override;
   std::string quantity() const override;
-  double error_scale(const Trajectory& reference) const override;
+  std::vector<double> error_scales(const Trajectory& reference) const override;
   std::string error_scale_description() const override;
+  std::string channel_name(int channel) const override;
 
  private:
   crystal::PhaseDescription phase_;
@@ -174,6 +211,8 @@ class CrystalProblem final : public Problem {
   std::vector<crystal::LoadSegment> segments_;
   crystal::AggregateOptions options_;
   std::pair<int, int> component_;
+  int slip_count_;
+  Measure measure_;
 };
 
 // Interpolation of a path within each loading segment: the nodes of segment k are the points
@@ -184,45 +223,55 @@ class CrystalProblem final : public Problem {
 class PathInterpolant {
  public:
   explicit PathInterpolant(const Trajectory& path);
-  // The value at time t in segment `segment` (-1: the initial state, the first point). Times
-  // outside the segment's span are clamped to it.
-  double at(double t, int segment) const;
-  // A bound on the interpolation error, in the path's units: the same interpolation built on
-  // every second node, evaluated at the dropped nodes. Where the path is smooth the error falls
-  // as h^4, so at the full node density it is about 16 times smaller than this.
-  double estimated_error() const;
+  int width() const { return width_; }
+  // The channels at time t in segment `segment` (-1: the initial state, the first point), into
+  // out[0 .. width). Times outside the segment's span are clamped to it.
+  void at(double t, int segment, std::span<double> out) const;
+  double at(double t, int segment) const;  // channel 0
+  // A bound on the interpolation error, the largest over the channels of the error over its
+  // scale (`scales` empty: 1): the same interpolation built on every second node, evaluated at
+  // the dropped nodes. Where the path is smooth the error falls as h^4, so at the full node
+  // density it is about 16 times smaller than this.
+  double estimated_error(std::span<const double> scales = {}) const;
 
  private:
   struct Piece {
     int segment;
-    std::vector<double> t, y;  // nodes, t strictly increasing
+    std::vector<double> t;  // nodes, strictly increasing
+    std::vector<double> y;  // node-major, width_ per node
   };
   const Piece* piece_of(int segment) const;
+  int width_ = 1;
   std::vector<Piece> pieces_;  // in path order
 };
 
 struct ErrorMeasure {
-  double max_error = kNaN;       // max over the run's points of |value - ref| / scale
+  double max_error = kNaN;       // max over the run's points and channels of |value - ref| / scale
   double max_error_time = kNaN;  // where the maximum is
+  int max_error_channel = -1;    // and on which channel
   double end_error = kNaN;       // at the run's last point (NaN when the run failed)
 };
 
 // The error of a run, point by point as the run reports them (nothing is stored).
 class ErrorAccumulator {
  public:
-  ErrorAccumulator(const PathInterpolant& reference, double scale)
-      : reference_(reference), scale_(scale) {}
-  void add(double time, double value, int segment);
+  // scales: one per channel of the reference.
+  ErrorAccumulator(const PathInterpolant& reference, std::vector<double> scales);
+  void add(double time, std::span<const double> values, int segment);
   // NaN errors unless `complete` (a failed run has no end, and its error is not a result).
   ErrorMeasure result(bool complete) const;
 
  private:
   const PathInterpolant& reference_;
-  double scale_;
-  ErrorMeasure e_{0.0, kNaN, kNaN};
+  std::vector<double> scales_;
+  std::vector<double> interpolated_;  // the reference at the current point
+  ErrorMeasure e_{0.0, kNaN, -1, kNaN};
   bool any_ = false;
 };
 
+ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference,
+                           const std::vector<double>& scales, bool complete);
+// One channel, one scale.
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
                            bool complete);
 
@@ -253,6 +302,12 @@ struct StudyOptions {
   // a 10x looser tolerance. self_convergence = max |companion - reference|.
   Setting reference{Integrator::implicit, 64.0};
   bool richardson = true;
+  // With an adaptive reference and a problem that supports stops: every measured run is compared
+  // with the reference recomputed with its steps ending at exactly that run's times (and with
+  // its 10x looser companion, the same way), so no interpolation enters the error. Needed where
+  // the measured channels have square-root onsets (r_s of every slip system of a polycrystal,
+  // each starting at its own time), which no interpolation between reference steps resolves.
+  bool reference_at_run_times = false;
   // The CVODE cross-check of the reference (when available), with atol_scale = rtol.
   double cvode_check_rtol = 1e-12;
   double cvode_check_seconds = 120.0;  // the cross-check is stopped after this long
@@ -271,6 +326,10 @@ struct PointResult {
   std::string failure;
   double reached_time = kNaN;  // the last output time the run reached
   ErrorMeasure error;
+  std::string max_error_on;  // the channel of the max error (Problem::channel_name)
+  // StudyOptions::reference_at_run_times: max |companion - reference| / scale at this run's
+  // times, the resolution of its reference (NaN otherwise).
+  double reference_error = kNaN;
   double median_seconds = kNaN;  // of the timed runs (NaN when the run failed)
   int repeats = 0;
   double measured_seconds = 0.0;  // the run that measured the error (every step reported)
@@ -280,11 +339,12 @@ struct PointResult {
 
 struct ReferenceResult {
   Setting setting;
-  RunResult run;              // the reference run (R, for an extrapolated one)
-  Trajectory path;            // the reference path: every step
-  double scale = kNaN;        // the error scale
-  bool extrapolated = false;  // Richardson: from `setting` and half its increments
-  Setting check;              // the coarser companion of the self-convergence estimate
+  RunResult run;               // the reference run (R, for an extrapolated one)
+  Trajectory path;             // the reference path: every step
+  double scale = kNaN;         // the error scale of channel 0
+  std::vector<double> scales;  // of every channel
+  bool extrapolated = false;   // Richardson: from `setting` and half its increments
+  Setting check;               // the coarser companion of the self-convergence estimate
   // max |companion - ref| / scale: for a plain fixed-step reference (first order) this
   // estimates the reference's own error; for an extrapolated or adaptive one, the error of the
   // coarser companion, an upper estimate of the reference's.
@@ -317,7 +377,7 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options);
 // when they would take more than repeat_budget_seconds; at least one) report only the scene's
 // output points, and their median is the time.
 PointResult measure_point(const Problem& problem, const Setting& setting,
-                          const PathInterpolant& reference, double scale,
+                          const PathInterpolant& reference, const std::vector<double>& scales,
                           const StudyOptions& options);
 
 // The cheapest measured run of `integrator` whose maximum error is at most `error`: its median
@@ -330,8 +390,9 @@ std::vector<Integrator> measured_integrators(const StudyResult& study);
 // How one integrator's ladder behaved (issue 17): the order it showed and, for a tolerance
 // (adaptive, CVODE), how the error it reached compares with the one asked for. Fitted over its
 // successful points whose max error is above the reference's resolution (10 x the larger of
-// self_convergence and interpolation_error, where the reference's own error would flatten the
-// curve); NaN where fewer than two such points (with different steps, or settings) remain.
+// self_convergence and interpolation_error, or 10 x the point's own reference_error, where the
+// reference's own error would flatten the curve); NaN where fewer than two such points (with
+// different steps, or settings) remain.
 struct LadderSummary {
   Integrator integrator = Integrator::implicit;
   bool uniform = false;          // forward Euler's uniform ladder (a curve of its own)
