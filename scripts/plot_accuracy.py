@@ -75,9 +75,18 @@ def plot_case(plt, case, rows, reference, out):
         for r, x, y in zip(good, t, e):
             ax.annotate(label_of(r), (x, y), fontsize=6, color=colour,
                         xytext=(3, 2), textcoords="offset points")
-    if reference:
-        # The reference's own error: its difference from CVODE when that ran (an independent
-        # integration), else its self-convergence estimate.
+    # Runs compared with a reference at their own times carry its resolution (reference_error):
+    # the largest of those is the floor; otherwise the shared reference's own error: its
+    # difference from CVODE when that ran (an independent integration), else its
+    # self-convergence estimate.
+    own = [number(r.get("reference_error")) for r in rows if r["status"] == "ok"]
+    own = [x for x in own if x > 0]
+    if own:
+        ax.axhline(max(own), color="grey", ls=":", lw=1)
+        ax.annotate("references at the runs' times (largest error)", (0.01, max(own)),
+                    xycoords=("axes fraction", "data"), ha="left", va="bottom", fontsize=6,
+                    color="grey")
+    elif reference:
         cvode = number(reference.get("cvode_difference"))
         level = cvode if cvode > 0 else number(reference.get("self_convergence"))
         if level > 0:
@@ -88,8 +97,10 @@ def plot_case(plt, case, rows, reference, out):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("median run time [s]")
-    quantity = reference.get("quantity", "value") if reference else "value"
-    ax.set_ylabel("max error of %s / scale" % quantity)
+    quantity = "value"
+    if reference:
+        quantity = reference.get("measured") or reference.get("quantity") or "value"
+    ax.set_ylabel("max error of %s / scale" % quantity, fontsize=7 if len(quantity) > 20 else None)
     title = reference.get("title", "") if reference else ""
     ax.set_title(("%s\ncase %s" % (title, case)) if title else "case %s" % case, fontsize=8)
     ax.grid(True, which="major", lw=0.4, alpha=0.5)

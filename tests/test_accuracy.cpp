@@ -478,7 +478,10 @@ TEST(AccuracyCrystal, ExtrapolatedErrorFollowsTheToleranceOnEveryGrainsState) {
 TEST(AccuracyCrystal, StopsAreTheReportedPoints) {
   const SingleThread one;
   const CrystalProblem problem = soft_crystal();
-  const StopTimes stops = {{-1, 0.0}, {0, 1e-9}, {0, 0.37}, {0, 0.1 + 0.2}, {0, 7.0}, {0, 20.0}};
+  // (20 - 4e-15: a run's last time, summed from its steps, an ulp or two short of the segment
+  // end; it is the end, not a stop before a last step of 4e-15 s.)
+  const StopTimes stops = {{-1, 0.0}, {0, 1e-9},         {0, 0.37}, {0, 0.1 + 0.2},
+                           {0, 7.0},  {0, 20.0 - 4e-15}, {0, 20.0}};
   Trajectory path;
   const RunResult r = problem.run(
       {Integrator::extrapolated_2, 1e-4}, Report::every_step,

@@ -104,7 +104,7 @@ void write_reference_csv(const fs::path& path, const AccuracyReport& report) {
   std::ofstream out = open_text(path);
   out << "case,title,quantity,quantity_unit,error_scale,reference_integrator,reference_setting,"
          "extrapolated,reference_steps,reference_time_s,check_setting,self_convergence,cvode_rtol,"
-         "cvode_difference,interpolation_error\n";
+         "cvode_difference,interpolation_error,measured\n";
   for (const auto& c : report.cases) {
     const auto& r = c.result.reference;
     out << csv_field(c.name) << ',' << csv_field(report.title) << ','
@@ -114,8 +114,8 @@ void write_reference_csv(const fs::path& path, const AccuracyReport& report) {
         << r.run.counters.steps << ',' << format("%.6e", r.run.seconds) << ','
         << format("%.6g", r.check.value) << ',' << format("%.6e", r.self_convergence) << ','
         << (r.cvode ? format("%.3g", report.cvode_check_rtol) : "") << ','
-        << format("%.6e", r.cvode_difference) << ',' << format("%.6e", r.interpolation_error)
-        << '\n';
+        << format("%.6e", r.cvode_difference) << ',' << format("%.6e", r.interpolation_error) << ','
+        << csv_field(c.result.measured) << '\n';
   }
 }
 

@@ -445,6 +445,11 @@ constexpr const char* kStressNames[6] = {"sigma_11", "sigma_22", "sigma_33",
                                          "sigma_23", "sigma_13", "sigma_12"};
 }  // namespace
 
+std::string CrystalProblem::measured() const {
+  return quantity() + (measure_ == Measure::stress ? " and every grain's stress"
+                                                   : " and every grain's r, ln(CRSS), r_s");
+}
+
 std::string CrystalProblem::channel_name(int channel) const {
   if (channel <= 0) return quantity();
   const int k = channel - 1;
@@ -470,11 +475,19 @@ std::vector<crystal::LoadSegment> with_stops(std::vector<crystal::LoadSegment> s
     segments[k].output_at_times = true;
     segments[k].output_times.clear();
   }
+  // A run's times are absolute, resolved to a few ulps of the time itself: within that of its
+  // segment's start a point is the start (reported by the segment before), within that of the
+  // segment's end it is the end (else the reference would take a last step of 1e-15 s, which
+  // no grain solve resolves).
+  constexpr double kRoundOff = 4.0 * std::numeric_limits<double>::epsilon();
   for (const auto& [segment, time] : stops) {
     if (segment < 0 || static_cast<std::size_t>(segment) >= segments.size()) continue;
+    const double segment_start = starts[static_cast<std::size_t>(segment)];
     auto& s = segments[static_cast<std::size_t>(segment)];
-    s.output_times.push_back(std::clamp(time - starts[static_cast<std::size_t>(segment)],
-                                        std::numeric_limits<double>::min(), s.duration));
+    const double into = time - segment_start;
+    if (into <= kRoundOff * segment_start) continue;
+    const bool at_end = into >= s.duration - kRoundOff * (segment_start + s.duration);
+    s.output_times.push_back(at_end ? s.duration : into);
   }
   for (auto& s : segments) {
     std::sort(s.output_times.begin(), s.output_times.end());
@@ -909,6 +922,7 @@ std::string describe_reference(const Problem& problem, const ReferenceResult& re
 StudyResult run_study(const Problem& problem, const StudyOptions& options) {
   StudyResult out;
   out.quantity = problem.quantity();
+  out.measured = problem.measured();
   out.scale_description = problem.error_scale_description();
   out.base_increments = problem.base_increments();
   out.reference = run_reference(problem, options);

@@ -143,6 +143,8 @@ class Problem {
   virtual std::string error_scale_description() const = 0;
   // What channel c is ("sigma_33", "grain 3 system 7 r", ...).
   virtual std::string channel_name(int channel) const = 0;
+  // What the error is measured on, all channels together (plot labels, tables).
+  virtual std::string measured() const { return quantity(); }
 };
 
 // Runs `setting` and keeps every reported point in `path`; a run still going after
@@ -204,6 +206,7 @@ class CrystalProblem final : public Problem {
   std::vector<double> error_scales(const Trajectory& reference) const override;
   std::string error_scale_description() const override;
   std::string channel_name(int channel) const override;
+  std::string measured() const override;
 
  private:
   crystal::PhaseDescription phase_;
@@ -357,6 +360,7 @@ struct ReferenceResult {
 
 struct StudyResult {
   std::string quantity;
+  std::string measured;  // Problem::measured
   std::string scale_description;
   long base_increments = 0;  // of the scene (the increment factors multiply it)
   ReferenceResult reference;
