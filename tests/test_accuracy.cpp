@@ -663,3 +663,51 @@ loading:
   EXPECT_NE(err[0].find("already exists; use --force"), std::string::npos) << err[0];
   fs::remove_all(dir);
 }
+
+// A crystal study measured on every grain's stress against references at the runs' own times:
+// the csv names where each max error is (the loading component or a grain's stress) and gives
+// each point's reference resolution; the per-run reference needs an adaptive reference.
+TEST(AccuracyOutput, CrystalStressMeasureAtRunTimesFromTheCommandLine) {
+  const fs::path dir = scratch("crystal_cli");
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.yaml") << subslip::testing::copper_scene_start() + R"(orientations:
+  euler_deg: [[10, 20, 30], [40, 50, 60]]
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    strain: 0.004
+    increments: 10
+    growth: 1.3
+)";
+  const std::string start = "cd '" + dir.string() + "' && '" + SUBSLIP_BINARY +
+                            "' accuracy scene.yaml -o study --no-plot --quiet --repeat 1 "
+                            "--integrators extrapolated_2 --extrapolated 1e-3 1e-4 ";
+  const int without = std::system((start + "--reference-at-run-times 2>err.txt").c_str());
+  ASSERT_TRUE(WIFEXITED(without));
+  EXPECT_EQ(WEXITSTATUS(without), 2);
+  const auto err = lines_of(dir / "err.txt");
+  ASSERT_FALSE(err.empty());
+  EXPECT_NE(err[0].find("--reference-tolerance"), std::string::npos) << err[0];
+
+  const int with =
+      std::system((start + "--measure stress --reference-tolerance 1e-7 --reference-order 2 "
+                           "--reference-at-run-times 2>err.txt")
+                      .c_str());
+  ASSERT_TRUE(WIFEXITED(with));
+  ASSERT_EQ(WEXITSTATUS(with), 0) << lines_of(dir / "err.txt").front();
+  const auto csv = lines_of(dir / "study" / "accuracy.csv");
+  ASSERT_EQ(csv.size(), 3u);
+  EXPECT_NE(csv[0].find("max_error_on,reference_error"), std::string::npos) << csv[0];
+  for (std::size_t k = 1; k < csv.size(); ++k) {
+    measured() << csv[k] << "\n";
+    EXPECT_TRUE(csv[k].find(",sigma_33,") != std::string::npos ||
+                csv[k].find(",grain ") != std::string::npos)
+        << csv[k];
+    EXPECT_EQ(csv[k].find(",nan,"), std::string::npos) << csv[k];  // every column measured
+  }
+  const auto reference = lines_of(dir / "study" / "accuracy_reference.csv");
+  ASSERT_EQ(reference.size(), 2u);
+  EXPECT_NE(reference[1].find("sigma_33 and every grain's stress"), std::string::npos)
+      << reference[1];
+  fs::remove_all(dir);
+}
