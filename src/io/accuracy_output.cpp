@@ -284,9 +284,9 @@ void write_column(const h5::Group& group, const std::string& name,
 }
 
 void write_table(const h5::Group& group, const StudyResult& s, const std::string& time_unit) {
-  std::vector<std::string> integrator, kind, status, failure;
+  std::vector<std::string> integrator, kind, status, failure, max_error_on;
   std::vector<double> setting, increments, steps, rejected, newton, cutbacks, max_error,
-      max_error_time, end_error, to_tolerance, seconds, repeats, reached;
+      max_error_time, reference_error, end_error, to_tolerance, seconds, repeats, reached;
   const double nan = study::kNaN;
   for (const auto& p : s.points) {
     integrator.emplace_back(study::to_string(p.setting.integrator));
@@ -302,6 +302,8 @@ void write_table(const h5::Group& group, const StudyResult& s, const std::string
     cutbacks.push_back(p.ok ? static_cast<double>(p.counters.cutbacks) : nan);
     max_error.push_back(p.error.max_error);
     max_error_time.push_back(p.error.max_error_time);
+    max_error_on.push_back(p.max_error_on);
+    reference_error.push_back(p.reference_error);
     end_error.push_back(p.error.end_error);
     to_tolerance.push_back(error_to_tolerance(p));
     seconds.push_back(p.median_seconds);
@@ -322,8 +324,12 @@ void write_table(const h5::Group& group, const StudyResult& s, const std::string
   write_column(group, "cutbacks", cutbacks, "1",
                "halvings after failed updates (CVODE: error-test and convergence failures)");
   write_column(group, "max_error", max_error, "1",
-               "max over the output points of |value - reference| / error_scale");
+               "max over the output points and measured quantities of |value - reference| / "
+               "their scale");
   write_column(group, "max_error_time", max_error_time, time_unit, "where the max error is");
+  write_strings(group, "max_error_on", max_error_on, "on which measured quantity it is");
+  write_column(group, "reference_error", reference_error, "1",
+               "the resolution of the run's own reference (--reference-at-run-times; else NaN)");
   write_column(group, "end_error", end_error, "1", "|value - reference| / error_scale at the end");
   write_column(group, "error_to_tolerance", to_tolerance, "1",
                "max_error / the tolerance (adaptive) or rtol (CVODE) asked for; NaN: fixed step");
