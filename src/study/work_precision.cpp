@@ -397,7 +397,6 @@ CrystalProblem::CrystalProblem(crystal::PhaseDescription phase,
       segments_(std::move(segments)),
       options_(options),
       component_(component),
-      slip_count_(crystal::checked_slip_count(phase_)),
       measure_(measure) {}
 
 bool CrystalProblem::supports(Integrator integrator) const {
@@ -455,8 +454,9 @@ std::string CrystalProblem::channel_name(int channel) const {
   const int k = channel - 1;
   if (measure_ == Measure::stress)
     return "grain " + std::to_string(k / 6) + " " + kStressNames[k % 6];
-  const int system = (k / kPerSystem) % slip_count_;
-  const int grain = k / kPerSystem / slip_count_;
+  const int slips = crystal::checked_slip_count(phase_);
+  const int system = (k / kPerSystem) % slips;
+  const int grain = k / kPerSystem / slips;
   static constexpr const char* kWhat[kPerSystem] = {"r", "ln(CRSS)", "r_s"};
   return "grain " + std::to_string(grain) + " system " + std::to_string(system) + " " +
          kWhat[k % kPerSystem];
@@ -479,14 +479,14 @@ std::vector<crystal::LoadSegment> with_stops(std::vector<crystal::LoadSegment> s
   // segment's start a point is the start (reported by the segment before), within that of the
   // segment's end it is the end (else the reference would take a last step of 1e-15 s, which
   // no grain solve resolves).
-  constexpr double kRoundOff = 4.0 * std::numeric_limits<double>::epsilon();
+  using integrators::kSameTime;
   for (const auto& [segment, time] : stops) {
     if (segment < 0 || static_cast<std::size_t>(segment) >= segments.size()) continue;
     const double segment_start = starts[static_cast<std::size_t>(segment)];
     auto& s = segments[static_cast<std::size_t>(segment)];
     const double into = time - segment_start;
-    if (into <= kRoundOff * segment_start) continue;
-    const bool at_end = into >= s.duration - kRoundOff * (segment_start + s.duration);
+    if (into <= kSameTime * segment_start) continue;
+    const bool at_end = into >= s.duration - kSameTime * (segment_start + s.duration);
     s.output_times.push_back(at_end ? s.duration : into);
   }
   for (auto& s : segments) {
@@ -510,6 +510,11 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
   // Reused from point to point (the observer runs between steps, never concurrently).
   std::vector<double> ratio, crss, r_s, channels;
   const auto record = [&](const crystal::MacroState& m, const crystal::GrainFields& grains) {
+    if (report == Report::scene_points) {  // timed: the grains' fields are not what is timed
+      const double headline = m.stress(i, j);
+      seen(m.time, std::span<const double>(&headline, 1), m.segment);
+      return;
+    }
     if (measure_ == Measure::stress) {
       channels.resize(1 + 6 * static_cast<std::size_t>(grains.grain_count()));
       channels[0] = m.stress(i, j);
@@ -658,6 +663,11 @@ ErrorAccumulator::ErrorAccumulator(const PathInterpolant& reference, std::vector
 }
 
 void ErrorAccumulator::add(double time, std::span<const double> values, int segment) {
+  if (values.size() != interpolated_.size()) {
+    throw std::invalid_argument("a point of " + std::to_string(values.size()) +
+                                " channels compared with a reference of " +
+                                std::to_string(interpolated_.size()));
+  }
   reference_.at(time, segment, interpolated_);
   double d = 0.0;
   int channel = 0;

@@ -131,8 +131,7 @@ class AdaptiveSegment {
   // segment, may lie an ulp beyond this run's step end, and a step of 1e-161 s to reach it is
   // no step a solver resolves).
   bool at_stop() const {
-    return next_stop_ < stops_.size() &&
-           dt_ >= stops_[next_stop_] - t_ - kSameTime * stops_[next_stop_];
+    return next_stop_ < stops_.size() && reaches(t_ + dt_, stops_[next_stop_]);
   }
   bool last() const { return at_stop() ? stops_[next_stop_] >= duration_ : dt_ >= duration_ - t_; }
   // The step to try now: the planned one, or what is left to the next stop or the segment end.
@@ -162,8 +161,7 @@ class AdaptiveSegment {
     if (stop) ++next_stop_;
     // A step not shortened to a stop can still end exactly on it (t + dt rounds to the stop
     // while dt < stop - t): it ended there, and the stop is behind it.
-    for (; next_stop_ < stops_.size() && stops_[next_stop_] <= t_ * (1.0 + kSameTime); ++next_stop_)
-      stop = true;
+    for (; next_stop_ < stops_.size() && reaches(t_, stops_[next_stop_]); ++next_stop_) stop = true;
     ++accepted_;
     refusals_ = 0;
     const double factor = step_factor(error, tolerance_, order_, kAfterAccepted);
@@ -204,6 +202,7 @@ class AdaptiveSegment {
     return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
   }
   bool at_noise_floor() const { return noise_floor_; }
+
   // Why a driver stops at the noise floor, for its failure message.
   std::string noise_floor_message() const {
     char buf[320];
@@ -225,6 +224,10 @@ class AdaptiveSegment {
   }
 
  private:
+  // A time reaches a stop when it is at or past it, or short of it by round-off of the stop's
+  // time (kSameTime).
+  static bool reaches(double time, double stop) { return time >= stop * (1.0 - kSameTime); }
+
   double duration_;
   double dt_;
   double tolerance_;

@@ -214,7 +214,6 @@ class CrystalProblem final : public Problem {
   std::vector<crystal::LoadSegment> segments_;
   crystal::AggregateOptions options_;
   std::pair<int, int> component_;
-  int slip_count_;
   Measure measure_;
 };
 
