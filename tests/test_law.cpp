@@ -637,6 +637,43 @@ TEST(LawExactUpdates, FrictionCoefficientLimitsInClosedForm) {
   }
 }
 
+// Small steps take the update's (1 - e^-B)/B from its series (no expm1): the value and slope
+// agree with the closed form in long double to a few eps on both sides of where the series
+// stops (B = 1/16), across the range of B one step sees.
+TEST(LawExactUpdates, FrictionCoefficientSeriesMatchesClosedFormInLongDouble) {
+  LawParameters p = paper_law();
+  p.friction = {0.097, 0.085, 0.7, 0.0};  // xi = 0: B = kappa slip / mu_k
+  const SubloadingFrictionLaw law(p);
+  const long double kappa = 0.7L, mu_k = 0.085L, mu0 = 0.097L;
+  for (double b = 1e-9; b < 4.0; b *= 1.37) {
+    const double slip = b * 0.085 / 0.7;
+    const long double big_b = kappa * static_cast<long double>(slip) / mu_k;
+    // phi = (1 - e^-B)/B and its slope: closed form for B >= 1; below, where the closed slope
+    // cancels, their series to 40 terms in long double (truncation < 1e-40).
+    long double phi = -std::expm1(-big_b) / big_b;
+    long double dphi = (std::exp(-big_b) * big_b + std::expm1(-big_b)) / (big_b * big_b);
+    if (big_b < 1.0L) {
+      long double term = 1.0L;  // (-B)^k / (k+1)!
+      phi = 0.0L, dphi = 0.0L;
+      for (int k = 0; k < 40; ++k) {
+        phi += term;
+        if (k < 39) dphi += (k + 1) * term * (-1.0L) / (k + 2);  // (k+1) c_{k+1} B^k
+        term *= -big_b / (k + 2);
+      }
+    }
+    const long double drive = kappa * slip - big_b * mu0;
+    const long double mu1 = mu0 + drive * phi;
+    const long double d_mu1 = (kappa - kappa / mu_k * mu0) * phi + drive * dphi * (kappa / mu_k);
+    const auto got = law.friction_coefficient_after(0.097, slip, 1.0);
+    EXPECT_NEAR(got.value, static_cast<double>(mu1), 4 * kEps * 0.097) << "B = " << b;
+    // The slope is a sum of two terms of opposite sign: its rounding is relative to theirs.
+    const long double terms = std::abs((kappa - kappa / mu_k * mu0) * phi) +
+                              std::abs(drive * dphi * (kappa / mu_k));
+    EXPECT_NEAR(got.d_slip, static_cast<double>(d_mu1), 16 * kEps * static_cast<double>(terms))
+        << "B = " << b;
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Analytical steady state (paper section 3b) and the functions U.
 // ---------------------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 #include "subslip/law/subloading_friction.hpp"
 
 #include <algorithm>
+#include <array>
 #include <numbers>
 #include <stdexcept>
 
@@ -19,8 +20,19 @@ struct Phi1 {
   double slope;
 };
 Phi1 phi1(double b) {
-  if (std::abs(b) < 1e-4) {
-    return {1.0 - b / 2.0 + b * b / 6.0 - b * b * b / 24.0, -0.5 + b / 3.0 - b * b / 8.0};
+  // The series sum_k (-b)^k / (k+1)! to k = 9 has a truncation error below b^10/11! < 3e-20 for
+  // |b| < 1/16 (its slope: below 4e-18): below the rounding of the closed form, which also
+  // pays an expm1. Implicit steps evaluate mu here for every system and trial slip, with b the
+  // slip of one small step times kappa/mu_k.
+  if (std::abs(b) < 0.0625) {
+    double value = 0.0, slope = 0.0;
+    // Horner from the highest term: c_k = (-1)^k/(k+1)!, slope = sum k c_k b^(k-1).
+    constexpr std::array<double, 10> c = {1.0,         -1.0 / 2,     1.0 / 6,      -1.0 / 24,
+                                          1.0 / 120,   -1.0 / 720,   1.0 / 5040,   -1.0 / 40320,
+                                          1.0 / 362880, -1.0 / 3628800};
+    for (int k = 9; k >= 0; --k) value = value * b + c[static_cast<size_t>(k)];
+    for (int k = 9; k >= 1; --k) slope = slope * b + k * c[static_cast<size_t>(k)];
+    return {value, slope};
   }
   const double one_minus_exp = -std::expm1(-b);
   return {one_minus_exp / b, ((1.0 - one_minus_exp) * b - one_minus_exp) / (b * b)};
@@ -154,6 +166,7 @@ ValueAndSlope SubloadingFrictionLaw::subloading_ratio_after(double r_s0, double 
 SubloadingFrictionLaw::SubloadingStart SubloadingFrictionLaw::subloading_start(double r_s0) const {
   const double r0 = std::clamp(r_s0, 0.0, 1.0);
   if (p_.subloading.function == SubloadingFunction::cot) {
+    if (r0 == 0.0) return {0.0, 1.0, 0.0, 0.0, kInf};  // a virgin (or restarted) system
     // One sine, taken where it keeps the digits: 1 - cos through sin(pi r/4) for small r,
     // cos through the sine of the distance to 1 otherwise. U(r0) = u cos/sin needs no tangent.
     double cos0, one_minus_cos0;

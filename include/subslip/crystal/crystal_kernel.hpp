@@ -63,6 +63,7 @@ struct Phase {
   using T = SlipTypes<N>;
   int slip_count = N == Eigen::Dynamic ? 0 : N;
   Mat6 stiffness;                        // C
+  Mat6 compliance;                       // C^-1
   typename T::Mat6N schmid;              // P_a = sym(s_a (x) m_a)
   typename T::Mat6N c_schmid;            // C P_a
   typename T::MatNN interaction;         // A_ab = P_a : C : P_b
@@ -73,6 +74,13 @@ struct Phase {
   typename T::VecN tau0;        // reference stress per system (plays f_n)
   typename T::MatNN latent;     // q_ab (used only when has_latent)
   bool has_latent = false;
+  // q = latent_self I + latent_factor latent_mix^T with as few columns as q allows (1 for a
+  // latent ratio, planes + 1 for coplanar values): set by assemble(). The implicit step carries
+  // latent_mix^T |dgamma| (latent_rank numbers) as unknowns, so its cost grows with the rank of
+  // the latent coupling, not with the slip count.
+  double latent_self = 1.0;
+  int latent_rank = 0;
+  typename T::MatNN latent_factor, latent_mix;  // first latent_rank columns used
   bool pressure_sensitive = false;
   Kinematics kinematics = Kinematics::finite_rotation;
   std::vector<law::SubloadingFrictionLaw> laws;  // one per slip system

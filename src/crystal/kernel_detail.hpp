@@ -1,0 +1,122 @@
+// Pieces of the crystal kernel shared by its explicit step (crystal_kernel.cpp) and its implicit
+// step (implicit_grain_step.cpp). Internal to src/crystal/.
+#pragma once
+
+#include <cmath>
+
+#include "subslip/crystal/crystal_kernel.hpp"
+#include "subslip/crystal/rotation.hpp"
+
+namespace subslip::crystal::detail {
+
+inline Vec3 axial(const Mat3& w) {
+  return Vec3(w(2, 1), w(0, 2), w(1, 0));
+}
+
+inline double sign_of(double v) {
+  return v >= 0.0 ? 1.0 : -1.0;
+}
+
+// Velocity gradient split and expressed in the lattice frame of orientation g.
+struct LatticeKinematics {
+  Vec6 strain_rate;  // D_lat (Mandel)
+  Vec3 spin;         // axial vector of W_lat
+};
+
+inline LatticeKinematics lattice_kinematics(const Mat3& g, const Mat3& L) {
+  const Mat3 d = 0.5 * (L + L.transpose());
+  const Mat3 w = 0.5 * (L - L.transpose());
+  return {mandel_from_symmetric(g * d * g.transpose()), axial(g * w * g.transpose())};
+}
+
+// The kinematics of a step. The lattice turns with the total spin W and back with the plastic
+// spin; the strain increment is resolved at the orientation halfway through the total spin's
+// turn, g_mid = exp(-[w] dt/2) g0 (w: lattice components of W), which is exact to second order
+// for a superposed rigid rotation: a rotation of the whole body changes only the orientation,
+// not the lattice stress.
+struct StepKinematics {
+  Vec6 strain_increment;  // D_lat dt at the mid-step orientation (Mandel)
+  Vec3 lattice_spin;      // w, axial vector of W_lat
+  Mat3 mid_orientation;   // where D was resolved (the tangent needs it)
+  Mat3 spun_orientation;  // exp(-[w] dt) g0: the end orientation before the plastic spin
+};
+
+inline StepKinematics step_kinematics(const Mat3& g0, const Mat3& L, double dt,
+                                      Kinematics kinematics) {
+  if (kinematics == Kinematics::small_strain) {
+    const LatticeKinematics k = lattice_kinematics(g0, L);
+    return {k.strain_rate * dt, k.spin, g0, g0};
+  }
+  const Vec3 w = lattice_kinematics(g0, L).spin;
+  const Mat3 g_mid = rotation_exp(-0.5 * dt * w) * g0;
+  const LatticeKinematics k = lattice_kinematics(g_mid, L);
+  return {k.strain_rate * dt, w, g_mid, rotation_exp(-dt * w) * g0};
+}
+
+// The end orientation: after the total spin, the lattice turns back by the plastic spin
+// W_p = sum_a dgamma_a W_a (lattice components), g1 = exp(+[W_p]) g_spun.
+template <int N>
+Mat3 orientation_after_plastic_spin(const Phase<N>& ph, const Mat3& g_spun,
+                                    const typename SlipTypes<N>::VecN& dgamma) {
+  if (ph.kinematics == Kinematics::small_strain) return g_spun;
+  return rotation_exp(ph.slip_spin * dgamma) * g_spun;
+}
+
+// Normal traction on each slip plane: tau0 alone, or tau0 plus the compressive normal stress.
+template <int N>
+typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const Vec6& stress) {
+  if (!ph.pressure_sensitive) return ph.tau0;
+  return ph.tau0 - ph.plane_normal_dyad.transpose() * stress;
+}
+
+// r_a = |tau_a| / (mu_a f_n,a); 0 on an open plane (f_n <= 0: no contact, no ratio).
+template <int N>
+typename SlipTypes<N>::VecN loading_ratio_of(const Phase<N>& ph, const Vec6& stress,
+                                             const typename SlipTypes<N>::VecN& mu,
+                                             const typename SlipTypes<N>::VecN& fn) {
+  const typename SlipTypes<N>::VecN tau = ph.schmid.transpose() * stress;
+  typename SlipTypes<N>::VecN r = tau.cwiseAbs().cwiseQuotient(mu.cwiseProduct(fn));
+  for (int a = 0; a < ph.slip_count; ++a)
+    if (fn(a) <= 0.0) r(a) = 0.0;
+  return r;
+}
+
+// Open slip planes (f_n <= 0, r = 0) are admissible where the step resolved them (implicit).
+enum class OpenPlanes { refused, resolved };
+
+template <int N>
+bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
+                      const typename SlipTypes<N>::VecN& r, const typename SlipTypes<N>::VecN& fn,
+                      GrainStepReport& rep, OpenPlanes open = OpenPlanes::refused,
+                      double flow_tolerance = 0.0) {
+  if (!s.stress.allFinite() || !s.orientation.allFinite()) {
+    rep.why = "non-finite stress or orientation";
+    return false;
+  }
+  for (int a = 0; a < ph.slip_count; ++a) {
+    const auto& o = ph.laws[static_cast<size_t>(a)].parameters().overstress;
+    const bool ri = o.form == law::OverstressForm::rate_independent;
+    if (!std::isfinite(s.mu(a)) || !std::isfinite(s.r_s(a)) || !std::isfinite(s.slip(a)) ||
+        !std::isfinite(r(a))) {
+      rep.why = "non-finite slip-system state", rep.system = a;
+      return false;
+    }
+    if (!(s.mu(a) > 0.0) || (open == OpenPlanes::refused && !(fn(a) > 0.0))) {
+      rep.why = "mu <= 0 or slip plane not in compression", rep.system = a;
+      return false;
+    }
+    // The rate-independent form's limit is r = 1: r_s < 1 at any finite slip, reaching 1
+    // only in rounding; a saturated system (r_s = 1) carries r = 1 to the flow rule's tolerance.
+    if (ri ? r(a) > 1.0 + flow_tolerance : r(a) >= o.r_hat) {
+      rep.why = ri ? "r > 1 (rate-independent)" : "r >= r_hat", rep.system = a;
+      return false;
+    }
+    if (s.r_s(a) < 0.0 || s.r_s(a) > r(a)) {
+      rep.why = "r_s outside [0, r]", rep.system = a;
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace subslip::crystal::detail
