@@ -8,8 +8,12 @@
 //   R(sigma) = sigma - sigma_trial + sum_a C P_a dgamma_a(sigma)
 // has a Jacobian I + sum_a C P_a (d dgamma_a / d sigma) whose size does not grow with the slip
 // count and which stays regular where the slips themselves are not determined (the Taylor
-// ambiguity of FCC and BCC). docs/grain_solver.md gives the argument for convergence, its
-// assumptions and what happens outside them.
+// ambiguity of FCC and BCC). docs/grain_step.md gives the argument for convergence, its
+// assumptions and what happens outside them. It is used where those assumptions hold
+// (stress_space_applies); other laws, and steps it does not resolve, go to the semismooth step
+// (semismooth_grain_step.cpp). Its branches for latent drives, open planes and saturated
+// rate-independent systems are kept from its development but are not reached through that
+// choice (docs/grain_step.md).
 //
 // Internal to src/crystal/: the template is instantiated once per slip count, each in its own
 // translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel.
@@ -131,7 +135,7 @@ class StressSolver {
 
   int extras() const { return extras_; }
 
-  // Whether R is C times the gradient of the convex potential Phi (see docs/grain_solver.md):
+  // Whether R is C times the gradient of the convex potential Phi (see docs/grain_step.md):
   // no latent coupling and no plane pressure. The line search then works on Phi, which is C^1
   // where R has kinks (a system starting to slip), so the Newton direction is a descent
   // direction there too.
@@ -927,7 +931,7 @@ class StressSolver {
 
 using namespace implicit_detail;
 
-// The stress-space solve (see the file comment and docs/grain_solver.md): Newton on sigma (and
+// The stress-space solve (see the file comment and docs/grain_step.md): Newton on sigma (and
 // the extra unknowns) with each system's slip from its own flow rule, globalised by a line
 // search on the convex potential. Returns whether it converged; `it` is its last iterate.
 template <int N>
@@ -1051,7 +1055,7 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
   return true;
 }
 
-// Whether the stress-space formulation's argument holds for a step from s0 (docs/grain_solver.md):
+// Whether the stress-space formulation's argument holds for a step from s0 (docs/grain_step.md):
 // R(sigma) = C grad Phi with Phi strictly convex, which needs no latent matrix and no plane
 // pressure (else R has no potential), an overstress form (the rate-independent form's slip
 // response is unbounded at r_s = 1), and a resistance that grows with slip (kappa > 0 with

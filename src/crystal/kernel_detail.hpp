@@ -1,5 +1,5 @@
 // Pieces of the crystal kernel shared by its explicit step (crystal_kernel.cpp) and its implicit
-// step (implicit_grain_step.cpp). Internal to src/crystal/.
+// step (implicit_grain_step.hpp, semismooth_grain_step.cpp). Internal to src/crystal/.
 #pragma once
 
 #include <cmath>

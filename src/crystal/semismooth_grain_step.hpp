@@ -1,5 +1,5 @@
 // The grain step for laws outside the stress-space solver's assumptions (implicit_grain_step.hpp,
-// docs/grain_solver.md): a semismooth Newton iteration on the slip magnitudes with the merit
+// docs/grain_step.md): a semismooth Newton iteration on the slip magnitudes with the merit
 // 1/2 |min(c x, -G)|^2. It is the solver of subslip up to 2026-11-26, kept for what the
 // stress-space formulation does not cover: friction coefficients that soften with slip (mu above
 // mu_k, or mu_k below mu_s), where a system's slip at a held shear need not exist, and the
