@@ -323,11 +323,12 @@ void interrupt_and_continue_under_three(const fs::path& dir, int checkpoint_ever
   int code = subslip::testing::poll_child(launcher, [&] { return fs::exists(dir / "out.h5"); });
   if (code < 0) code = interrupt(launcher, when(rng));
   ASSERT_TRUE(code == interrupted_code || code == 0) << log_of(dir);
-  // A kill that comes after the run has finished its file (while the ranks finalise MPI and
-  // exit) interrupts nothing: the file is complete, as when the run ends first.
+  // An interrupt that comes after the run has finished its file (while the ranks finalise MPI
+  // and exit) interrupts nothing: the file is complete, as when the run ends first. The launcher
+  // still reports the signal (measured: SIGUSR1 with SUBSLIP_KILL_SEED=1394856856 under load left
+  // a completed file and exit code 128 + SIGUSR1), so the file, not the code, tells.
   const bool finished_first =
-      code == 0 || (interrupted_code == 128 + SIGKILL &&
-                    h5::File::open_read(dir / "out.h5").root().attribute_int("completed") == 1);
+      code == 0 || h5::File::open_read(dir / "out.h5").root().attribute_int("completed") == 1;
   if (!finished_first) {
     EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
     if (check) check();
