@@ -1164,23 +1164,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     } else {
       solver.sensitivities(it, lattice_tangent, dgamma_de);
     }
-    Mat6 sample_tangent = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
-    if (ph.kinematics == Kinematics::finite_rotation) {
-      // The end orientation depends on the slip through the plastic spin:
-      // g1 = exp([W_p]) g_spun, dg1 = [dW_p] g1 to first order, and
-      // sigma_sample = g1^T sigma_lattice g1 changes by dg1^T sigma g1 + g1^T sigma dg1.
-      const Mat3& g1 = s1.orientation;
-      const Mat3 sigma = symmetric_from_mandel(s1.stress);
-      for (int k = 0; k < 6; ++k) {
-        const Vec3 dw = ph.slip_spin * dgamma_de.col(k);
-        Mat3 skew;
-        skew << 0.0, -dw.z(), dw.y(), dw.z(), 0.0, -dw.x(), -dw.y(), dw.x(), 0.0;
-        const Mat3 dg1 = skew * g1;
-        sample_tangent.col(k) +=
-            mandel_from_symmetric(dg1.transpose() * sigma * g1 + g1.transpose() * sigma * dg1);
-      }
-    }
-    *tangent = sample_tangent * mandel_rotation_operator(kin.mid_orientation);
+    *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
   }
   rep.ok = true;
   return rep;

@@ -119,4 +119,28 @@ bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
   return true;
 }
 
+// The consistent tangent d sigma_sample / d(D_sample dt) of an implicit step's end state s1 from
+// its lattice tangent and d dgamma / d(lattice strain increment). The end orientation depends on
+// the slip through the plastic spin: g1 = exp([W_p]) g_spun, dg1 = [dW_p] g1 to first order, and
+// sigma_sample = g1^T sigma_lattice g1 changes by dg1^T sigma g1 + g1^T sigma dg1; the strain
+// increment was resolved at `mid_orientation`.
+template <int N>
+Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Mat6& lattice_tangent,
+                       const typename SlipTypes<N>::MatN6& dgamma_de, const Mat3& mid_orientation) {
+  Mat6 t = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
+  if (ph.kinematics == Kinematics::finite_rotation) {
+    const Mat3& g1 = s1.orientation;
+    const Mat3 sigma = symmetric_from_mandel(s1.stress);
+    for (int k = 0; k < 6; ++k) {
+      const Vec3 dw = ph.slip_spin * dgamma_de.col(k);
+      Mat3 skew;
+      skew << 0.0, -dw.z(), dw.y(), dw.z(), 0.0, -dw.x(), -dw.y(), dw.x(), 0.0;
+      const Mat3 dg1 = skew * g1;
+      t.col(k) +=
+          mandel_from_symmetric(dg1.transpose() * sigma * g1 + g1.transpose() * sigma * dg1);
+    }
+  }
+  return t * mandel_rotation_operator(mid_orientation);
+}
+
 }  // namespace subslip::crystal::detail
