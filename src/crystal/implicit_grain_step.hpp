@@ -346,11 +346,14 @@ class StressSolver {
   //    to round-off: the stress iterate fixes each slip only to |dG/d ds|^-1 times G's
   //    rounding, coarse where the law is nearly rate-independent.
   // A step is kept while it at least halves the largest flow-rule residual (quadratic
-  // convergence does much better); otherwise the iteration stops and reports the best point. A
-  // system idle at the start that the written stress loads past r_s0 becomes active, with its
-  // slip from its own scalar flow rule at that stress; a slip whose shear the written stress
-  // turns against it is dropped (each at most once each way). An open plane or a stress outside
-  // the flow rule's domain ends the iteration.
+  // convergence does much better). From the last step's rates (`damped` false) a full step that
+  // does not is the sign of a start outside Newton's region of quadratic convergence, and the
+  // iteration stops there (the stress-space solve takes over); as the polish (`damped` true) it
+  // halves the step instead. A system idle at the start that the written stress loads past r_s0
+  // becomes active, with its slip from its own scalar flow rule at that stress; a slip whose
+  // shear the written stress turns against it is dropped. From the last step's rates, an active
+  // set met again without a smaller residual than at its last visit ends the iteration (a cycle
+  // of role changes). An open plane or a stress outside the flow rule's domain ends it too.
   struct SlipPoint {
     Vec6 sigma;
     VecN dgamma, mu, r_s;
@@ -388,9 +391,9 @@ class StressSolver {
   // Returns whether any point was evaluated; `best` is the last kept point, `iterations` counts
   // the Newton steps taken. A Newton step that leaves the flow rules' domain (r >= r_hat, an
   // open plane) or does not reduce the largest residual by the fraction lambda/2 of its length
-  // lambda is halved (a damped Newton iteration: near the solution the full step contracts the
-  // residual quadratically); it ends when a halved step no longer changes the slips.
-  // The first point tried is start + first_step, damped towards start like any Newton step.
+  // lambda is halved (where `damped`; see above); it ends when a halved step no longer changes
+  // the slips. The first point tried is start + first_step, damped towards start like any
+  // Newton step.
   bool slip_newton(const VecN& start, const VecN& first_step, SlipPoint& best, int& iterations,
                    bool damped) const {
     // Changes of the active set count like Newton iterations against the same cap (a cycle
