@@ -1091,68 +1091,52 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   const Vec6 trial = s0.stress + ph.stiffness * kin.strain_increment;
   Solver solver(ph, s0, trial, dt, opt);
 
+  // The semismooth step takes over a step this one does not end on resolved slips (its
+  // iterations count in the report).
+  auto semismooth = [&] {
+    const int spent = rep.iterations;
+    GrainStepReport r = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate);
+    r.iterations += spent;
+    return r;
+  };
+
   // Most steps of a loading path: Newton on the slips from the last step's slip rate continued
   // converges from there. Where it does not (the first step, a change of the active set, a
   // large step), the stress-space solve, then Newton on the slips from its result.
   const VecN previous_slip = (start_rate != nullptr ? *start_rate : s0.rate) * dt;
   typename Solver::SlipPoint point;
   rep.iterations = 0;
-  bool precise = solver.slip_newton(previous_slip, VecN::Zero(n), point, rep.iterations, false) &&
-                 point.converged;
-  Iterate it;
-  if (!precise) {
-    if (!stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep)) {
-      // Near ideal plasticity (r -> r_hat with the hardening spent) the slip response to the
-      // stress is unbounded in double precision and the stress iteration can stall; the
-      // semismooth iteration on the slips, which is well posed there, takes the step.
-      const int spent = rep.iterations;
-      rep = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate);
-      rep.iterations += spent;
-      return rep;
-    }
-    precise = solver.can_refine() &&
-              solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point, rep.iterations,
-                                 true) &&
-              point.converged;
-    if (!precise) {
-      // The stress iterate fixes each slip only to |dG/d ds|^-1 times G's rounding, coarse where
-      // the law is nearly rate-independent; a step ending there would make the grain's response
-      // jump between neighbouring loadings. The semismooth iteration resolves the slips instead.
-      const int spent = rep.iterations;
-      rep = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate);
-      rep.iterations += spent;
-      return rep;
-    }
+  if (!(solver.slip_newton(previous_slip, VecN::Zero(n), point, rep.iterations, false) &&
+        point.converged)) {
+    Iterate it;
+    // Near ideal plasticity (r -> r_hat with the hardening spent) the slip response to the
+    // stress is unbounded in double precision and the stress iteration can stall; the
+    // semismooth iteration on the slips, which is well posed there, takes the step.
+    if (!stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep))
+      return semismooth();
+    // The stress iterate fixes each slip only to |dG/d ds|^-1 times G's rounding, coarse where
+    // the law is nearly rate-independent; a step ending there would make the grain's response
+    // jump between neighbouring loadings. So the slips are resolved from it, or the semismooth
+    // iteration resolves them.
+    if (!(solver.can_refine() &&
+          solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point, rep.iterations,
+                             true) &&
+          point.converged))
+      return semismooth();
   }
 
-  // The end state: the slip point where there is one (see StressSolver::slip_newton), else the
-  // stress iterate, on which every flow rule holds and the stress equilibrium holds to the
-  // outer tolerance; there mu is taken from the slips themselves (with latent coupling the
-  // iterate's latent drive matches them only to that tolerance).
-  const auto& polished = point;
-  const VecN dgamma = precise ? polished.dgamma : it.dgamma;
-  s1.stress = precise ? polished.sigma : it.sigma;
+  // The end state: the converged slip point (see StressSolver::slip_newton).
+  const VecN& dgamma = point.dgamma;
+  s1.stress = point.sigma;
   s1.slip = s0.slip + dgamma;
   s1.rate = dgamma / dt;
-  if (precise) {
-    s1.mu = polished.mu;
-  } else {
-    const VecN magnitude = dgamma.cwiseAbs();
-    const VecN effective = ph.has_latent ? VecN(ph.latent * magnitude) : magnitude;
-    s1.mu.resize(n);
-    for (int a = 0; a < n; ++a)
-      s1.mu(a) = ph.laws[static_cast<size_t>(a)]
-                     .friction_coefficient_after(s0.mu(a), effective(a), dt)
-                     .value;
-  }
+  s1.mu = point.mu;
   const VecN fn1 = normal_traction(ph, s1.stress);
   const VecN r1 = loading_ratio_of(ph, s1.stress, s1.mu, fn1);
   // (3.12): r_s follows r down where no slip occurs.
-  s1.r_s = (precise ? polished.r_s : it.r_s).cwiseMin(r1);
-  for (int a = 0; a < n; ++a)
-    if (solver.open()(a)) s1.r_s(a) = 0.0;
+  s1.r_s = point.r_s.cwiseMin(r1);
   s1.orientation = orientation_after_plastic_spin(ph, kin.spun_orientation, dgamma);
-  // A flow rule converged to its tolerance, or to its rounding (StressSolver::flow_floor).
+  // A flow rule converged to its tolerance, or to its rounding (StressSolver::within_floor).
   const double flow_tolerance =
       std::max(opt.tolerance, 16.0 * std::numeric_limits<double>::epsilon());
   if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return rep;
@@ -1160,13 +1144,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   if (tangent) {
     Mat6 lattice_tangent;
     typename SlipTypes<N>::MatN6 dgamma_de(n, 6);
-    // From the slip point where it converged; where the slip-space Newton stopped short (an
-    // active set it could not settle) the stress iterate's Jacobian is the consistent one.
-    if (precise && point.converged) {
-      solver.slip_sensitivities(point, lattice_tangent, dgamma_de);
-    } else {
-      solver.sensitivities(it, lattice_tangent, dgamma_de);
-    }
+    solver.slip_sensitivities(point, lattice_tangent, dgamma_de);
     *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
   }
   rep.ok = true;
