@@ -105,7 +105,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     return sizeof(double) * (6 + 9 + 4 * static_cast<size_t>(phase_.slip_count));
   }
   std::size_t memory_bytes_per_grain() const override {
-    return 2 * sizeof(GrainState<N>) + sizeof(Tangent) + sizeof(GrainStepReport) + sizeof(double);
+    return 2 * sizeof(GrainState<N>) + sizeof(Tangent) + sizeof(SlipTangent<N>) +
+           sizeof(GrainStepReport) + sizeof(double);
   }
 
   AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
@@ -588,31 +589,57 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   // Runs every grain from the committed state with L; false (and why) when any grain fails.
   // `warm`: each grain's Newton iteration starts from the slip rates of its last successful
-  // solve (warm_: in a mixed-control iteration, at a nearby L of the same step) and, should
-  // that fail, again from the committed rates; on success warm_ holds the new rates.
+  // solve (warm_: in a mixed-control iteration, at a nearby L of the same step), carried to L
+  // to first order by its slip tangent where one was computed in this step (the Newton
+  // iteration then starts at a second-order distance from the solution), and, should that
+  // fail, again from the committed rates; on success warm_ holds the new rates.
   bool solve_grains(const Mat3& l, double dt, bool want_tangent, const AggregateOptions& opt,
                     std::string& why, bool warm = false) {
     const long n = static_cast<long>(committed_.size());
+    const bool implicit = opt.method == CrystalMethod::implicit;
+    const bool slip_tangent = want_tangent && implicit;
+    if (slip_tangent && slip_tangents_.size() != committed_.size())
+      slip_tangents_.resize(committed_.size());
+    const bool carried = warm && slip_tangents_current_;
+    const Vec6 strain_rate_change =
+        mandel_from_symmetric(0.5 * ((l - warm_l_) + (l - warm_l_).transpose()));
 #pragma omp parallel for schedule(static) if (n > 1)
     for (long g = 0; g < n; ++g) {
       const auto gi = static_cast<size_t>(g);
       Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
-      if (opt.method != CrystalMethod::implicit) {
+      if (!implicit) {
         reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
         continue;
       }
       GrainStepReport& rep = reports_[gi];
+      SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
+      VecN start;
+      if (carried) {
+        start = warm_[gi];
+        start.noalias() += slip_tangents_[gi] * strain_rate_change;
+      }
       rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t,
-                                warm ? &warm_[gi] : nullptr);
+                                carried ? &start
+                                : warm  ? &warm_[gi]
+                                        : nullptr,
+                                st);
       if (warm && !rep.ok) {
         const int spent = rep.iterations;
-        rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t);
+        rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t, nullptr,
+                                  st);
         rep.iterations += spent;
       }
       if (rep.ok) warm_[gi] = trial_[gi].rate;
     }
     stats_.grain_solves += static_cast<long>(total_);
-    return every_grain_ok(why);
+    const bool ok = every_grain_ok(why);
+    // The slip tangents belong to this step (its dt and start state): a cold solve starts a
+    // step; a failed solve leaves warm_ at mixed Ls.
+    if (!warm) slip_tangents_current_ = false;
+    if (ok && slip_tangent) slip_tangents_current_ = true;
+    if (!ok) slip_tangents_current_ = false;
+    warm_l_ = l;
+    return ok;
   }
 
   // Whether every grain's report (reports_) is ok; else why, for the first failing grain. The
@@ -961,7 +988,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<GrainState<N>> committed_, trial_;
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;
-  std::vector<VecN> warm_;  // slip rates of each grain's last successful solve (solve_grains)
+  std::vector<VecN> warm_;      // slip rates of each grain's last successful solve (solve_grains)
+  Mat3 warm_l_ = Mat3::Zero();  // the L of that solve
+  // d dgamma / d(D dt) of each grain from the last solve with tangents, and whether it belongs
+  // to the step being solved (solve_grains).
+  std::vector<SlipTangent<N>> slip_tangents_;
+  bool slip_tangents_current_ = false;
   // The extrapolated integrator's work space (extrapolated_step): the start state, the solutions
   // with 1 .. k substeps, the combined macroscopic state and per-grain error estimates.
   std::vector<GrainState<N>> step_start_;

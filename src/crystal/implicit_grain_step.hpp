@@ -119,7 +119,6 @@ class StressSolver {
       crss = std::max(crss, s0.mu(a) * ph.tau0(a));
     }
     stress_scale_ = std::max(trial.cwiseAbs().maxCoeff(), crss);
-    if (has_potential()) compliance_ = ph.stiffness.inverse();
     residual_tolerance_ = opt.tolerance * stress_scale_;
     // The scalar roots an order tighter than the outer residual asks (ratio units).
     flow_tolerance_ = 1e-2 * opt.tolerance;
@@ -142,7 +141,7 @@ class StressSolver {
   bool has_potential() const { return extras_ == 0 && !ph_.pressure_sensitive; }
   // d Phi / d alpha along d_sigma at an iterate: (C^-1 R) . d_sigma.
   double potential_slope(const Iterate& it, const Vec6& d_sigma) const {
-    return (compliance_ * it.r_sigma).dot(d_sigma);
+    return (ph_.compliance * it.r_sigma).dot(d_sigma);
   }
   double residual_tolerance() const { return residual_tolerance_; }
   double stress_scale() const { return stress_scale_; }
@@ -267,7 +266,7 @@ class StressSolver {
   // The 6 x 6 Jacobian (no extra unknowns).
   Mat6 stress_jacobian(const Iterate& it) const {
     Mat6 j = Mat6::Identity();
-    j.noalias() += ph_.c_schmid * slip_gradient(it).transpose();
+    j.noalias() += ph_.c_schmid.lazyProduct(slip_gradient(it).transpose());
     return j;
   }
 
@@ -704,10 +703,10 @@ class StressSolver {
     if (ph_.pressure_sensitive) {
       c.k.noalias() -= ph_.plane_normal_dyad * p.e.asDiagonal();
       c.symmetric = false;
-      s.noalias() += ph_.schmid * c.k.transpose();
+      s.noalias() += ph_.schmid.lazyProduct(c.k.transpose());
       c.lu.compute(s);
     } else {
-      s.noalias() += c.k * ph_.schmid.transpose();
+      s.noalias() += c.k.lazyProduct(ph_.schmid.transpose());
       c.llt.compute(s);
     }
     if (latent_rank_ > 0) {
@@ -920,7 +919,6 @@ class StressSolver {
   double dt_;
   int n_;
   Vec6 trial_;
-  Mat6 compliance_ = Mat6::Zero();
   VecN tau_start_, tau_trial_, stiffness_, warm_z_;
   Flags open_, warm_against_;
   int latent_rank_ = 0, extras_ = 0, max_iterations_ = 0;
@@ -1078,13 +1076,13 @@ bool stress_space_applies(const Phase<N>& ph, const GrainState<N>& s0) {
 template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
-                                    Tangent* tangent,
-                                    const typename SlipTypes<N>::VecN* start_rate) {
+                                    Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
+                                    SlipTangent<N>* slip_tangent) {
   using Solver = StressSolver<N>;
   using VecN = typename SlipTypes<N>::VecN;
   using Iterate = typename Solver::Iterate;
   if (!stress_space_applies(ph, s0))
-    return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate);
+    return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
   const int n = ph.slip_count;
   GrainStepReport rep;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
@@ -1095,7 +1093,8 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   // iterations count in the report).
   auto semismooth = [&] {
     const int spent = rep.iterations;
-    GrainStepReport r = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate);
+    GrainStepReport r =
+        semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
     r.iterations += spent;
     return r;
   };
@@ -1146,6 +1145,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     typename SlipTypes<N>::MatN6 dgamma_de(n, 6);
     solver.slip_sensitivities(point, lattice_tangent, dgamma_de);
     *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
+    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
   }
   rep.ok = true;
   return rep;

@@ -6,6 +6,7 @@ namespace subslip::crystal {
 
 template GrainStepReport implicit_grain_step<1>(const Phase<1>&, const GrainState<1>&, const Mat3&,
                                                 double, const GrainStepOptions&, GrainState<1>&,
-                                                Tangent*, const SlipTypes<1>::VecN*);
+                                                Tangent*, const SlipTypes<1>::VecN*,
+                                                SlipTangent<1>*);
 
 }  // namespace subslip::crystal

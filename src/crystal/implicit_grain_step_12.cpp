@@ -7,6 +7,6 @@ namespace subslip::crystal {
 template GrainStepReport implicit_grain_step<12>(const Phase<12>&, const GrainState<12>&,
                                                  const Mat3&, double, const GrainStepOptions&,
                                                  GrainState<12>&, Tangent*,
-                                                 const SlipTypes<12>::VecN*);
+                                                 const SlipTypes<12>::VecN*, SlipTangent<12>*);
 
 }  // namespace subslip::crystal

@@ -7,6 +7,6 @@ namespace subslip::crystal {
 template GrainStepReport implicit_grain_step<24>(const Phase<24>&, const GrainState<24>&,
                                                  const Mat3&, double, const GrainStepOptions&,
                                                  GrainState<24>&, Tangent*,
-                                                 const SlipTypes<24>::VecN*);
+                                                 const SlipTypes<24>::VecN*, SlipTangent<24>*);
 
 }  // namespace subslip::crystal

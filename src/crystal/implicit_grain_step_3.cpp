@@ -6,6 +6,7 @@ namespace subslip::crystal {
 
 template GrainStepReport implicit_grain_step<3>(const Phase<3>&, const GrainState<3>&, const Mat3&,
                                                 double, const GrainStepOptions&, GrainState<3>&,
-                                                Tangent*, const SlipTypes<3>::VecN*);
+                                                Tangent*, const SlipTypes<3>::VecN*,
+                                                SlipTangent<3>*);
 
 }  // namespace subslip::crystal

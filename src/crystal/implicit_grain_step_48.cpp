@@ -7,6 +7,6 @@ namespace subslip::crystal {
 template GrainStepReport implicit_grain_step<48>(const Phase<48>&, const GrainState<48>&,
                                                  const Mat3&, double, const GrainStepOptions&,
                                                  GrainState<48>&, Tangent*,
-                                                 const SlipTypes<48>::VecN*);
+                                                 const SlipTypes<48>::VecN*, SlipTangent<48>*);
 
 }  // namespace subslip::crystal

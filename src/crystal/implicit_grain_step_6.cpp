@@ -6,6 +6,7 @@ namespace subslip::crystal {
 
 template GrainStepReport implicit_grain_step<6>(const Phase<6>&, const GrainState<6>&, const Mat3&,
                                                 double, const GrainStepOptions&, GrainState<6>&,
-                                                Tangent*, const SlipTypes<6>::VecN*);
+                                                Tangent*, const SlipTypes<6>::VecN*,
+                                                SlipTangent<6>*);
 
 }  // namespace subslip::crystal

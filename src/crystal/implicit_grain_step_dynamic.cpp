@@ -7,6 +7,6 @@ namespace subslip::crystal {
 template GrainStepReport implicit_grain_step<Eigen::Dynamic>(
     const Phase<Eigen::Dynamic>&, const GrainState<Eigen::Dynamic>&, const Mat3&, double,
     const GrainStepOptions&, GrainState<Eigen::Dynamic>&, Tangent*,
-    const SlipTypes<Eigen::Dynamic>::VecN*);
+    const SlipTypes<Eigen::Dynamic>::VecN*, SlipTangent<Eigen::Dynamic>*);
 
 }  // namespace subslip::crystal

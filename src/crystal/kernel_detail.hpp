@@ -143,4 +143,12 @@ Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Mat6& 
   return t * mandel_rotation_operator(mid_orientation);
 }
 
+// d dgamma / d(D_sample dt) from d dgamma / d(lattice strain increment), the strain increment
+// resolved at `mid_orientation`.
+template <int N>
+SlipTangent<N> sample_slip_tangent(const typename SlipTypes<N>::MatN6& dgamma_de,
+                                   const Mat3& mid_orientation) {
+  return dgamma_de * mandel_rotation_operator(mid_orientation);
+}
+
 }  // namespace subslip::crystal::detail

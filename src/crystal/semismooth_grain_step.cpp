@@ -478,7 +478,8 @@ template <int N>
 GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                       double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                       Tangent* tangent,
-                                      const typename SlipTypes<N>::VecN* start_rate) {
+                                      const typename SlipTypes<N>::VecN* start_rate,
+                                      SlipTangent<N>* slip_tangent) {
   using T = SlipTypes<N>;
   using VecN = typename T::VecN;
   const int n = ph.slip_count;
@@ -587,6 +588,7 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
     const typename T::MatN6 dgamma_de = it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
     const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
     *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
+    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
   }
   rep.ok = true;
   return rep;
@@ -595,7 +597,7 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
 #define SUBSLIP_INSTANTIATE_SEMISMOOTH(N)                                                  \
   template GrainStepReport semismooth_grain_step<N>(                                       \
       const Phase<N>&, const GrainState<N>&, const Mat3&, double, const GrainStepOptions&, \
-      GrainState<N>&, Tangent*, const typename SlipTypes<N>::VecN*);
+      GrainState<N>&, Tangent*, const typename SlipTypes<N>::VecN*, SlipTangent<N>*);
 SUBSLIP_INSTANTIATE_SEMISMOOTH(1)
 SUBSLIP_INSTANTIATE_SEMISMOOTH(3)
 SUBSLIP_INSTANTIATE_SEMISMOOTH(6)

@@ -15,6 +15,7 @@ template <int N>
 GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                       double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                       Tangent* tangent,
-                                      const typename SlipTypes<N>::VecN* start_rate);
+                                      const typename SlipTypes<N>::VecN* start_rate,
+                                      SlipTangent<N>* slip_tangent = nullptr);
 
 }  // namespace subslip::crystal::detail

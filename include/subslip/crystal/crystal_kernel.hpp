@@ -120,15 +120,22 @@ struct GrainStepReport {
 // d sigma_sample(n+1) / d (D_sample dt), Mandel, when requested.
 using Tangent = Mat6;
 
+// d dgamma(n+1) / d (D_sample dt): how the step's slips follow its strain increment, when
+// requested with the tangent (a mixed-control iteration starts the next solve of the same step
+// from the slips it predicts).
+template <int N>
+using SlipTangent = typename SlipTypes<N>::MatN6;
+
 // One implicit step of one grain: velocity gradient L (sample frame, constant over dt). The
 // Newton iteration starts from the slip rates `start_rate` where their signs agree with the
 // trial shears (default: s0.rate, the last step's): a mixed-control iteration passes the rates
-// it solved for at a nearby L of the same step.
+// it predicts at a nearby L of the same step.
 template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                     Tangent* tangent,
-                                    const typename SlipTypes<N>::VecN* start_rate = nullptr);
+                                    const typename SlipTypes<N>::VecN* start_rate = nullptr,
+                                    SlipTangent<N>* slip_tangent = nullptr);
 
 // One forward-Euler step (paper section 2f, method 2, applied per slip system). Refused (not ok,
 // naming the system) when dt is above a slip system's stability limit 2/lambda, lambda =
