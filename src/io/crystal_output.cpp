@@ -841,10 +841,10 @@ RunSize estimate_crystal_run(const CrystalScene& scene, std::optional<long> chec
     size.result_bytes += bytes;
     // The finished file, written before the working one goes: no reserved chunk space.
     size.finish_bytes += bytes - chunk_slack;
-    const double per_grain =
-        8.0 * crystal::checkpoint_values_per_grain(static_cast<int>(slip_count));
+    const double per_grain = 8.0 * crystal::state_values_per_grain(static_cast<int>(slip_count));
     const double copies = kStateCopies + extrapolation_copies(c.options);
-    const double memory = grains * (copies * per_grain + 8.0 * 16.0) +
+    // (+ the slip-rate trend, one vector per grain)
+    const double memory = grains * (copies * per_grain + 8.0 * (16.0 + slip_count)) +
                           static_cast<double>(c.output.grains.size() * kGrainBlockBytes);
     if (memory > size.memory_bytes) {
       size.memory_bytes = memory;

@@ -118,9 +118,16 @@ struct RunPosition {
   double next_step = 0.0;     // adaptive stepping: the step the next increment tries (else 0)
 };
 
-// Values per grain in a checkpoint of a phase of N slip systems (see AggregateCheckpoint).
-constexpr int checkpoint_values_per_grain(int slip_count) {
+// Values of one grain's state (GrainState) of a phase of N slip systems: stress 6, orientation
+// 9, then mu, r_s, slip and slip rate, N each.
+constexpr int state_values_per_grain(int slip_count) {
   return 15 + 4 * slip_count;
+}
+
+// Values per grain in a checkpoint (see AggregateCheckpoint): the state, then its slip-rate
+// trend (N), from which the next step's Newton iteration starts.
+constexpr int checkpoint_values_per_grain(int slip_count) {
+  return state_values_per_grain(slip_count) + slip_count;
 }
 
 // Everything a run carries from one increment to the next: continuing from a checkpoint gives
@@ -133,7 +140,8 @@ struct AggregateCheckpoint {
   AggregateStats stats;                      // counters so far; wall_seconds over all sessions
   int values_per_grain = 0;                  // checkpoint_values_per_grain(N)
   // Per grain: Cauchy stress (lattice frame, Mandel) 6, orientation g row-major 9, then mu,
-  // r_s, slip and slip rate, N each.
+  // r_s, slip, slip rate and slip-rate trend (the rate's change per unit time over the last
+  // step), N each.
   std::vector<double> grains;
 };
 
