@@ -217,10 +217,13 @@ ValueAndSlope SubloadingFrictionLaw::friction_coefficient_after(double mu0, doub
   if (f.kappa == 0.0 && f.xi == 0.0) return {mu0, 0.0};
   const double A = f.kappa * slip + f.xi * dt;
   const double B = f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s;
+  const double d_drive = f.kappa - f.kappa / f.mu_k * mu0;
+  // No slip and no recovery time (an idle system in an implicit step's evaluation, the common
+  // case): mu stays, and the series below would give exactly that (phi1(0) = 1, drive = 0).
+  if (B == 0.0) return {mu0, d_drive};
   const Phi1 ph = phi1(B);
   const double drive = A - B * mu0;
   const double mu1 = mu0 + drive * ph.value;
-  const double d_drive = f.kappa - f.kappa / f.mu_k * mu0;
   const double d_mu1 = d_drive * ph.value + drive * ph.slope * (f.kappa / f.mu_k);
   return {mu1, d_mu1};
 }
