@@ -27,8 +27,8 @@ Phi1 phi1(double b) {
   if (std::abs(b) < 0.0625) {
     double value = 0.0, slope = 0.0;
     // Horner from the highest term: c_k = (-1)^k/(k+1)!, slope = sum k c_k b^(k-1).
-    constexpr std::array<double, 10> c = {1.0,         -1.0 / 2,     1.0 / 6,      -1.0 / 24,
-                                          1.0 / 120,   -1.0 / 720,   1.0 / 5040,   -1.0 / 40320,
+    constexpr std::array<double, 10> c = {1.0,          -1.0 / 2,      1.0 / 6,    -1.0 / 24,
+                                          1.0 / 120,    -1.0 / 720,    1.0 / 5040, -1.0 / 40320,
                                           1.0 / 362880, -1.0 / 3628800};
     for (int k = 9; k >= 0; --k) value = value * b + c[static_cast<size_t>(k)];
     for (int k = 9; k >= 1; --k) slope = slope * b + k * c[static_cast<size_t>(k)];
