@@ -129,16 +129,19 @@ Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Mat6& 
                        const typename SlipTypes<N>::MatN6& dgamma_de, const Mat3& mid_orientation) {
   Mat6 t = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
   if (ph.kinematics == Kinematics::finite_rotation) {
+    // With dg1 = [dw] g1: d sigma_sample = g1^T (sigma [dw] - [dw] sigma) g1, linear in the
+    // plastic spin's change dw = W_p d dgamma: its 6 x 3 matrix from the three unit spins.
     const Mat3& g1 = s1.orientation;
     const Mat3 sigma = symmetric_from_mandel(s1.stress);
-    for (int k = 0; k < 6; ++k) {
-      const Vec3 dw = ph.slip_spin * dgamma_de.col(k);
+    Eigen::Matrix<double, 6, 3> per_spin;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 e = Vec3::Unit(k);
       Mat3 skew;
-      skew << 0.0, -dw.z(), dw.y(), dw.z(), 0.0, -dw.x(), -dw.y(), dw.x(), 0.0;
-      const Mat3 dg1 = skew * g1;
-      t.col(k) +=
-          mandel_from_symmetric(dg1.transpose() * sigma * g1 + g1.transpose() * sigma * dg1);
+      skew << 0.0, -e.z(), e.y(), e.z(), 0.0, -e.x(), -e.y(), e.x(), 0.0;
+      per_spin.col(k) = mandel_from_symmetric(g1.transpose() * (sigma * skew - skew * sigma) * g1);
     }
+    const Eigen::Matrix<double, 3, 6> spin_de = ph.slip_spin * dgamma_de;
+    t.noalias() += per_spin * spin_de;
   }
   return t * mandel_rotation_operator(mid_orientation);
 }
