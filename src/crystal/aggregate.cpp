@@ -647,10 +647,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     stats_.grain_solves += static_cast<long>(total_);
     const bool ok = every_grain_ok(why);
     // The slip tangents belong to this step (its dt and start state): a cold solve starts a
-    // step; a failed solve leaves warm_ at mixed Ls.
-    if (!warm) slip_tangents_current_ = false;
-    if (ok && slip_tangent) slip_tangents_current_ = true;
-    if (!ok) slip_tangents_current_ = false;
+    // step, and a failed solve leaves warm_ at mixed Ls.
+    slip_tangents_current_ = ok && (slip_tangent || (warm && slip_tangents_current_));
     warm_l_ = l;
     return ok;
   }
