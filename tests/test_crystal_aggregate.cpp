@@ -202,6 +202,43 @@ TEST(CrystalTaylor, RandomFccTaylorFactor) {
   EXPECT_NEAR(m_end, m_before, 0.005 * m_end);
 }
 
+// The rate-independent form with kappa = 0 (no hardening of mu: the CRSS is mu tau0 and the
+// subloading ratio saturates, r_s -> 1 within a slip of ~0.1) to a true strain of 1 under the
+// Taylor (iso-strain) condition L = 1e-3/s diag(1, -1/2, -1/2): a perfectly plastic aggregate,
+// which the step on the yield polytope (src/crystal/vertex_grain_step.cpp) takes; the slip
+// Newton stopped such runs at a strain of ~0.2 (issue 14). Tolerances: the Taylor factor M =
+// von Mises stress / tau_c of 200 random grains carries a sampling uncertainty of ~0.3/sqrt(200)
+// ~ 0.02 (0.7 %), and at 20 % the subloading rounding of the vertices is spent (r_s within 1e-3
+// of 1 on every slipping system), so M(0.2) is 3.067 within 3 %; the texture of tension (grains
+// turning towards <111> and <100>) raises M with strain, and no fcc orientation has M above
+// 3.674 (<111>) in axisymmetric tension.
+TEST(CrystalTaylor, RateIndependentTaylorAggregateToStrainOne) {
+  const double tau0 = 10.0, mu = 1.6;
+  law::LawParameters p = crystal_law(mu, mu, 0.0, 0.0, 200.0, 1e-3);
+  p.overstress.form = law::OverstressForm::rate_independent;
+  auto agg = build_taylor_aggregate(fcc_description(p, tau0, Kinematics::finite_rotation),
+                                    random_orientations(200, 3));
+  LoadSegment tension;
+  tension.velocity_gradient.diagonal() << 1e-3, -0.5e-3, -0.5e-3;
+  tension.duration = 1000.0;
+  tension.increments = 500;
+  std::vector<double> strain, taylor_factor;
+  const AggregateStats stats =
+      agg->run({tension}, AggregateOptions{}, [&](const MacroState& m, const GrainFields&) {
+        const Mat3 dev = m.stress - m.stress.trace() / 3.0 * Mat3::Identity();
+        strain.push_back(m.strain(0, 0));
+        taylor_factor.push_back(std::sqrt(1.5 * dev.squaredNorm()) / (mu * tau0));
+      });
+  ASSERT_NEAR(strain.back(), 1.0, 1e-6);
+  const size_t at_02 = taylor_factor.size() / 5;
+  measured() << "rate-independent Taylor aggregate (200 fcc grains): M = " << taylor_factor[at_02]
+             << " at strain " << strain[at_02] << ", " << taylor_factor.back() << " at "
+             << strain.back() << "; " << stats.cutbacks << " cutbacks\n";
+  EXPECT_NEAR(taylor_factor[at_02], 3.067, 0.03 * 3.067);
+  EXPECT_GT(taylor_factor.back(), taylor_factor[at_02]);
+  EXPECT_LT(taylor_factor.back(), 3.674);
+}
+
 // ---------------------------------------------------------------------------------------------
 // 8. Thread-count independence: grains are independent and all reductions are serial in grain
 //    order, so 1 and 2 threads must give bitwise-identical macro and per-grain fields.

@@ -29,6 +29,7 @@
 
 #include "kernel_detail.hpp"
 #include "semismooth_grain_step.hpp"
+#include "vertex_grain_step.hpp"
 
 namespace subslip::crystal {
 
@@ -1081,6 +1082,16 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   using Solver = StressSolver<N>;
   using VecN = typename SlipTypes<N>::VecN;
   using Iterate = typename Solver::Iterate;
+  // The rate-independent form without hardening of mu: the step on the yield polytope
+  // (vertex_grain_step.hpp), the semismooth step where that does not converge.
+  if (vertex_step_applies(ph)) {
+    GrainStepReport r = vertex_grain_step(ph, s0, L, dt, opt, s1, tangent, slip_tangent);
+    if (r.ok) return r;
+    const int spent = r.iterations;
+    r = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+    r.iterations += spent;
+    return r;
+  }
   if (!stress_space_applies(ph, s0))
     return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
   const int n = ph.slip_count;

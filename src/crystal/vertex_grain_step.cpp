@@ -1,0 +1,457 @@
+// The rate-independent grain step on the yield polytope (see vertex_grain_step.hpp).
+#include "vertex_grain_step.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "kernel_detail.hpp"
+
+namespace subslip::crystal::detail {
+
+namespace {
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The active faces of a quadratic subproblem: at most one per held system (the side of its start
+// shear). With hardening (h > 0) more faces than the six stress components can be
+// active: the slips are then fixed by the hardening, not by the stress alone.
+template <int MaxActive>
+struct ActiveTypes {
+  using Mat6X = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, MaxActive>;
+  using MatXX = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxActive, MaxActive>;
+  using VecX = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxActive, 1>;
+};
+
+// The solution of one quadratic subproblem: the step x and the active faces with their
+// multipliers (the slip magnitudes of their systems).
+template <int MaxActive>
+struct QpSolution {
+  Vec6 x;
+  std::array<int, MaxActive> face{};
+  std::array<double, MaxActive> multiplier{};
+  int count = 0;
+};
+
+// A face whose normal makes an angle below ~1e-7 rad with the span of the active normals (the
+// squared sine of the angle, in the metric of G^-1, below 64 eps) lies in that span to the
+// rounding of the projection: it cannot enter the active set without a face leaving it.
+constexpr double kDependentNormal = 64.0 * kEps;
+
+// min 1/2 x^T G x + g^T x over x and multipliers u >= 0 subject to n_f^T x - h_f u_f <= b_f
+// (f < faces; h_f >= 0 the face's hardening: its limit rises with its own multiplier), by the
+// dual active-set method of Goldfarb and Idnani (Math. Programming 27:1-33, 1983), extended by
+// the diagonal h. From the unconstrained minimum it adds the most violated face, moving x and the
+// multipliers together so that the stationarity G x + g + sum_f u_f n_f = 0 and the active faces'
+// equalities hold throughout and u stays >= 0 (an active face whose multiplier would turn
+// negative leaves first). Each added face raises the dual objective, so no active set repeats
+// and the method ends after finitely many changes; a face whose normal lies in the span of the
+// active ones (a vertex with more yielding systems than independent Schmid tensors) enters only
+// after a face left. Violations up to `slack(f)` count as met. Returns false where rounding made
+// it exceed its bound on changes, or where the faces admit no point (which the stress zero rules
+// out, but rounding could fake).
+template <int MaxActive, class NormalOf, class VecF>
+bool solve_qp(const Mat6& g_inverse, const Vec6& g, int faces, const NormalOf& normal,
+              const VecF& b, const VecF& h, const VecF& slack, QpSolution<MaxActive>& out) {
+  using Mat6X = typename ActiveTypes<MaxActive>::Mat6X;
+  using MatXX = typename ActiveTypes<MaxActive>::MatXX;
+  using VecX = typename ActiveTypes<MaxActive>::VecX;
+  out.x = -g_inverse * g;
+  out.count = 0;
+  const int max_changes = 8 * faces + 8;
+  int changes = 0;
+  auto is_active = [&](int f) {
+    return std::find(out.face.begin(), out.face.begin() + out.count, f) !=
+           out.face.begin() + out.count;
+  };
+  for (;;) {
+    int p = -1;
+    double worst = 0.0;
+    for (int f = 0; f < faces; ++f) {
+      const double violation = normal(f).dot(out.x) - b(f);
+      if (violation > slack(f) && violation > worst && !is_active(f)) worst = violation, p = f;
+    }
+    if (p < 0) return true;
+    const Vec6 np = normal(p);
+    double up = 0.0;
+    for (;;) {
+      if (++changes > max_changes) return false;
+      const int q = out.count;
+      const Vec6 w = g_inverse * np;
+      Vec6 hn = w;  // H n_p: n_p's part outside the span of the active normals (metric G^-1)
+      VecX r(q);    // how the active multipliers change per unit of u_p
+      if (q > 0) {
+        Mat6X active(6, q);
+        MatXX gram(q, q);
+        for (int j = 0; j < q; ++j) active.col(j) = normal(out.face[static_cast<size_t>(j)]);
+        const Mat6X g_active = g_inverse * active;
+        gram.noalias() = active.transpose() * g_active;
+        for (int j = 0; j < q; ++j) gram(j, j) += h(out.face[static_cast<size_t>(j)]);
+        r = gram.ldlt().solve(active.transpose() * w);
+        hn.noalias() -= g_active * r;
+      }
+      const double denom = np.dot(hn) + h(p);
+      const bool dependent = q == MaxActive || !(denom > kDependentNormal * (np.dot(w) + h(p)));
+      // The step that meets face p; a violation that earlier steps turned negative in rounding
+      // is met where p stands (a step back would undo them and cycle).
+      const double full =
+          dependent ? kInf : std::max(0.0, (np.dot(out.x) - h(p) * up - b(p)) / denom);
+      double partial = kInf;
+      int leaving = -1;
+      for (int j = 0; j < q; ++j) {
+        const double uj = out.multiplier[static_cast<size_t>(j)];
+        if (r(j) > 0.0 && uj / r(j) < partial) partial = uj / r(j), leaving = j;
+      }
+      if (full == kInf && partial == kInf) return false;
+      const double t = std::min(full, partial);
+      out.x.noalias() -= t * hn;
+      for (int j = 0; j < q; ++j) out.multiplier[static_cast<size_t>(j)] -= t * r(j);
+      up += t;
+      if (full <= partial) {
+        out.face[static_cast<size_t>(q)] = p;
+        out.multiplier[static_cast<size_t>(q)] = up;
+        ++out.count;
+        break;
+      }
+      for (int j = leaving; j + 1 < q; ++j) {
+        out.face[static_cast<size_t>(j)] = out.face[static_cast<size_t>(j + 1)];
+        out.multiplier[static_cast<size_t>(j)] = out.multiplier[static_cast<size_t>(j + 1)];
+      }
+      --out.count;
+    }
+  }
+}
+
+// The step's stress as the minimiser of
+//   Phi(sigma) = 1/2 (sigma - sigma_trial) : C^-1 : (sigma - sigma_trial) + sum_a Psi_a(tau_a)
+// over the faces s_a P_a : sigma <= mu_a tau0_a r_s,a(ds_a) of the held systems (s_a: the sign of
+// the system's shear at the step's start), with Psi_a' = the slip of a resolved branch at its
+// resolved shear (the rate-independent flow rule r = r_s(ds) solved for ds: ds = H(r) - H(start)
+// above the branch's start, H the law's slip integral, 0 below). Its stationarity is the step's
+// stress equation sigma = sigma_trial - C sum_a P_a dgamma_a with every flow rule met; the
+// multipliers of the active faces are the held systems' slips. Held are the systems whose
+// hardening mu tau0 U(r_s0) is below their elastic coupling A_aa (near saturation, r_s -> 1, it
+// vanishes in double precision), on the side of their start shear; the others, and a held
+// system's other side (its r_s restarts from 0 there, (3.12)), are resolved, and their slip's
+// rounding through 1/U moves the stress equation by less than eps. A held face's limit is
+// linearised in its slip (solve_qp's h) and relinearised at each solve's slips: Newton on the
+// held limits. docs/grain_step.md has the argument and its assumptions.
+template <int N>
+class VertexSolver {
+ public:
+  using T = SlipTypes<N>;
+  using VecN = typename T::VecN;
+  using VecF = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * T::MaxN, 1>;
+  using Qp = QpSolution<T::MaxN>;
+  using Mat6X = typename ActiveTypes<T::MaxN>::Mat6X;
+  using MatXX = typename ActiveTypes<T::MaxN>::MatXX;
+
+  VertexSolver(const Phase<N>& ph, const GrainState<N>& s0, const Vec6& trial, double dt,
+               double tolerance)
+      : ph_(ph), s0_(s0), trial_(trial), tolerance_(tolerance), n_(ph.slip_count) {
+    mu_.resize(n_), crss_.resize(n_), slip_integral0_.resize(n_), start_sign_.resize(n_);
+    const VecN tau0 = ph.schmid.transpose() * s0.stress;
+    limit_.resize(n_), hardening_.resize(n_), linearised_at_.resize(n_);
+    for (int a = 0; a < n_; ++a) {
+      const auto& law = ph.laws[static_cast<size_t>(a)];
+      mu_(a) = law.friction_coefficient_after(s0.mu(a), 0.0, dt).value;
+      start_sign_(a) = sign_of(tau0(a));
+      crss_(a) = mu_(a) * ph.tau0(a);
+      slip_integral0_(a) = law.subloading_slip_integral(s0.r_s(a));
+      limit_(a) = s0.r_s(a) * crss_(a);
+      hardening_(a) = law.subloading_rate(s0.r_s(a)) * crss_(a);
+      linearised_at_(a) = 0.0;
+      if (hardening_(a) < ph.interaction(a, a))
+        held_system_[static_cast<size_t>(held_count_++)] = a;
+    }
+  }
+
+  int held_count() const { return held_count_; }
+  // The subloading ratio a system's branch starts from for a shear of this sign: r_s0 along the
+  // start shear, 0 against it ((3.12): r_s follows r down through zero).
+  double branch_start(int a, double sign) const {
+    return sign == start_sign_(a) ? s0_.r_s(a) : 0.0;
+  }
+  const VecN& mu() const { return mu_; }
+
+  // The minimiser and the final quadratic subproblem's active faces; false where the solve did
+  // not converge within max_iterations quadratic subproblems.
+  bool solve(Vec6& sigma, Qp& qp, int& iterations, int max_iterations) {
+    sigma = s0_.stress;
+    for (;;) {
+      if (!minimise(sigma, qp, iterations, max_iterations)) return false;
+      if (relinearise(qp) <= 0.25 * tolerance_) return true;
+    }
+  }
+
+  // The slip increments (signed) at a converged stress and active set.
+  VecN slips(const Vec6& sigma, const Qp& qp) const {
+    VecN dgamma = VecN::Zero(n_);
+    const VecN tau = ph_.schmid.transpose() * sigma;
+    for (int a = 0; a < n_; ++a) {
+      const double sign = sign_of(tau(a));
+      if (resolves(a, sign)) dgamma(a) = sign * resolved_slip(a, std::abs(tau(a)) / crss_(a), sign);
+    }
+    for (int j = 0; j < qp.count; ++j) {
+      const int f = qp.face[static_cast<size_t>(j)];
+      dgamma(system_of(f)) = sign_of_face(f) * qp.multiplier[static_cast<size_t>(j)];
+    }
+    return dgamma;
+  }
+
+  // d dgamma / d(lattice strain increment) at the solution: the stationarity G dsigma +
+  // N du = d eps and the active faces N^T dsigma = h du (h: the held systems' hardening, mu
+  // tau0 U at the end) give du = (N^T G^-1 N + h)^-1 N^T G^-1 d eps and dsigma = G^-1 (d eps -
+  // N du); a resolved system's slip follows its shear with slope 1/(U crss).
+  typename T::MatN6 slip_sensitivities(const Vec6& sigma, const Qp& qp, const VecN& dgamma) const {
+    Mat6 hessian;
+    Vec6 gradient;
+    evaluate(sigma, gradient, &hessian);
+    const Mat6 g_inverse = hessian.llt().solve(Mat6::Identity());
+    Mat6 dsigma = g_inverse;
+    MatXX du;
+    if (qp.count > 0) {
+      Mat6X active(6, qp.count);
+      MatXX gram(qp.count, qp.count);
+      for (int j = 0; j < qp.count; ++j)
+        active.col(j) = face_normal(qp.face[static_cast<size_t>(j)]);
+      const Mat6X g_active = g_inverse * active;
+      gram.noalias() = active.transpose() * g_active;
+      for (int j = 0; j < qp.count; ++j) {
+        const int a = system_of(qp.face[static_cast<size_t>(j)]);
+        const auto& law = ph_.laws[static_cast<size_t>(a)];
+        const double r_end = law.subloading_ratio_after(s0_.r_s(a), std::abs(dgamma(a))).value;
+        gram(j, j) += crss_(a) * law.subloading_rate(r_end);
+      }
+      du = gram.ldlt().solve(g_active.transpose());  // q x 6
+      dsigma.noalias() -= g_active * du;
+    }
+    typename T::MatN6 out = T::MatN6::Zero(n_, 6);
+    const VecN tau = ph_.schmid.transpose() * sigma;
+    for (int a = 0; a < n_; ++a) {
+      const double sign = sign_of(tau(a));
+      const double r = std::abs(tau(a)) / crss_(a);
+      if (!resolves(a, sign) || !(r > branch_start(a, sign))) continue;
+      const double slope = 1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(r) * crss_(a));
+      out.row(a) = slope * (ph_.schmid.col(a).transpose() * dsigma);
+    }
+    for (int j = 0; j < qp.count; ++j) {
+      const int f = qp.face[static_cast<size_t>(j)];
+      out.row(system_of(f)) = sign_of_face(f) * du.row(j);
+    }
+    return out;
+  }
+
+ private:
+  bool is_held(int a) const {
+    return std::find(held_system_.begin(), held_system_.begin() + held_count_, a) !=
+           held_system_.begin() + held_count_;
+  }
+  // Face k: held system k along its start shear. Against it a held system is resolved: its
+  // subloading ratio restarts from 0 there (3.12), where the hardening is large.
+  int system_of(int face) const { return held_system_[static_cast<size_t>(face)]; }
+  double sign_of_face(int face) const { return start_sign_(system_of(face)); }
+  Vec6 face_normal(int face) const { return sign_of_face(face) * ph_.schmid.col(system_of(face)); }
+  bool resolves(int a, double sign) const { return sign != start_sign_(a) || !is_held(a); }
+
+  // A resolved system's slip at loading ratio r (< 1) and shear of this sign: the root of its
+  // flow rule on that branch.
+  double resolved_slip(int a, double r, double sign) const {
+    if (!(r > branch_start(a, sign))) return 0.0;
+    const double start_integral = sign == start_sign_(a) ? slip_integral0_(a) : 0.0;
+    return std::max(0.0,
+                    ph_.laws[static_cast<size_t>(a)].subloading_slip_integral(r) - start_integral);
+  }
+
+  // Phi's gradient (and Hessian) at sigma; false outside the domain (r >= 1 on a resolved
+  // system, where its slip is unbounded).
+  bool evaluate(const Vec6& sigma, Vec6& gradient, Mat6* hessian) const {
+    gradient.noalias() = ph_.compliance * (sigma - trial_);
+    if (hessian) *hessian = ph_.compliance;
+    const VecN tau = ph_.schmid.transpose() * sigma;
+    for (int a = 0; a < n_; ++a) {
+      const double sign = sign_of(tau(a));
+      if (!resolves(a, sign)) continue;
+      const double r = std::abs(tau(a)) / crss_(a);
+      if (!(r < 1.0)) return false;
+      if (!(r > branch_start(a, sign))) continue;
+      gradient.noalias() += (sign * resolved_slip(a, r, sign)) * ph_.schmid.col(a);
+      if (hessian) {
+        const double slope = 1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(r) * crss_(a));
+        hessian->noalias() += slope * ph_.schmid.col(a) * ph_.schmid.col(a).transpose();
+      }
+    }
+    return true;
+  }
+
+  // Sequential quadratic programming at fixed linearisations of the held limits: each
+  // iterate's quadratic model of Phi minimised over the faces (solve_qp), then a line search
+  // along the step. Converged when the step changes no shear by more than a quarter of the
+  // tolerance (traction-ratio units); the full step is then taken.
+  bool minimise(Vec6& sigma, Qp& qp, int& iterations, int max_iterations) const {
+    const int faces = held_count_;
+    VecF b(faces), h(faces), slack(faces);
+    auto normal = [&](int f) { return face_normal(f); };
+    double last_step = kInf;
+    for (;;) {
+      if (++iterations > max_iterations) return false;
+      Vec6 gradient;
+      Mat6 hessian;
+      if (!evaluate(sigma, gradient, &hessian)) return false;
+      const Mat6 g_inverse = hessian.llt().solve(Mat6::Identity());
+      for (int f = 0; f < faces; ++f) {
+        const int a = system_of(f);
+        h(f) = hardening_(a);
+        b(f) = limit_(a) - hardening_(a) * linearised_at_(a) - face_normal(f).dot(sigma);
+        slack(f) = 0.25 * tolerance_ * crss_(a);
+      }
+      if (!solve_qp(g_inverse, gradient, faces, normal, b, h, slack, qp)) return false;
+      const VecN step_shear = ph_.schmid.transpose() * qp.x;
+      const double step = step_shear.cwiseAbs().cwiseQuotient(crss_).maxCoeff();
+      // Newton's steps shrink quadratically until they reach the rounding of the stationarity
+      // (a resolved system's slip through 1/U, the faces' multipliers); a step within the
+      // tolerance that did not halve is that rounding.
+      if (step <= 0.25 * tolerance_ || (step <= tolerance_ && step > 0.5 * last_step)) {
+        sigma += qp.x;
+        return true;
+      }
+      last_step = step;
+      if (!line_search(sigma, qp.x, gradient.dot(qp.x))) return false;
+    }
+  }
+
+  // sigma + alpha x. From a stress that meets the faces the step descends (slope0 < 0): alpha = 1
+  // where Phi's slope there is at most half its magnitude at alpha = 0 (a Newton step near the
+  // solution), else halved until the slope is not positive (the line minimum is not passed, so
+  // Phi fell). From one that does not (the start, or after a relinearisation) the step restores
+  // the faces and is taken whole, halved only into the domain. False where halving no longer
+  // moves sigma.
+  bool line_search(Vec6& sigma, const Vec6& x, double slope0) const {
+    Vec6 gradient;
+    for (double alpha = 1.0;; alpha *= 0.5) {
+      const Vec6 trial = sigma + alpha * x;
+      if (trial == sigma) return false;
+      if (!evaluate(trial, gradient, nullptr)) continue;
+      const double slope = gradient.dot(x);
+      if (!(slope0 < 0.0) || slope <= 0.0 || (alpha == 1.0 && slope <= -0.5 * slope0)) {
+        sigma = trial;
+        return true;
+      }
+    }
+  }
+
+  // Each held system's limit and hardening at the slip the last solve gave it; returns the
+  // largest error of the linearisation there (traction-ratio units).
+  double relinearise(const Qp& qp) {
+    double error = 0.0;
+    for (int k = 0; k < held_count_; ++k) {
+      const int a = held_system_[static_cast<size_t>(k)];
+      double slip = 0.0;
+      for (int j = 0; j < qp.count; ++j)
+        if (system_of(qp.face[static_cast<size_t>(j)]) == a)
+          slip = qp.multiplier[static_cast<size_t>(j)];
+      const auto after = ph_.laws[static_cast<size_t>(a)].subloading_ratio_after(s0_.r_s(a), slip);
+      const double linear = limit_(a) + hardening_(a) * (slip - linearised_at_(a));
+      limit_(a) = after.value * crss_(a);
+      hardening_(a) = after.d_slip * crss_(a);
+      linearised_at_(a) = slip;
+      error = std::max(error, std::abs(limit_(a) - linear) / crss_(a));
+    }
+    return error;
+  }
+
+  const Phase<N>& ph_;
+  const GrainState<N>& s0_;
+  Vec6 trial_;
+  double tolerance_;
+  int n_;
+  VecN mu_, crss_, slip_integral0_, start_sign_;
+  VecN limit_, hardening_, linearised_at_;  // the held faces' linearisations (stress units)
+  std::array<int, T::MaxN> held_system_{};
+  int held_count_ = 0;
+};
+
+}  // namespace
+
+template <int N>
+bool vertex_step_applies(const Phase<N>& ph) {
+  if (ph.pressure_sensitive) return false;
+  for (const auto& law : ph.laws)
+    if (!law.is_rate_independent() || law.parameters().friction.kappa != 0.0) return false;
+  return true;
+}
+
+template <int N>
+GrainStepReport vertex_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                  double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                  Tangent* tangent, SlipTangent<N>* slip_tangent) {
+  using VecN = typename SlipTypes<N>::VecN;
+  GrainStepReport rep;
+  const int n = ph.slip_count;
+  const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
+  const Vec6 trial = s0.stress + ph.stiffness * kin.strain_increment;
+  const double tolerance = std::max(opt.tolerance, 16.0 * kEps);
+  VertexSolver<N> solver(ph, s0, trial, dt, tolerance);
+  Vec6 sigma;
+  typename VertexSolver<N>::Qp qp;
+  rep.iterations = 0;
+  if (!solver.solve(sigma, qp, rep.iterations, opt.max_iterations)) {
+    rep.why = "rate-independent vertex step did not converge";
+    return rep;
+  }
+
+  // The end state from the slips: the stress equation holds by construction, the flow rules
+  // are checked.
+  const VecN dgamma = solver.slips(sigma, qp);
+  s1.stress = trial - ph.c_schmid * dgamma;
+  s1.mu = solver.mu();
+  s1.slip = s0.slip + dgamma;
+  s1.rate = dgamma / dt;
+  const VecN fn1 = normal_traction(ph, s1.stress);
+  const VecN r1 = loading_ratio_of(ph, s1.stress, s1.mu, fn1);
+  VecN r_s = VecN::Zero(n);
+  for (int a = 0; a < n; ++a) {
+    const auto& law = ph.laws[static_cast<size_t>(a)];
+    // The flow rule on the branch of the end shear: r = r_s(ds) where the system slips, r <= the
+    // branch's start where it does not.
+    const double tau1 = ph.schmid.col(a).dot(s1.stress);
+    const double start =
+        solver.branch_start(a, dgamma(a) != 0.0 ? sign_of(dgamma(a)) : sign_of(tau1));
+    r_s(a) = law.subloading_ratio_after(start, std::abs(dgamma(a))).value;
+    const double residual = r1(a) - r_s(a);
+    if (dgamma(a) != 0.0 ? std::abs(residual) > tolerance : residual > tolerance) {
+      rep.why = "rate-independent vertex step: flow rule not met", rep.system = a;
+      return rep;
+    }
+  }
+  s1.r_s = r_s.cwiseMin(r1);  // (3.12): r_s follows r down where no slip occurs
+  s1.orientation = orientation_after_plastic_spin(ph, kin.spun_orientation, dgamma);
+  if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::refused, tolerance)) return rep;
+
+  if (tangent) {
+    const typename SlipTypes<N>::MatN6 dgamma_de = solver.slip_sensitivities(sigma, qp, dgamma);
+    const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
+    *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
+    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
+  }
+  rep.ok = true;
+  return rep;
+}
+
+#define SUBSLIP_INSTANTIATE_VERTEX(N)                                                         \
+  template bool vertex_step_applies<N>(const Phase<N>&);                                      \
+  template GrainStepReport vertex_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
+                                                const Mat3&, double, const GrainStepOptions&, \
+                                                GrainState<N>&, Tangent*, SlipTangent<N>*);
+SUBSLIP_INSTANTIATE_VERTEX(1)
+SUBSLIP_INSTANTIATE_VERTEX(3)
+SUBSLIP_INSTANTIATE_VERTEX(6)
+SUBSLIP_INSTANTIATE_VERTEX(12)
+SUBSLIP_INSTANTIATE_VERTEX(24)
+SUBSLIP_INSTANTIATE_VERTEX(48)
+SUBSLIP_INSTANTIATE_VERTEX(Eigen::Dynamic)
+
+}  // namespace subslip::crystal::detail
