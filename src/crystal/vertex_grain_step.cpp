@@ -164,8 +164,8 @@ class VertexSolver {
       limit_(a) = s0.r_s(a) * crss_(a);
       hardening_(a) = law.subloading_rate(s0.r_s(a)) * crss_(a);
       linearised_at_(a) = 0.0;
-      if (hardening_(a) < ph.interaction(a, a))
-        held_system_[static_cast<size_t>(held_count_++)] = a;
+      held_[static_cast<size_t>(a)] = hardening_(a) < ph.interaction(a, a);
+      if (held_[static_cast<size_t>(a)]) held_system_[static_cast<size_t>(held_count_++)] = a;
     }
   }
 
@@ -192,8 +192,8 @@ class VertexSolver {
     VecN dgamma = VecN::Zero(n_);
     const VecN tau = ph_.schmid.transpose() * sigma;
     for (int a = 0; a < n_; ++a) {
-      const double sign = sign_of(tau(a));
-      if (resolves(a, sign)) dgamma(a) = sign * resolved_slip(a, std::abs(tau(a)) / crss_(a), sign);
+      const ResolvedBranch b = resolved_branch(a, tau(a));
+      if (b.slips) dgamma(a) = b.sign * resolved_slip(a, b.r, b.sign);
     }
     for (int j = 0; j < qp.count; ++j) {
       const int f = qp.face[static_cast<size_t>(j)];
@@ -206,7 +206,7 @@ class VertexSolver {
   // N du = d eps and the active faces N^T dsigma = h du (h: the held systems' hardening, mu
   // tau0 U at the end) give du = (N^T G^-1 N + h)^-1 N^T G^-1 d eps and dsigma = G^-1 (d eps -
   // N du); a resolved system's slip follows its shear with slope 1/(U crss).
-  typename T::MatN6 slip_sensitivities(const Vec6& sigma, const Qp& qp, const VecN& dgamma) const {
+  typename T::MatN6 slip_sensitivities(const Vec6& sigma, const Qp& qp) const {
     Mat6 hessian;
     Vec6 gradient;
     evaluate(sigma, gradient, &hessian);
@@ -220,22 +220,19 @@ class VertexSolver {
         active.col(j) = face_normal(qp.face[static_cast<size_t>(j)]);
       const Mat6X g_active = g_inverse * active;
       gram.noalias() = active.transpose() * g_active;
-      for (int j = 0; j < qp.count; ++j) {
-        const int a = system_of(qp.face[static_cast<size_t>(j)]);
-        const auto& law = ph_.laws[static_cast<size_t>(a)];
-        const double r_end = law.subloading_ratio_after(s0_.r_s(a), std::abs(dgamma(a))).value;
-        gram(j, j) += crss_(a) * law.subloading_rate(r_end);
-      }
+      // The held faces' hardening at the end: solve() returns after relinearise() at the
+      // final slips.
+      for (int j = 0; j < qp.count; ++j)
+        gram(j, j) += hardening_(system_of(qp.face[static_cast<size_t>(j)]));
       du = gram.ldlt().solve(g_active.transpose());  // q x 6
       dsigma.noalias() -= g_active * du;
     }
     typename T::MatN6 out = T::MatN6::Zero(n_, 6);
     const VecN tau = ph_.schmid.transpose() * sigma;
     for (int a = 0; a < n_; ++a) {
-      const double sign = sign_of(tau(a));
-      const double r = std::abs(tau(a)) / crss_(a);
-      if (!resolves(a, sign) || !(r > branch_start(a, sign))) continue;
-      const double slope = 1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(r) * crss_(a));
+      const ResolvedBranch b = resolved_branch(a, tau(a));
+      if (!b.slips) continue;
+      const double slope = 1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(b.r) * crss_(a));
       out.row(a) = slope * (ph_.schmid.col(a).transpose() * dsigma);
     }
     for (int j = 0; j < qp.count; ++j) {
@@ -246,16 +243,25 @@ class VertexSolver {
   }
 
  private:
-  bool is_held(int a) const {
-    return std::find(held_system_.begin(), held_system_.begin() + held_count_, a) !=
-           held_system_.begin() + held_count_;
-  }
   // Face k: held system k along its start shear. Against it a held system is resolved: its
   // subloading ratio restarts from 0 there (3.12), where the hardening is large.
   int system_of(int face) const { return held_system_[static_cast<size_t>(face)]; }
   double sign_of_face(int face) const { return start_sign_(system_of(face)); }
   Vec6 face_normal(int face) const { return sign_of_face(face) * ph_.schmid.col(system_of(face)); }
-  bool resolves(int a, double sign) const { return sign != start_sign_(a) || !is_held(a); }
+  bool resolves(int a, double sign) const {
+    return sign != start_sign_(a) || !held_[static_cast<size_t>(a)];
+  }
+
+  // Where system a's shear tau puts it on a resolved branch above that branch's start (so that
+  // it slips by its own flow rule): the branch's sign and loading ratio.
+  struct ResolvedBranch {
+    bool slips;
+    double sign, r;
+  };
+  ResolvedBranch resolved_branch(int a, double tau) const {
+    const double sign = sign_of(tau), r = std::abs(tau) / crss_(a);
+    return {resolves(a, sign) && r > branch_start(a, sign), sign, r};
+  }
 
   // A resolved system's slip at loading ratio r (< 1) and shear of this sign: the root of its
   // flow rule on that branch.
@@ -273,14 +279,13 @@ class VertexSolver {
     if (hessian) *hessian = ph_.compliance;
     const VecN tau = ph_.schmid.transpose() * sigma;
     for (int a = 0; a < n_; ++a) {
-      const double sign = sign_of(tau(a));
-      if (!resolves(a, sign)) continue;
-      const double r = std::abs(tau(a)) / crss_(a);
-      if (!(r < 1.0)) return false;
-      if (!(r > branch_start(a, sign))) continue;
-      gradient.noalias() += (sign * resolved_slip(a, r, sign)) * ph_.schmid.col(a);
+      const ResolvedBranch b = resolved_branch(a, tau(a));
+      if (!b.slips) continue;
+      if (!(b.r < 1.0)) return false;
+      gradient.noalias() += (b.sign * resolved_slip(a, b.r, b.sign)) * ph_.schmid.col(a);
       if (hessian) {
-        const double slope = 1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(r) * crss_(a));
+        const double slope =
+            1.0 / (ph_.laws[static_cast<size_t>(a)].subloading_rate(b.r) * crss_(a));
         hessian->noalias() += slope * ph_.schmid.col(a) * ph_.schmid.col(a).transpose();
       }
     }
@@ -370,7 +375,8 @@ class VertexSolver {
   int n_;
   VecN mu_, crss_, slip_integral0_, start_sign_;
   VecN limit_, hardening_, linearised_at_;  // the held faces' linearisations (stress units)
-  std::array<int, T::MaxN> held_system_{};
+  std::array<bool, T::MaxN> held_{};        // per system
+  std::array<int, T::MaxN> held_system_{};  // the held systems, in order: face k is the k-th
   int held_count_ = 0;
 };
 
@@ -432,7 +438,7 @@ GrainStepReport vertex_grain_step(const Phase<N>& ph, const GrainState<N>& s0, c
   if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::refused, tolerance)) return rep;
 
   if (tangent) {
-    const typename SlipTypes<N>::MatN6 dgamma_de = solver.slip_sensitivities(sigma, qp, dgamma);
+    const typename SlipTypes<N>::MatN6 dgamma_de = solver.slip_sensitivities(sigma, qp);
     const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
     *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
     if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
