@@ -59,7 +59,9 @@ constexpr double kC11 = 168400.0, kC12 = 121400.0, kC44 = 75400.0;
 using subslip::testing::crystal_law;
 
 // A Phase<12> (fcc {111}<110>) built by hand, one law for all systems.
-Phase<12> fcc_phase(const law::LawParameters& p, double tau0, Kinematics k) {
+// `latent`: the latent matrix q_ab, none where null.
+Phase<12> fcc_phase(const law::LawParameters& p, double tau0, Kinematics k,
+                    const SlipTypes<12>::MatNN* latent = nullptr) {
   Phase<12> ph;
   std::vector<Vec3> s, m;
   for (const SlipSystem& sys : slip_systems(SlipFamily::fcc_111_110)) {
@@ -69,6 +71,8 @@ Phase<12> fcc_phase(const law::LawParameters& p, double tau0, Kinematics k) {
   ph.kinematics = k;
   ph.tau0 = SlipTypes<12>::VecN::Constant(tau0);
   ph.laws.assign(12, law::SubloadingFrictionLaw(p));
+  ph.has_latent = latent != nullptr;
+  if (latent) ph.latent = *latent;
   ph.assemble(s, m, cubic_stiffness(kC11, kC12, kC44));
   return ph;
 }
@@ -372,8 +376,8 @@ struct TangentCheck {
 TangentCheck tangent_check(Kinematics k, double h,
                            const law::LawParameters& p = crystal_law(1.0, 1.5, 2.0, 0.0, 300.0,
                                                                      0.05),
-                           int loading_steps = 12) {
-  const Phase<12> ph = fcc_phase(p, 20.0, k);
+                           int loading_steps = 12, const SlipTypes<12>::MatNN* latent = nullptr) {
+  const Phase<12> ph = fcc_phase(p, 20.0, k, latent);
   const Mat3 g = random_orientations(1, 77)[0].g;
   Mat3 L;
   L << 1.0, 0.3, -0.2, 0.1, -0.45, 0.25, 0.15, -0.05, -0.55;  // general, nearly isochoric
@@ -463,6 +467,30 @@ TEST(CrystalTangent, VertexStepMatchesCentralDifferences) {
                << ", slip tangent " << c.rel_error_slip << ", active " << c.active << "\n";
     EXPECT_GE(c.active, 3);
     EXPECT_LT(c.rel_error, 1e-6);
+  }
+}
+
+// A latent matrix couples each system's hardening to the others' slips: Newton on the slips
+// carries it as the rank of q - q_self I extra unknowns of the condensed system (1 for a latent
+// ratio, the plane count + 1 for coplanar and non-coplanar values). Its tangent and slip tangent
+// against central differences, for both, with a hardening (kappa = 200) whose slope is a tenth
+// of the elastic coupling's, so that a latent term missing from the linearisation would show.
+TEST(CrystalTangent, LatentHardeningMatchesCentralDifferences) {
+  const auto systems = slip_systems(SlipFamily::fcc_111_110);
+  SlipTypes<12>::MatNN ratio = SlipTypes<12>::MatNN::Constant(12, 12, 1.0);
+  SlipTypes<12>::MatNN coplanar = SlipTypes<12>::MatNN::Constant(12, 12, 1.4);
+  for (int a = 0; a < 12; ++a)
+    for (int b = 0; b < 12; ++b)
+      if (a == b || std::abs(systems[a].m.dot(systems[b].m)) > 1.0 - 1e-12) coplanar(a, b) = 1.0;
+  for (const auto* q : {&ratio, &coplanar}) {
+    const TangentCheck c = tangent_check(Kinematics::finite_rotation, 1e-8,
+                                         crystal_law(1.0, 3.0, 200.0, 0.0, 300.0, 0.05), 12, q);
+    measured() << "latent " << (q == &ratio ? "ratio 1" : "coplanar 1 / 1.4")
+               << ": tangent vs FD rel err " << c.rel_error << ", slip tangent " << c.rel_error_slip
+               << ", active " << c.active << "\n";
+    EXPECT_GE(c.active, 3);
+    EXPECT_LT(c.rel_error, 1e-6);
+    EXPECT_LT(c.rel_error_slip, 1e-6);
   }
 }
 

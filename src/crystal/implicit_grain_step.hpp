@@ -11,9 +11,11 @@
 // ambiguity of FCC and BCC). docs/grain_step.md gives the argument for convergence, its
 // assumptions and what happens outside them. It is used where those assumptions hold
 // (stress_space_applies); other laws, and steps it does not resolve, go to the semismooth step
-// (semismooth_grain_step.cpp). Its branches for latent drives, open planes and saturated
-// rate-independent systems are kept from its development but are not reached through that
-// choice (docs/grain_step.md).
+// (semismooth_grain_step.cpp). Phases with a latent matrix start with Newton on the slips
+// (StressSolver::slip_newton), which carries the latent coupling in its condensed system, and
+// go to the semismooth step where that does not converge. The stress-space solve's branches for
+// latent drives, open planes and saturated rate-independent systems are kept from its
+// development but are not reached through that choice (docs/grain_step.md).
 //
 // Internal to src/crystal/: the template is instantiated once per slip count, each in its own
 // translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel.
@@ -711,14 +713,17 @@ class StressSolver {
       c.llt.compute(s);
     }
     if (latent_rank_ > 0) {
+      // The products are of at most (latent rank) x 12 x 6: evaluated coefficient-wise
+      // (lazyProduct), not by Eigen's general matrix kernels, whose set-up costs more here.
       c.lf.noalias() = p.l.asDiagonal() * ph_.latent_factor.leftCols(latent_rank_);
       c.g.noalias() = ph_.latent_mix.leftCols(latent_rank_).transpose() * p.sign.asDiagonal();
-      c.gk.noalias() = c.g * c.k.transpose();
+      c.gk.noalias() = c.g.lazyProduct(c.k.transpose());
       c.z.resize(6, latent_rank_);
-      for (int j = 0; j < latent_rank_; ++j) c.z.col(j) = c.solve_s(Vec6(ph_.schmid * c.lf.col(j)));
+      for (int j = 0; j < latent_rank_; ++j)
+        c.z.col(j) = c.solve_s(Vec6(ph_.schmid.lazyProduct(c.lf.col(j))));
       MatK m = MatK::Identity(latent_rank_, latent_rank_);
-      m.noalias() -= c.g * c.lf;
-      m.noalias() += c.gk * c.z;
+      m.noalias() -= c.g.lazyProduct(c.lf);
+      m.noalias() += c.gk.lazyProduct(c.z);
       if (latent_rank_ == 1) {
         c.m_scalar = m(0, 0);
       } else {
@@ -792,13 +797,13 @@ class StressSolver {
     Vec6 d_sigma = -a;
     VecK eta;
     if (latent_rank_ > 0) {
-      const VecK rhs = c.g * p.w - c.gk * a;
+      const VecK rhs = c.g.lazyProduct(p.w) - c.gk.lazyProduct(a);
       eta = c.solve_m(rhs);
-      d_sigma.noalias() -= c.z * eta;
+      d_sigma.noalias() -= c.z.lazyProduct(eta);
     }
     delta = p.w;
     delta.noalias() += c.k.transpose() * d_sigma;
-    if (latent_rank_ > 0) delta.noalias() += c.lf * eta;
+    if (latent_rank_ > 0) delta.noalias() += c.lf.lazyProduct(eta);
     return delta.allFinite();
   }
 
@@ -1057,14 +1062,12 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
   return true;
 }
 
-// Whether the stress-space formulation's argument holds for a step from s0 (docs/grain_step.md):
-// R(sigma) = C grad Phi with Phi strictly convex, which needs no latent matrix and no plane
-// pressure (else R has no potential), an overstress form (the rate-independent form's slip
-// response is unbounded at r_s = 1), and a resistance that grows with slip (kappa > 0 with
-// mu_s <= mu_k and mu < mu_k: slip drives mu towards mu_k, recovery towards mu_s).
+// Whether every system's resistance grows with slip under an overstress form, from s0: kappa > 0
+// with mu_s <= mu_k and mu < mu_k (slip drives mu towards mu_k, recovery towards mu_s); the
+// rate-independent form's slip response is unbounded at r_s = 1. Newton on the slips needs this
+// (its slopes are then bounded away from zero), and so does the stress-space solve.
 template <int N>
-bool stress_space_applies(const Phase<N>& ph, const GrainState<N>& s0) {
-  if (ph.has_latent || ph.pressure_sensitive) return false;
+bool resistance_grows_with_slip(const Phase<N>& ph, const GrainState<N>& s0) {
   for (int a = 0; a < ph.slip_count; ++a) {
     const auto& law = ph.laws[static_cast<size_t>(a)];
     const auto& f = law.parameters().friction;
@@ -1072,6 +1075,14 @@ bool stress_space_applies(const Phase<N>& ph, const GrainState<N>& s0) {
       return false;
   }
   return true;
+}
+
+// Whether the stress-space formulation's argument holds for a step from s0 (docs/grain_step.md):
+// R(sigma) = C grad Phi with Phi strictly convex, which needs no latent matrix and no plane
+// pressure (else R has no potential) and a resistance that grows with slip.
+template <int N>
+bool stress_space_applies(const Phase<N>& ph, const GrainState<N>& s0) {
+  return !ph.has_latent && !ph.pressure_sensitive && resistance_grows_with_slip(ph, s0);
 }
 
 template <int N>
@@ -1092,8 +1103,12 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     r.iterations += spent;
     return r;
   }
-  if (!stress_space_applies(ph, s0))
+  // Newton on the slips from the last rates needs a growing resistance and no plane pressure; a
+  // latent matrix only adds its rank to the condensed system. The stress-space solve after it
+  // needs no latent matrix either.
+  if (ph.pressure_sensitive || !resistance_grows_with_slip(ph, s0))
     return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+  const bool stress_space = stress_space_applies(ph, s0);
   const int n = ph.slip_count;
   GrainStepReport rep;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
@@ -1122,7 +1137,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
     // Near ideal plasticity (r -> r_hat with the hardening spent) the slip response to the
     // stress is unbounded in double precision and the stress iteration can stall; the
     // semismooth iteration on the slips, which is well posed there, takes the step.
-    if (!stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep))
+    if (!stress_space || !stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep))
       return semismooth();
     // The stress iterate fixes each slip only to |dG/d ds|^-1 times G's rounding, coarse where
     // the law is nearly rate-independent; a step ending there would make the grain's response
