@@ -10,8 +10,8 @@
 // count and which stays regular where the slips themselves are not determined (the Taylor
 // ambiguity of FCC and BCC). docs/grain_step.md gives the argument for convergence, its
 // assumptions and what happens outside them. It is used where those assumptions hold
-// (stress_space_applies); other laws, and steps it does not resolve, go to the semismooth step
-// (semismooth_grain_step.cpp). Phases with a latent matrix start with Newton on the slips
+// (implicit_grain_step, below); other laws, and steps it does not resolve, go to the semismooth
+// step (semismooth_grain_step.cpp). Phases with a latent matrix start with Newton on the slips
 // (StressSolver::slip_newton), which carries the latent coupling in its condensed system, and
 // go to the semismooth step where that does not converge. The stress-space solve's branches for
 // latent drives, open planes and saturated rate-independent systems are kept from its
@@ -1077,14 +1077,6 @@ bool resistance_grows_with_slip(const Phase<N>& ph, const GrainState<N>& s0) {
   return true;
 }
 
-// Whether the stress-space formulation's argument holds for a step from s0 (docs/grain_step.md):
-// R(sigma) = C grad Phi with Phi strictly convex, which needs no latent matrix and no plane
-// pressure (else R has no potential) and a resistance that grows with slip.
-template <int N>
-bool stress_space_applies(const Phase<N>& ph, const GrainState<N>& s0) {
-  return !ph.has_latent && !ph.pressure_sensitive && resistance_grows_with_slip(ph, s0);
-}
-
 template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
@@ -1105,10 +1097,11 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   }
   // Newton on the slips from the last rates needs a growing resistance and no plane pressure; a
   // latent matrix only adds its rank to the condensed system. The stress-space solve after it
-  // needs no latent matrix either.
+  // needs, besides those two, no latent matrix: its argument (docs/grain_step.md) is that
+  // R(sigma) = C grad Phi with Phi strictly convex, and a latent coupling leaves R no potential.
   if (ph.pressure_sensitive || !resistance_grows_with_slip(ph, s0))
     return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
-  const bool stress_space = stress_space_applies(ph, s0);
+  const bool stress_space = !ph.has_latent;
   const int n = ph.slip_count;
   GrainStepReport rep;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
