@@ -402,7 +402,7 @@ TangentCheck tangent_check(Kinematics k, double h,
   for (int a = 0; a < 12; ++a) active += std::abs(s1.rate(a)) > 1e-2 * max_rate;
 
   Mat6 fd, fd_lattice, t_lattice;
-  SlipTangent<12> fd_slip;
+  SlipTangent<12> fd_slip(12, 6);
   for (int col = 0; col < 6; ++col) {
     const Mat3 dl = symmetric_from_mandel(Vec6::Unit(col) * h) / dt;
     Vec6 plus = Vec6::Zero(), minus = Vec6::Zero(), plus_lat = Vec6::Zero(),
@@ -506,6 +506,69 @@ TEST(CrystalTangent, MatchesCentralDifferencesFiniteRotation) {
              << c.active << "\n";
   EXPECT_GE(c.active, 3);
   EXPECT_LT(c.rel_error, 1e-6);
+}
+
+// Mixed control asks the step for its tangents along the free components' strain directions
+// only (GrainStepOptions::tangent_directions, 6 x k): they must be the full tangents times those
+// directions, for each of the step's solvers: Newton on the slips (with and without a latent
+// matrix), the vertex step (rate-independent, kappa = 0) and the semismooth step (mu_s > mu_k).
+// Both are computed from the same converged point, so they differ by rounding alone (a wrong
+// column, a missed rotation or plastic-spin term would be an O(1) difference).
+TEST(CrystalTangent, DirectionalTangentsAreTheFullTangentsTimesTheDirections) {
+  law::LawParameters vertex = crystal_law(1.0, 1.0, 0.0, 0.0, 300.0, 0.05);
+  vertex.overstress.form = law::OverstressForm::rate_independent;
+  SlipTypes<12>::MatNN latent = SlipTypes<12>::MatNN::Constant(12, 12, 1.4);
+  latent.diagonal().setOnes();
+  struct Case {
+    const char* name;
+    law::LawParameters law;
+    const SlipTypes<12>::MatNN* latent;
+  };
+  const Case cases[] = {
+      {"Newton on the slips", crystal_law(1.0, 1.5, 2.0, 0.0, 300.0, 0.05), nullptr},
+      {"latent ratio 1.4", crystal_law(1.0, 3.0, 200.0, 0.0, 300.0, 0.05), &latent},
+      {"vertex step", vertex, nullptr},
+      {"semismooth step", crystal_law(1.5, 1.0, 2.0, 0.0, 300.0, 0.05), nullptr}};
+  StrainDirections e(6, 2);
+  e.col(0) = Vec6::Unit(0);
+  e.col(1) << 0.3, -0.2, 0.5, 0.7, -0.1, 0.4;
+  for (const Case& c : cases) {
+    const Phase<12> ph = fcc_phase(c.law, 20.0, Kinematics::finite_rotation, c.latent);
+    Mat3 L;
+    L << 1.0, 0.3, -0.2, 0.1, -0.45, 0.25, 0.15, -0.05, -0.55;
+    L *= 1e-3;
+    const double dt = 0.5;
+    GrainState<12> s = fresh_grain(random_orientations(1, 77)[0].g, 1.0);
+    for (int i = 0; i < 12; ++i) {  // 0.6 % strain: plastic
+      GrainState<12> next = s;
+      ASSERT_TRUE(implicit_grain_step(ph, s, L, dt, GrainStepOptions{}, next, nullptr).ok);
+      s = next;
+    }
+    GrainStepOptions along;
+    along.tangent_directions = e;
+    GrainState<12> full_end = s, along_end = s;
+    Tangent full, directional;
+    SlipTangent<12> full_slip, directional_slip;
+    ASSERT_TRUE(
+        implicit_grain_step(ph, s, L, dt, GrainStepOptions{}, full_end, &full, nullptr, &full_slip)
+            .ok);
+    ASSERT_TRUE(implicit_grain_step(ph, s, L, dt, along, along_end, &directional, nullptr,
+                                    &directional_slip)
+                    .ok);
+    ASSERT_EQ(directional.cols(), 2);
+    ASSERT_EQ(directional_slip.cols(), 2);
+    const Tangent expected = full * e;
+    const SlipTangent<12> expected_slip = full_slip * e;
+    const double error =
+        (directional - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
+    const double slip_error = (directional_slip - expected_slip).cwiseAbs().maxCoeff() /
+                              expected_slip.cwiseAbs().maxCoeff();
+    measured() << c.name << ": directional tangent rel diff " << error << ", slip tangent "
+               << slip_error << "\n";
+    EXPECT_EQ(full_end.stress, along_end.stress) << c.name;
+    EXPECT_LT(error, 1e-12) << c.name;
+    EXPECT_LT(slip_error, 1e-12) << c.name;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

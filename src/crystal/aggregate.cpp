@@ -612,14 +612,23 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (slip_tangent && slip_tangents_.size() != committed_.size())
       slip_tangents_.resize(committed_.size());
     const bool carried = warm && slip_tangents_current_;
+    // The tangents are taken along the free components' strain directions (tangent_directions_);
+    // the change of L since the last solve lies in their span, with these coefficients (the
+    // directions have disjoint Mandel components).
     const Vec6 strain_rate_change =
         mandel_from_symmetric(0.5 * ((l - warm_l_) + (l - warm_l_).transpose()));
+    const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1> direction_change =
+        (tangent_directions_.transpose() * strain_rate_change)
+            .cwiseQuotient(tangent_directions_.colwise().squaredNorm().transpose());
+    GrainStepOptions grain_options = opt.grain;
+    grain_options.tangent_directions = tangent_directions_;
 #pragma omp parallel for schedule(static) if (n > 1)
     for (long g = 0; g < n; ++g) {
       const auto gi = static_cast<size_t>(g);
       Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
       if (!implicit) {
         reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+        if (t) *t = (*t * tangent_directions_).eval();
         continue;
       }
       GrainStepReport& rep = reports_[gi];
@@ -627,19 +636,19 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       VecN start;
       if (carried) {
         start = warm_[gi];
-        start.noalias() += slip_tangents_[gi] * strain_rate_change;
+        start.noalias() += slip_tangents_[gi] * direction_change;
       } else if (!warm) {
         start = continued_rates(gi, dt);
       }
       // (A start other than the committed rates gets a second try from them.)
       const bool own_start = carried || !warm;
       const bool other_start = warm || start != committed_[gi].rate;
-      rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t,
+      rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
                                 own_start ? &start : &warm_[gi], st);
       if (!rep.ok && other_start) {
         const int spent = rep.iterations;
-        rep = implicit_grain_step(phase_, committed_[gi], l, dt, opt.grain, trial_[gi], t, nullptr,
-                                  st);
+        rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
+                                  nullptr, st);
         rep.iterations += spent;
       }
       if (rep.ok) warm_[gi] = trial_[gi].rate;
@@ -768,20 +777,22 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // (with it, L_13 free alone takes as few grain solves per increment as L_13 and L_31 free as a
   // pair).
   Eigen::MatrixXd free_stress_jacobian(const std::vector<FreeComponent>& fc, double dt) const {
+    // The grains' tangents are d sigma / d(D dt) along the free components' strain directions
+    // (tangent_directions_): column b is d sigma / d u_b per dt.
+    const int k = static_cast<int>(fc.size());
     std::array<parallel::ExactSum, 36> sum;
     for (size_t g = 0; g < tangents_.size(); ++g) {
-      const Mat6 t = weights_[g] * tangents_[g];
-      for (int k = 0; k < 36; ++k) sum[static_cast<size_t>(k)].add(t.data()[k]);
+      const Tangent t = weights_[g] * tangents_[g];
+      for (int i = 0; i < 6 * k; ++i) sum[static_cast<size_t>(i)].add(t.data()[i]);
     }
-    team_.sum(sum);
-    Mat6 mean_tangent;
-    for (int k = 0; k < 36; ++k) mean_tangent.data()[k] = sum[static_cast<size_t>(k)].value();
+    team_.sum(std::span(sum).first(static_cast<size_t>(6 * k)));
+    Tangent mean_tangent(6, k);
+    for (int i = 0; i < 6 * k; ++i) mean_tangent.data()[i] = sum[static_cast<size_t>(i)].value();
     const Mat3 sigma = symmetric_from_mandel(average_stress(trial_));
-    const int k = static_cast<int>(fc.size());
     Eigen::MatrixXd jac(k, k);
     for (int b = 0; b < k; ++b) {
       const FreeComponent& c = fc[static_cast<size_t>(b)];
-      Vec6 dsigma = mean_tangent * strain_direction(c) * dt;
+      Vec6 dsigma = mean_tangent.col(b) * dt;
       if (!c.symmetric_pair && c.i != c.j) {
         const Mat3 e = c.direction();
         const Mat3 w = 0.5 * (e - e.transpose());
@@ -858,6 +869,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   bool try_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
                 double dt, Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
     if (fc.empty()) return solve_grains(seg.velocity_gradient, dt, false, opt, why);
+    tangent_directions_.resize(6, static_cast<int>(fc.size()));
+    for (size_t b = 0; b < fc.size(); ++b)
+      tangent_directions_.col(static_cast<int>(b)) = strain_direction(fc[b]);
     const double scale =
         std::max(target.cwiseAbs().maxCoeff(),
                  std::max(macro_.stress.cwiseAbs().maxCoeff(), phase_.tau0.maxCoeff()));
@@ -1015,6 +1029,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<VecN> trend_;
   std::vector<VecN> warm_;      // slip rates of each grain's last successful solve (solve_grains)
   Mat3 warm_l_ = Mat3::Zero();  // the L of that solve
+  // The strain directions of the free components the tangents are taken along (set for each
+  // mixed-control step).
+  StrainDirections tangent_directions_ = Mat6::Identity();
   // d dgamma / d(D dt) of each grain from the last solve with tangents, and whether it belongs
   // to the step being solved (solve_grains).
   std::vector<SlipTangent<N>> slip_tangents_;

@@ -495,26 +495,33 @@ class StressSolver {
     }
   }
 
-  // d sigma / d(strain increment) (lattice) and d dgamma / d(strain increment) at a converged
-  // slip point: the Newton system with C in place of the residual.
-  void slip_sensitivities(const SlipPoint& p, Mat6& d_sigma, typename T::MatN6& d_dgamma) const {
+  // d sigma / d(strain increment) and d dgamma / d(strain increment) along the lattice strain
+  // directions e (6 x k) at a converged slip point: the Newton system with e in place of the
+  // residual, solved for its k columns.
+  void slip_sensitivities(const SlipPoint& p, const StrainDirections& e, Tangent& d_sigma,
+                          SlipTangent<N>& d_dgamma) const {
     // The Newton system with the strain increment in place of the residual:
     //   S ds = de - P lf eta,  M eta = g K^T S^-1 de.
     const Condensed c = condense(p);
+    const int cols = static_cast<int>(e.cols());
     if (p.saturated.any()) {
       const int m = static_cast<int>(p.saturated.count());
-      MatDQ rhs = MatDQ::Zero(6 + latent_rank_ + m, 6);
-      rhs.topRows(6) = latent_scale_ * Mat6::Identity();
+      MatDQ rhs = MatDQ::Zero(6 + latent_rank_ + m, cols);
+      rhs.topRows(6) = latent_scale_ * e;
       const MatDQ x = saturated_solve(p, c, rhs);
       d_sigma = x.topRows(6);
-      for (int col = 0; col < 6; ++col)
+      d_dgamma.resize(n_, cols);
+      for (int col = 0; col < cols; ++col)
         d_dgamma.col(col) = saturated_slips(p, c, x, col, VecN::Zero(n_));
       return;
     }
-    d_sigma = c.solve_s(Mat6::Identity());
+    // Column by column: the triangular solves of a 6-vector, not Eigen's blocked kernels for
+    // a matrix right-hand side, whose set-up costs more than the solve at this size.
+    d_sigma.resize(6, cols);
+    for (int col = 0; col < cols; ++col) d_sigma.col(col) = c.solve_s(Vec6(e.col(col)));
     d_dgamma.noalias() = c.k.transpose() * d_sigma;
     if (latent_rank_ > 0) {
-      const MatK6 eta = c.solve_m(c.gk * d_sigma);
+      const MatKC eta = c.solve_m(MatKC(c.gk * d_sigma));
       d_sigma.noalias() -= c.z * eta;
       d_dgamma.noalias() = c.k.transpose() * d_sigma;
       d_dgamma.noalias() += c.lf * eta;
@@ -525,6 +532,8 @@ class StressSolver {
   using MatK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, T::MaxN, T::MaxN>;
   using MatK6 =
       Eigen::Matrix<double, Eigen::Dynamic, 6, T::MaxN == 1 ? Eigen::RowMajor : 0, T::MaxN, 6>;
+  using MatKC = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic,
+                              T::MaxN == 1 ? Eigen::RowMajor : 0, T::MaxN, 6>;
   using MatNK = Eigen::Matrix<double, N, Eigen::Dynamic, 0, T::MaxN, T::MaxN>;
   using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, T::MaxN, 1>;
 
@@ -1160,11 +1169,12 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return rep;
 
   if (tangent) {
-    Mat6 lattice_tangent;
-    typename SlipTypes<N>::MatN6 dgamma_de(n, 6);
-    solver.slip_sensitivities(point, lattice_tangent, dgamma_de);
-    *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
-    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
+    Tangent d_sigma;
+    SlipTangent<N> d_dgamma;
+    solver.slip_sensitivities(
+        point, lattice_directions(opt.tangent_directions, kin.mid_orientation), d_sigma, d_dgamma);
+    *tangent = sample_tangent(ph, s1, d_sigma, d_dgamma);
+    if (slip_tangent) *slip_tangent = d_dgamma;
   }
   rep.ok = true;
   return rep;

@@ -119,19 +119,31 @@ bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
   return true;
 }
 
-// The consistent tangent d sigma_sample / d(D_sample dt) of an implicit step's end state s1 from
-// its lattice tangent and d dgamma / d(lattice strain increment). The end orientation depends on
-// the slip through the plastic spin: g1 = exp([W_p]) g_spun, dg1 = [dW_p] g1 to first order, and
-// sigma_sample = g1^T sigma_lattice g1 changes by dg1^T sigma g1 + g1^T sigma dg1; the strain
-// increment was resolved at `mid_orientation`.
+// The lattice strain increments of sample strain directions E (Mandel columns), resolved at
+// the orientation g the step resolves its strain increment at: g E g^T, column by column.
+inline StrainDirections lattice_directions(const StrainDirections& e, const Mat3& g) {
+  StrainDirections out(6, e.cols());
+  for (int k = 0; k < e.cols(); ++k)
+    out.col(k) = mandel_from_symmetric(g * symmetric_from_mandel(e.col(k)) * g.transpose());
+  return out;
+}
+
+// The consistent tangent d sigma_sample / d(D_sample dt) E of an implicit step's end state s1,
+// from the lattice stress and slips' changes along the lattice directions of E
+// (lattice_directions at the step's mid orientation). The end orientation depends on the slip
+// through the plastic spin: g1 = exp([W_p]) g_spun, dg1 = [dW_p] g1 to first order, and
+// sigma_sample = g1^T sigma_lattice g1 changes by dg1^T sigma g1 + g1^T sigma dg1.
 template <int N>
-Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Mat6& lattice_tangent,
-                       const typename SlipTypes<N>::MatN6& dgamma_de, const Mat3& mid_orientation) {
-  Mat6 t = mandel_rotation_operator(s1.orientation.transpose()) * lattice_tangent;
+Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Tangent& d_sigma_lattice,
+                       const SlipTangent<N>& d_dgamma) {
+  const Mat3& g1 = s1.orientation;
+  Tangent t(6, d_sigma_lattice.cols());
+  for (int k = 0; k < t.cols(); ++k)
+    t.col(k) =
+        mandel_from_symmetric(g1.transpose() * symmetric_from_mandel(d_sigma_lattice.col(k)) * g1);
   if (ph.kinematics == Kinematics::finite_rotation) {
     // With dg1 = [dw] g1: d sigma_sample = g1^T (sigma [dw] - [dw] sigma) g1, linear in the
     // plastic spin's change dw = W_p d dgamma: its 6 x 3 matrix from the three unit spins.
-    const Mat3& g1 = s1.orientation;
     const Mat3 sigma = symmetric_from_mandel(s1.stress);
     Eigen::Matrix<double, 6, 3> per_spin;
     for (int k = 0; k < 3; ++k) {
@@ -140,18 +152,25 @@ Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Mat6& 
       skew << 0.0, -e.z(), e.y(), e.z(), 0.0, -e.x(), -e.y(), e.x(), 0.0;
       per_spin.col(k) = mandel_from_symmetric(g1.transpose() * (sigma * skew - skew * sigma) * g1);
     }
-    const Eigen::Matrix<double, 3, 6> spin_de = ph.slip_spin * dgamma_de;
-    t.noalias() += per_spin * spin_de;
+    const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6> spin = ph.slip_spin * d_dgamma;
+    t.noalias() += per_spin * spin;
   }
-  return t * mandel_rotation_operator(mid_orientation);
+  return t;
 }
 
-// d dgamma / d(D_sample dt) from d dgamma / d(lattice strain increment), the strain increment
-// resolved at `mid_orientation`.
+// The tangents along the lattice directions `e_lattice` from a step's full lattice slip
+// sensitivity d dgamma / d(lattice strain increment) (N x 6): the stress follows the slips
+// through sigma = C (de - P dgamma).
 template <int N>
-SlipTangent<N> sample_slip_tangent(const typename SlipTypes<N>::MatN6& dgamma_de,
-                                   const Mat3& mid_orientation) {
-  return dgamma_de * mandel_rotation_operator(mid_orientation);
+void tangents_from_slip_sensitivity(const Phase<N>& ph, const GrainState<N>& s1,
+                                    const typename SlipTypes<N>::MatN6& dgamma_de,
+                                    const StrainDirections& e_lattice, Tangent* tangent,
+                                    SlipTangent<N>* slip_tangent) {
+  const SlipTangent<N> d_dgamma = dgamma_de * e_lattice;
+  Tangent d_sigma = ph.stiffness * e_lattice;
+  d_sigma.noalias() -= ph.c_schmid * d_dgamma;
+  *tangent = sample_tangent(ph, s1, d_sigma, d_dgamma);
+  if (slip_tangent) *slip_tangent = d_dgamma;
 }
 
 }  // namespace subslip::crystal::detail

@@ -586,9 +586,9 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
     const typename T::MatN6 dx =
         -solve_newton_system<N>(j, solver.strain_jacobian(it), it.open.any());
     const typename T::MatN6 dgamma_de = it.sign.cwiseProduct(it.dslip_dx).asDiagonal() * dx;
-    const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
-    *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
-    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
+    tangents_from_slip_sensitivity(ph, s1, dgamma_de,
+                                   lattice_directions(opt.tangent_directions, kin.mid_orientation),
+                                   tangent, slip_tangent);
   }
   rep.ok = true;
   return rep;

@@ -438,10 +438,9 @@ GrainStepReport vertex_grain_step(const Phase<N>& ph, const GrainState<N>& s0, c
   if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::refused, tolerance)) return rep;
 
   if (tangent) {
-    const typename SlipTypes<N>::MatN6 dgamma_de = solver.slip_sensitivities(sigma, qp);
-    const Mat6 lattice_tangent = ph.stiffness - ph.c_schmid * dgamma_de;
-    *tangent = sample_tangent(ph, s1, lattice_tangent, dgamma_de, kin.mid_orientation);
-    if (slip_tangent) *slip_tangent = sample_slip_tangent<N>(dgamma_de, kin.mid_orientation);
+    tangents_from_slip_sensitivity(ph, s1, solver.slip_sensitivities(sigma, qp),
+                                   lattice_directions(opt.tangent_directions, kin.mid_orientation),
+                                   tangent, slip_tangent);
   }
   rep.ok = true;
   return rep;

@@ -104,10 +104,17 @@ struct GrainState {
   Vec6 sample_stress() const;
 };
 
+// Strain directions (sample frame, Mandel, 6 x k with k <= 6) along which a step's tangents are
+// taken.
+using StrainDirections = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+
 struct GrainStepOptions {
   double tolerance = 1e-12;  // on the flow residual, traction-ratio units
   int max_iterations = 60;
-  bool want_tangent = false;
+  // The tangents' columns: all six unit directions by default. Mixed control asks for its free
+  // components' alone (their k columns cost a fraction of the six: the condensed system is
+  // solved for k right-hand sides and only k columns are rotated to the sample frame).
+  StrainDirections tangent_directions = Mat6::Identity();
 };
 
 struct GrainStepReport {
@@ -117,14 +124,17 @@ struct GrainStepReport {
   const char* why = "";
 };
 
-// d sigma_sample(n+1) / d (D_sample dt), Mandel, when requested.
-using Tangent = Mat6;
+// d sigma_sample(n+1) / d (D_sample dt) E, Mandel, when requested: 6 x k, E the options'
+// tangent_directions (the identity by default: the full 6 x 6 tangent).
+using Tangent = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
 
-// d dgamma(n+1) / d (D_sample dt): how the step's slips follow its strain increment, when
+// d dgamma(n+1) / d (D_sample dt) E: how the step's slips follow its strain increment, when
 // requested with the tangent (a mixed-control iteration starts the next solve of the same step
-// from the slips it predicts).
+// from the slips it predicts); N x k.
 template <int N>
-using SlipTangent = typename SlipTypes<N>::MatN6;
+using SlipTangent =
+    Eigen::Matrix<double, N, Eigen::Dynamic, N == 1 ? Eigen::RowMajor : Eigen::ColMajor,
+                  SlipTypes<N>::MaxN, 6>;
 
 // One implicit step of one grain: velocity gradient L (sample frame, constant over dt). The
 // Newton iteration starts from the slip rates `start_rate` where their signs agree with the
@@ -139,7 +149,8 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
 
 // One forward-Euler step (paper section 2f, method 2, applied per slip system). Refused (not ok,
 // naming the system) when dt is above a slip system's stability limit 2/lambda, lambda =
-// A_aa phi_r / (mu f_n), unless `stability` is unchecked.
+// A_aa phi_r / (mu f_n), unless `stability` is unchecked. Its tangent (the elastic one, rotated)
+// is the full 6 x 6.
 template <int N>
 GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, GrainState<N>& s1, Tangent* tangent,
