@@ -250,6 +250,7 @@ INSTANTIATE_TEST_SUITE_P(
                "bad_orientations.txt"},
         Broken{"non_pd_elasticity.yaml", 6, "phase.elasticity", "not positive definite"},
         Broken{"forward_euler_rate_independent.yaml", 19, "integrator.method", "rate_independent"},
+        Broken{"unknown_predictor.yaml", 19, "integrator.predictor", "trend"},
         Broken{"hcp_without_c_over_a.yaml", 5, "phase.c_over_a", "missing required key"},
         Broken{"c_over_a_without_hcp.yaml", 8, "phase.c_over_a", "hcp slip families only"},
         Broken{"unknown_per_family.yaml", 9, "phase.per_family.fcc_111_110.mu_s",
@@ -268,7 +269,7 @@ TEST(BrokenCrystalScenes, TableCoversEveryFile) {
   for (const auto& entry : fs::directory_iterator(kBrokenDir)) {
     if (entry.path().extension() == ".yaml") ++files;
   }
-  EXPECT_EQ(files, 19u);
+  EXPECT_EQ(files, 20u);
 }
 
 // ---------------------------------------------------------------- shipped scenes

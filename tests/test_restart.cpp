@@ -156,8 +156,11 @@ void check_resume_is_bitwise(const CrystalCase& c, long stop_after) {
 }  // namespace
 
 TEST(Restart, AggregateContinuesBitwiseFromACheckpoint) {
-  const CrystalScene scene = scene_of(crystal_scene(6, 20));
+  // (The trend predictor: its trend is part of the checkpoint.)
+  const CrystalScene scene =
+      scene_of(crystal_scene(6, 20, "integrator: {method: implicit, predictor: trend}\n"));
   const CrystalCase& c = scene.cases.at(0);
+  ASSERT_EQ(c.options.predictor, crystal::MixedPredictor::trend);
   // Inside the first segment between outputs, at its end, and inside the graded second one.
   for (long stop : {7L, 20L, 26L}) {
     SCOPED_TRACE("stopped after increment " + std::to_string(stop));
@@ -171,7 +174,8 @@ TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
     SCOPED_TRACE("order " + std::to_string(order));
     const CrystalScene scene =
         scene_of(crystal_scene(4, 10,
-                               "integrator: {method: implicit, tolerance: 1.0e-3, order: " +
+                               "integrator: {method: implicit, predictor: trend, tolerance: "
+                               "1.0e-3, order: " +
                                    std::to_string(order) + "}\n"));
     const CrystalCase& c = scene.cases.at(0);
     ASSERT_GT(c.options.tolerance, 0.0);
@@ -188,8 +192,9 @@ TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
 // points resume bit for bit, between points and right after one.
 TEST(Restart, RunWithOutputPointsContinuesBitwiseFromACheckpoint) {
   for (const std::string& integrator :
-       std::vector<std::string>{"", "integrator: {method: implicit, tolerance: 1.0e-3}\n"}) {
-    SCOPED_TRACE(integrator.empty() ? "fixed" : "adaptive");
+       std::vector<std::string>{"integrator: {method: implicit, predictor: trend}\n",
+                                "integrator: {method: implicit, tolerance: 1.0e-3}\n"}) {
+    SCOPED_TRACE(integrator.find("tolerance") == std::string::npos ? "fixed" : "adaptive");
     std::string text = crystal_scene(2, 10, integrator + "output: {at: {time: {every: 0.7}}}\n");
     text.erase(text.find("    output_every: 3\n"), 19);  // output.at chooses the rows
     const CrystalScene scene = scene_of(text);
@@ -232,6 +237,7 @@ crystal::AggregateCheckpoint numbered_checkpoint(long k, std::size_t grains, int
   c.macro.stress.setConstant(x + 0.4);
   c.segment_start_stress.setConstant(x + 0.5);
   c.free_velocity_gradient = Eigen::VectorXd::Constant(2, x + 0.6);
+  c.free_velocity_gradient_trend = Eigen::VectorXd::Constant(2, x + 0.8);
   c.stats.increments = k;
   c.stats.substeps = k + 1;
   c.stats.grain_steps = k + 2;
@@ -259,6 +265,7 @@ void expect_numbered(const StoredCheckpoint& s, std::size_t grains, int per_grai
   EXPECT_EQ(s.state.macro.deformation_gradient, expected.macro.deformation_gradient);
   EXPECT_EQ(s.state.segment_start_stress, expected.segment_start_stress);
   EXPECT_EQ(s.state.free_velocity_gradient, expected.free_velocity_gradient);
+  EXPECT_EQ(s.state.free_velocity_gradient_trend, expected.free_velocity_gradient_trend);
   EXPECT_EQ(s.state.stats.mixed_iterations, k + 7);
   EXPECT_EQ(s.state.stats.wall_seconds, x + 0.7);
   EXPECT_EQ(s.state.grains, expected.grains);
@@ -435,7 +442,9 @@ TEST(Restart, KilledCrystalRunContinuesBitwise) {
 TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
   const fs::path dir = scratch_dir();
   std::ofstream(dir / "scene.yaml")
-      << crystal_scene(16, 300, "output:\n  checkpoint_every: 100000\n");
+      << crystal_scene(16, 300,
+                       "integrator: {method: implicit, predictor: trend}\n"
+                       "output:\n  checkpoint_every: 100000\n");
   subslip::testing::RunTiming ref;
   ASSERT_EQ(subslip::testing::run_subslip_timed(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"},
                                                 dir / "run.log", dir / "ref.h5", ref),

@@ -61,18 +61,23 @@ void add_bench_command(CLI::App& app, BenchArgs& a) {
   cmd->add_option("--threads", a.threads, "thread counts to run")->check(cli::positive());
   cmd->add_option("--lattice", a.lattices, "fcc, bcc48, hcp")
       ->check(CLI::IsMember(study::bench_lattices()));
+  cmd->add_option("--predictor", a.predictor,
+                  "mixed control's start: last or trend (as the integrator key `predictor`)")
+      ->check(CLI::IsMember({"last", "trend"}));
 }
 
 int run_bench(const BenchArgs& a) {
   const io::text::Table t = bench_table(a);
   std::printf("%s\n", t.header().c_str());
   const auto grains = random_orientations(static_cast<size_t>(a.grains), 20000);
+  AggregateOptions options;
+  options.predictor = a.predictor == "trend" ? MixedPredictor::trend : MixedPredictor::last;
   for (const auto& lattice : a.lattices) {
     for (int threads : a.threads) {
       omp_set_num_threads(threads);
       auto aggregate = build_taylor_aggregate(study::bench_phase(lattice), grains);
-      const AggregateStats st = aggregate->run({tension(a.steps)}, AggregateOptions{},
-                                               [](const MacroState&, const GrainFields&) {});
+      const AggregateStats st =
+          aggregate->run({tension(a.steps)}, options, [](const MacroState&, const GrainFields&) {});
       const auto count = [](auto n) { return std::to_string(n); };
       std::printf("%s\n",
                   t.row({lattice, count(aggregate->slip_count()), count(a.grains), count(threads),

@@ -14,6 +14,7 @@ struct BenchArgs {
   int steps = 50;
   std::vector<int> threads{1, 2};
   std::vector<std::string> lattices = study::bench_lattices();
+  std::string predictor = "last";  // mixed control's start (integrator key `predictor`)
 };
 
 void add_bench_command(CLI::App& app, BenchArgs& args);

@@ -143,6 +143,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     c.macro = macro_;
     c.segment_start_stress = cursor_.stress_start;
     c.free_velocity_gradient = cursor_.free;
+    c.free_velocity_gradient_trend = cursor_.free_trend;
     c.stats = stats_;
     c.stats.wall_seconds = wall_seconds();
     const int n = phase_.slip_count;
@@ -183,7 +184,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     macro_ = c.macro;
     stats_ = c.stats;
     wall_before_ = c.stats.wall_seconds;
-    cursor_ = {c.position, c.segment_start_stress, c.free_velocity_gradient};
+    cursor_ = {c.position, c.segment_start_stress, c.free_velocity_gradient,
+               c.free_velocity_gradient_trend, c.position.increment > 0};
   }
 
  private:
@@ -193,6 +195,11 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     RunPosition position;
     Mat3 stress_start = Mat3::Zero();
     Eigen::VectorXd free;
+    // The free components' change per unit time over the segment's last committed step (zero
+    // until the segment has two): a step's mixed-control iteration starts from free continued
+    // along it (try_step).
+    Eigen::VectorXd free_trend;
+    bool free_from_step = false;  // whether `free` is a committed step's (of this segment)
   };
 
   double wall_seconds() const {
@@ -210,6 +217,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
+      cursor_.free_trend = resume->free_velocity_gradient_trend;
+      cursor_.free_from_step = resume->position.increment > 0;
       return;
     }
     cursor_.stress_start = macro_.stress;
@@ -220,6 +229,27 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     cursor_.free = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
     for (size_t k = 0; k < fc.size(); ++k)
       cursor_.free(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    // The loading has just changed: no trend carries over from the last segment.
+    cursor_.free_trend = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
+    cursor_.free_from_step = false;
+  }
+
+  // A step failed: the free components do not change smoothly over it (a change of the grains'
+  // active sets, or an L the stresses hardly determine, as in nearly ideal plasticity, which
+  // changes by jumps), so there is no trend to continue until two steps have committed again.
+  void forget_free_trend() {
+    cursor_.free_trend.setZero();
+    cursor_.free_from_step = false;
+  }
+
+  // Records a committed step of dt that took the free components from `before` to `after`: their
+  // trend is the change per unit time where `before` was a committed step's too.
+  void record_free_step(const Eigen::VectorXd& before, const Eigen::VectorXd& after, double dt) {
+    if (cursor_.free_from_step)
+      cursor_.free_trend = (after - before) / dt;
+    else
+      cursor_.free_trend.setZero(after.size());
+    cursor_.free_from_step = true;
   }
 
   // The prescribed stresses at `progress` (0 .. 1) through a segment: ramped linearly from the
@@ -311,6 +341,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       }
       if (!solved || !(error.value <= opt.tolerance)) {
         solved ? ++stats_.rejected : ++stats_.cutbacks;
+        if (!solved) forget_free_trend();
         if (solved) why = describe_error(error);
         if (!clock.refuse(!solved, error.value,
                           extrapolated ? extrapolation_resolution(fc, opt) : 0.0)) {
@@ -323,6 +354,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         continue;
       }
       const bool last = clock.last();
+      record_free_step(u, u_try, h);
       u = u_try;
       if (extrapolated) {
         std::swap(committed_, trial_);
@@ -404,17 +436,30 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     step_start_ = committed_;
     const MacroState macro_start = macro_;
     const Eigen::VectorXd u_start = u;
+    // Every solution starts from the step's free trend; its substeps carry their own on (the
+    // run loop records the accepted step's).
+    const Eigen::VectorXd trend_start = cursor_.free_trend;
+    const bool from_step_start = cursor_.free_from_step;
+    auto restore_trend = [&] {
+      cursor_.free_trend = trend_start;
+      cursor_.free_from_step = from_step_start;
+    };
     const double t0 = clock.time();
     const double t1 = clock.end_time();
     bool ok = true;
     for (int j = 1; j <= order && ok; ++j) {
       u = u_start;
+      restore_trend();
       double t = t0;
       for (int i = 1; i <= j && ok; ++i) {
         const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
         const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
+        const Eigen::VectorXd before = u;
         ok = try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u, opt, why);
-        if (ok) commit(seg, fc, u, end - t);
+        if (ok) {
+          record_free_step(before, u, end - t);
+          commit(seg, fc, u, end - t);
+        }
         t = end;
       }
       if (!ok) break;
@@ -423,6 +468,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       committed_ = step_start_;
       macro_ = macro_start;
     }
+    restore_trend();
     if (!ok) {
       committed_ = step_start_;
       macro_ = macro_start;
@@ -574,7 +620,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       todo.pop_back();
       const double progress = std::min(1.0, (t_local + p.dt) / seg.duration);
       std::string why;
+      const Eigen::VectorXd before = u;
       if (try_step(seg, fc, stress_target_at(seg, stress_start, progress), p.dt, u, opt, why)) {
+        record_free_step(before, u, p.dt);
         commit(seg, fc, u, p.dt);
         t_local += p.dt;
         ++stats_.substeps;
@@ -587,6 +635,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         throw CrystalStepFailure(msg.str());
       }
       ++stats_.cutbacks;
+      forget_free_trend();
       todo.push_back({0.5 * p.dt, p.depth + 1});
       todo.push_back({0.5 * p.dt, p.depth + 1});
     }
@@ -866,9 +915,45 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // or within their round-off; or, when the error is already below the grains' own noise
   // (StressResolution::grain_noise) and a short line search finds no decrease, at that noise:
   // a tolerance tighter than what the state resolves is met as well as it can be, not failed.
+  //
+  // The iteration starts from the last step's free components, or with MixedPredictor::trend
+  // from those continued along their trend over the last step (on a loading path they change
+  // smoothly, so the first sweep lands at a second-order distance from the step's solution:
+  // fewer Newton iterations of the grains in the sweeps that follow). The trend is a guess:
+  // where the step fails from there (an L poorly determined by the stresses, as in nearly ideal
+  // plasticity, changes by jumps and has no trend) it is tried again from the last step's free
+  // components before it is cut back.
   bool try_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
                 double dt, Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
     if (fc.empty()) return solve_grains(seg.velocity_gradient, dt, false, opt, why);
+    if (opt.predictor == MixedPredictor::last)
+      return solve_free_components(seg, fc, target, dt, u, opt, why);
+    const Eigen::VectorXd start = continued_free(u, dt);
+    Eigen::VectorXd solution = start;
+    if (!solve_free_components(seg, fc, target, dt, solution, opt, why)) {
+      if (start == u) return false;
+      solution = u;
+      if (!solve_free_components(seg, fc, target, dt, solution, opt, why)) return false;
+    }
+    u = solution;
+    return true;
+  }
+
+  // The free components u continued along their trend over dt; one whose continued value would
+  // change sign (or start from zero) keeps its value, as the grains' continued slip rates do
+  // (continued_rates): a component relaxing towards zero, as the lateral L of a hold does, over
+  // steps longer than its relaxation would be carried past zero.
+  Eigen::VectorXd continued_free(const Eigen::VectorXd& u, double dt) const {
+    Eigen::VectorXd start = u + cursor_.free_trend * dt;
+    for (int k = 0; k < start.size(); ++k)
+      if (!(start(k) * u(k) > 0.0)) start(k) = u(k);
+    return start;
+  }
+
+  // try_step's iteration from the free components u (on success their solution).
+  bool solve_free_components(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                             const Mat3& target, double dt, Eigen::VectorXd& u,
+                             const AggregateOptions& opt, std::string& why) {
     tangent_directions_.resize(6, static_cast<int>(fc.size()));
     for (size_t b = 0; b < fc.size(); ++b)
       tangent_directions_.col(static_cast<int>(b)) = strain_direction(fc[b]);

@@ -56,7 +56,8 @@ class Packed {
     put(c.macro);
     put(c.segment_start_stress);
     put_integer(c.free_velocity_gradient.size());
-    for (int k = 0; k < c.free_velocity_gradient.size(); ++k) put(c.free_velocity_gradient(k));
+    for (const Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend})
+      for (int k = 0; k < free->size(); ++k) put((*free)(k));
     put(c.stats);
     put_integer(c.values_per_grain);
     put_integer(static_cast<std::int64_t>(c.grains.size()));
@@ -107,8 +108,11 @@ class Unpacked {
     c.position.next_step = real();
     get(c.macro);
     get(c.segment_start_stress);
-    c.free_velocity_gradient.resize(integer());
-    for (int k = 0; k < c.free_velocity_gradient.size(); ++k) c.free_velocity_gradient(k) = real();
+    const auto free_count = integer();
+    for (Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend}) {
+      free->resize(free_count);
+      for (int k = 0; k < free->size(); ++k) (*free)(k) = real();
+    }
     get(c.stats);
     c.values_per_grain = static_cast<int>(integer());
     return static_cast<std::size_t>(integer());

@@ -236,6 +236,7 @@ void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
   g.set_attribute("max_cutbacks", o.max_cutbacks);
   g.set_attribute("stress_tolerance", o.stress_tolerance);
   g.set_attribute("max_mixed_iterations", o.max_mixed_iterations);
+  g.set_attribute("predictor", o.predictor == crystal::MixedPredictor::trend ? "trend" : "last");
 }
 
 // The weights of the grains held, normalised by the sum over every grain of the case (summed

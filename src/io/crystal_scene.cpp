@@ -614,7 +614,7 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
   crystal::AggregateOptions opt;
   if (!node) return opt;
   node->allow_keys({"method", "tolerance", "residual_tolerance", "max_iterations", "max_cutbacks",
-                    "stress_tolerance", "max_mixed_iterations", "order"});
+                    "stress_tolerance", "max_mixed_iterations", "order", "predictor"});
   if (auto m = node->optional("method")) {
     opt.method = m->as_enum<crystal::CrystalMethod>(
         {{"implicit", crystal::CrystalMethod::implicit},
@@ -638,6 +638,10 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
       node->get_double("stress_tolerance", opt.stress_tolerance, Range::positive());
   opt.max_mixed_iterations = node->get_int("max_mixed_iterations", opt.max_mixed_iterations,
                                            Range::in_closed_interval(1, 1000));
+  if (auto p = node->optional("predictor")) {
+    opt.predictor = p->as_enum<crystal::MixedPredictor>(
+        {{"last", crystal::MixedPredictor::last}, {"trend", crystal::MixedPredictor::trend}});
+  }
   return opt;
 }
 

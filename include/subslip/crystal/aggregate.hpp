@@ -45,6 +45,14 @@ std::vector<double> increment_lengths(double duration, int increments, double gr
 
 enum class CrystalMethod { implicit, forward_euler };
 
+// Mixed control: where a step's iteration on the free components of L starts. `last`: their
+// values of the last step. `trend`: those continued along their change per unit time over the
+// segment's last step (a component that would change sign keeps its value; a step that fails
+// from there is tried from `last`, and a failed step clears the trend): fewer grain Newton
+// iterations on smooth loading paths, but a different path through holds at yield vertices of
+// nearly ideal plasticity, where the free L is hardly determined (docs/grain_step.md).
+enum class MixedPredictor { last, trend };
+
 struct AggregateOptions {
   CrystalMethod method = CrystalMethod::implicit;
   GrainStepOptions grain;
@@ -55,6 +63,7 @@ struct AggregateOptions {
   // resolves (round-off, or the grains' Newton tolerance) is met as well as it can be.
   double stress_tolerance = 1e-10;
   int max_mixed_iterations = 25;
+  MixedPredictor predictor = MixedPredictor::last;
   // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated per
   // grain and slip system as dt/2 |A (gdot_end - gdot_start)| (the change of the resolved
   // shear stress rate over the step, A = P:C:P) in units of the current CRSS mu tau0, is kept
@@ -134,11 +143,12 @@ constexpr int checkpoint_values_per_grain(int slip_count) {
 // the results of the uninterrupted run bit for bit. A plain value (the I/O layer stores it).
 struct AggregateCheckpoint {
   RunPosition position;
-  MacroState macro;                          // the current state (not necessarily an output)
-  Mat3 segment_start_stress = Mat3::Zero();  // where the segment's stress ramp starts
-  Eigen::VectorXd free_velocity_gradient;    // mixed control: the free components of L
-  AggregateStats stats;                      // counters so far; wall_seconds over all sessions
-  int values_per_grain = 0;                  // checkpoint_values_per_grain(N)
+  MacroState macro;                              // the current state (not necessarily an output)
+  Mat3 segment_start_stress = Mat3::Zero();      // where the segment's stress ramp starts
+  Eigen::VectorXd free_velocity_gradient;        // mixed control: the free components of L
+  Eigen::VectorXd free_velocity_gradient_trend;  // their change per unit time over the last step
+  AggregateStats stats;                          // counters so far; wall_seconds over all sessions
+  int values_per_grain = 0;                      // checkpoint_values_per_grain(N)
   // Per grain: Cauchy stress (lattice frame, Mandel) 6, orientation g row-major 9, then mu,
   // r_s, slip, slip rate and slip-rate trend (the rate's change per unit time over the last
   // step), N each.
