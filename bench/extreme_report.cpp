@@ -411,7 +411,8 @@ std::string outcome(const CaseRun& r) {
 
 struct Totals {
   int cases = 0, failed = 0, inadmissible = 0, not_converging = 0;
-  int not_refined = 0;  // of not_converging: splitting does not shrink the largest increment
+  int not_refined = 0;     // of not_converging: splitting does not shrink the largest increment
+  int refined_failed = 0;  // cases whose x1 run ended but a refined run or the reference failed
   double max_newton = 0.0, max_cutbacks = 0.0, min_gap = kInf;
 };
 
@@ -428,9 +429,18 @@ void case_table(const std::string& file, const std::string& title, const std::ve
     ++totals.cases;
     std::vector<double> err(3, std::nan(""));
     std::string order = "-";
+    // The refined runs that failed (their errors read "-": a shorter series has none).
+    std::string refined_failures;
     if (r1.failure.empty()) {
       const CaseRun ref = run_case(c, o.reference, 0.0);
       const CaseRun r2 = run_case(c, 2, 0.0), r4 = run_case(c, 4, 0.0);
+      auto note_failure = [&](const CaseRun& run, const std::string& name) {
+        if (!run.failure.empty()) refined_failures += (refined_failures.empty() ? "" : ", ") + name;
+      };
+      note_failure(r2, "x2");
+      note_failure(r4, "x4");
+      note_failure(ref, "x" + std::to_string(o.reference));
+      if (!refined_failures.empty()) ++totals.refined_failed;
       if (ref.failure.empty()) {
         err = {max_error_nested(r1.series, ref.series), max_error_nested(r2.series, ref.series),
                max_error_nested(r4.series, ref.series)};
@@ -462,7 +472,9 @@ void case_table(const std::string& file, const std::string& title, const std::ve
     totals.max_newton = std::max(totals.max_newton, per_newton);
     totals.max_cutbacks = std::max(totals.max_cutbacks, per_cut);
     totals.min_gap = std::min(totals.min_gap, r1.min_gap);
-    std::cout << "| " << c.name << " | " << outcome(r1) << " | " << r1.steps << " | "
+    const std::string failed_too =
+        refined_failures.empty() ? "" : " (**failed: " + refined_failures + "**)";
+    std::cout << "| " << c.name << " | " << outcome(r1) << failed_too << " | " << r1.steps << " | "
               << fmt("%.2f", per_newton) << " | " << fmt("%.3f", per_cut) << " | "
               << (r1.min_gap == kInf ? std::string("-") : sci(r1.min_gap)) << " | " << sci(err[0])
               << " | " << sci(err[1]) << " | " << sci(err[2]) << " | " << order << " | "
@@ -880,7 +892,9 @@ int main(int argc, char** argv) {
       std::cout << "\n**Summary**: " << totals.cases << " cases, " << totals.failed << " failed, "
                 << totals.inadmissible << " inadmissible outputs, " << totals.not_converging
                 << " with errors not decreasing under refinement (" << totals.not_refined
-                << " of them with a largest increment that splitting does not shrink); at most "
+                << " of them with a largest increment that splitting does not shrink), "
+                << totals.refined_failed
+                << " whose refined runs (x2, x4) or reference failed where x1 ran; at most "
                 << fmt("%.2f", totals.max_newton)
                 << " Newton iterations per step (or grain solve), "
                 << fmt("%.3f", totals.max_cutbacks)
