@@ -460,11 +460,16 @@ class StressSolver {
           continue;
         }
         if (change.kind == RoleChange::turned_against && base(a) * dgamma(a) < 0.0) {
-          // The step carried this slip through zero while its shear kept its sign: the linear
-          // model's slip is below zero, the flow rule's root is between zero and the base slip
-          // (or at zero, found when the halved slip falls below rounding above). Bisect that
-          // bracket instead of changing the system's role.
-          dgamma(a) = 0.5 * base(a);
+          // The step carried this slip through zero while its shear kept its sign: the
+          // linearised flow rules want it below zero, where a slip of that sign cannot go. It is
+          // projected onto zero (the projected Newton step of the complementarity "slip >= 0 on
+          // the shear's side, G <= 0, one of them zero"), not bisected towards zero: the root of
+          // such a system is mostly at zero (a system that stops slipping), which bisection
+          // reaches only after some forty halvings, each failing the step's contraction test.
+          // Where its flow rule still wants slip at zero, the evaluation there says so and it
+          // re-enters the active set with its activation slip below, a role change that is
+          // counted and checked for cycles like any other.
+          dgamma(a) = 0.0;
           continue;
         }
         const double direction = sign_of(tau_of(current.sigma, a));
