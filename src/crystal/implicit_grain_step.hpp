@@ -452,23 +452,19 @@ class StressSolver {
       }
       if (change.kind != RoleChange::none) {
         const int a = change.system;
+        // A slip set to zero without a change of the active set (no role change counted):
+        // * below the rounding of the others: dropping it moves no stress (and cannot cycle);
+        // * carried through zero by the step while its shear kept its sign: the linearised flow
+        //   rules want it below zero, where a slip of that sign cannot go. It is projected onto
+        //   zero (the projected Newton step of the complementarity "slip >= 0 on the shear's
+        //   side, G <= 0, one of them zero"), not bisected towards zero: the root of such a
+        //   system is mostly at zero (a system that stops slipping), which bisection reaches
+        //   only after some forty halvings, each failing the step's contraction test. Where its
+        //   flow rule still wants slip at zero, the evaluation there says so and it re-enters
+        //   the active set with its activation slip below, a role change that is counted and
+        //   checked for cycles like any other.
         if (change.kind == RoleChange::turned_against &&
-            std::abs(dgamma(a)) <= current.slip_resolution) {
-          // Its slip is below the rounding of the others: dropping it moves no stress, so it is
-          // no change of the active set (and cannot cycle).
-          dgamma(a) = 0.0;
-          continue;
-        }
-        if (change.kind == RoleChange::turned_against && base(a) * dgamma(a) < 0.0) {
-          // The step carried this slip through zero while its shear kept its sign: the
-          // linearised flow rules want it below zero, where a slip of that sign cannot go. It is
-          // projected onto zero (the projected Newton step of the complementarity "slip >= 0 on
-          // the shear's side, G <= 0, one of them zero"), not bisected towards zero: the root of
-          // such a system is mostly at zero (a system that stops slipping), which bisection
-          // reaches only after some forty halvings, each failing the step's contraction test.
-          // Where its flow rule still wants slip at zero, the evaluation there says so and it
-          // re-enters the active set with its activation slip below, a role change that is
-          // counted and checked for cycles like any other.
+            (std::abs(dgamma(a)) <= current.slip_resolution || base(a) * dgamma(a) < 0.0)) {
           dgamma(a) = 0.0;
           continue;
         }
