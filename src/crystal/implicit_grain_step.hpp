@@ -727,11 +727,11 @@ class StressSolver {
       // (lazyProduct), not by Eigen's general matrix kernels, whose set-up costs more here.
       c.lf.noalias() = p.l.asDiagonal() * ph_.latent_factor.leftCols(latent_rank_);
       c.g.noalias() = ph_.latent_mix.leftCols(latent_rank_).transpose() * p.sign.asDiagonal();
-      // g K^T row by row, as K times a fixed-size column of g^T (sign times a column of R):
-      // the fixed 6 x N product, not a coefficient-wise loop over dynamic sizes.
+      // g K^T row by row, as K times a row of g held at fixed size: the fixed 6 x N product,
+      // not a coefficient-wise loop over dynamic sizes.
       c.gk.resize(latent_rank_, 6);
       for (int j = 0; j < latent_rank_; ++j)
-        c.gk.row(j) = (c.k * VecN(p.sign.cwiseProduct(ph_.latent_mix.col(j)))).transpose();
+        c.gk.row(j) = (c.k * VecN(c.g.row(j).transpose())).transpose();
       c.z.resize(6, latent_rank_);
       for (int j = 0; j < latent_rank_; ++j)
         c.z.col(j) = c.solve_s(Vec6(ph_.schmid.lazyProduct(c.lf.col(j))));
