@@ -725,8 +725,14 @@ class StressSolver {
     if (latent_rank_ > 0) {
       // The products are of at most (latent rank) x 12 x 6: evaluated coefficient-wise
       // (lazyProduct), not by Eigen's general matrix kernels, whose set-up costs more here.
-      c.lf.noalias() = p.l.asDiagonal() * ph_.latent_factor.leftCols(latent_rank_);
-      c.g.noalias() = ph_.latent_mix.leftCols(latent_rank_).transpose() * p.sign.asDiagonal();
+      // diag(l) F and R^T diag(sign) column by column (row by row), each a product of two
+      // fixed-size columns, not a diagonal product over dynamic sizes.
+      c.lf.resize(n_, latent_rank_);
+      c.g.resize(latent_rank_, n_);
+      for (int j = 0; j < latent_rank_; ++j) {
+        c.lf.col(j) = p.l.cwiseProduct(ph_.latent_factor.col(j));
+        c.g.row(j) = p.sign.cwiseProduct(ph_.latent_mix.col(j)).transpose();
+      }
       // g K^T row by row, as K times a row of g held at fixed size: the fixed 6 x N product,
       // not a coefficient-wise loop over dynamic sizes.
       c.gk.resize(latent_rank_, 6);
