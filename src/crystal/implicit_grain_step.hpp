@@ -552,10 +552,15 @@ class StressSolver {
   }
 
   // F R^T |dgamma|: for each system the slip of the others that hardens it.
+  // F times the mixed slips column by column: fixed-size columns, not the general
+  // matrix-vector kernel over a dynamic column count (rank 1, the usual latent matrix, is
+  // then one scaled column).
   VecN latent_drives(const VecN& dgamma) const {
     if (latent_rank_ == 0) return VecN::Zero(n_);
-    return ph_.latent_factor.leftCols(latent_rank_) *
-           (ph_.latent_mix.leftCols(latent_rank_).transpose() * dgamma.cwiseAbs());
+    const VecK mixed = ph_.latent_mix.leftCols(latent_rank_).transpose() * dgamma.cwiseAbs();
+    VecN drive = VecN::Zero(n_);
+    for (int j = 0; j < latent_rank_; ++j) drive += ph_.latent_factor.col(j) * mixed(j);
+    return drive;
   }
 
   // G's own rounding (its terms are O(1) ratios) and a few ulp of the slip.
