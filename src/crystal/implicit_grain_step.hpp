@@ -746,12 +746,14 @@ class StressSolver {
       c.z.resize(6, latent_rank_);
       for (int j = 0; j < latent_rank_; ++j)
         c.z.col(j) = c.solve_s(Vec6(ph_.schmid.lazyProduct(c.lf.col(j))));
-      MatK m = MatK::Identity(latent_rank_, latent_rank_);
-      m.noalias() -= c.g.lazyProduct(c.lf);
-      m.noalias() += c.gk.lazyProduct(c.z);
       if (latent_rank_ == 1) {
-        c.m_scalar = m(0, 0);
+        // The 1 x 1 M as two dot products: the coefficients the products below would form,
+        // without their assignment loops over dynamic sizes.
+        c.m_scalar = 1.0 - c.g.row(0).dot(c.lf.col(0)) + c.gk.row(0).dot(c.z.col(0));
       } else {
+        MatK m = MatK::Identity(latent_rank_, latent_rank_);
+        m.noalias() -= c.g.lazyProduct(c.lf);
+        m.noalias() += c.gk.lazyProduct(c.z);
         c.m.compute(m);
       }
     }
