@@ -266,8 +266,8 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
       ->needs(tolerance);
   cmd->add_option("--measure", a.measure,
                   "Crystal: what the error is measured on besides the loading component: "
-                  "'state', every grain's r, ln(CRSS) and r_s of each system (what the "
-                  "extrapolated estimate bounds); 'stress', every grain's stress (where the "
+                  "'state', every grain's r, ln(CRSS) and r_s of each system (the "
+                  "extrapolated estimate bounds r); 'stress', every grain's stress (where the "
                   "split of slip among systems, and so each CRSS, is not determined)")
       ->check(CLI::IsMember({"state", "stress"}))
       ->capture_default_str();

@@ -73,7 +73,7 @@ struct AggregateOptions {
   // With a tolerance: 1 is backward Euler with the estimate above; 2 .. 4 (the extrapolation's
   // kMaxExtrapolationOrder) is backward Euler extrapolated to that order
   // (integrators/extrapolation.hpp), with the estimate the difference of its two best solutions
-  // (resolved shear stresses over the CRSS, CRSS relative, r_s).
+  // (every system's resolved shear stress over its CRSS).
   int order = 1;
 };
 
