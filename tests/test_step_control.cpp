@@ -79,6 +79,15 @@ TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {
   using subslip::integrators::step_factor;
   EXPECT_EQ(step_factor(1e-8, 1e-6, 2, kAfterAccepted), 4.0);  // 0.9 x 10, at most 4
   EXPECT_EQ(step_factor(1e-9, 1e-6, 3, kAfterAccepted), 4.0);
+  // The extrapolated integrators' estimates grow the step up to 10x.
+  using subslip::integrators::after_accepted_limits;
+  EXPECT_EQ(after_accepted_limits(1).largest, kAfterAccepted.largest);
+  for (int order = 2; order <= 4; ++order) {
+    const auto growth = after_accepted_limits(order);
+    EXPECT_NEAR(step_factor(1e-8, 1e-6, 2, growth), 9.0, 1e-14);  // 0.9 x 10
+    EXPECT_EQ(step_factor(1e-10, 1e-6, 2, growth), 10.0);         // 0.9 x 100, at most 10
+    EXPECT_EQ(growth.smallest, kAfterAccepted.smallest);
+  }
   EXPECT_NEAR(step_factor(16e-6, 1e-6, 4, kAfterAccepted), 0.45, 1e-14);
   EXPECT_NEAR(step_factor(8e-6, 1e-6, 3, kAfterAccepted), 0.45, 1e-14);
 }

@@ -464,7 +464,8 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
   const bool extrapolated = opt.order >= 2;
   const double resolution = extrapolated ? extrapolation_resolution(law, opt) : 0.0;
   integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance,
-                                     integrators::estimate_order(opt.order));
+                                     integrators::estimate_order(opt.order),
+                                     integrators::after_accepted_limits(opt.order));
   if (seg.output_at_times) clock.set_stops(seg.output_times);
   for (;;) {
     const double h = clock.step();

@@ -314,14 +314,15 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     Eigen::VectorXd& u = cursor_.free;
     if (resume != nullptr && resume->position.segment_time >= seg.duration) return;
     const int estimate_order = integrators::estimate_order(opt.order);
+    const integrators::StepFactorLimits growth = integrators::after_accepted_limits(opt.order);
     integrators::AdaptiveSegment clock =
         resume != nullptr
             ? integrators::AdaptiveSegment(seg.duration, resume->position.next_step, opt.tolerance,
                                            estimate_order, resume->position.segment_time,
-                                           resume->position.increment)
+                                           resume->position.increment, growth)
             : integrators::AdaptiveSegment(
                   seg.duration, increment_lengths(seg.duration, seg.increments, seg.growth).front(),
-                  opt.tolerance, estimate_order);
+                  opt.tolerance, estimate_order, growth);
     if (seg.output_at_times) clock.set_stops(seg.output_times);
     const bool extrapolated = opt.order >= 2;
     for (;;) {
