@@ -441,7 +441,10 @@ ExtrapolatedStep extrapolated_step(const law::SubloadingFrictionLaw& law, const 
   ExtrapolatedStep out{extrapolated_state(law, one_step, e.best, finest), 0.0};
   out.attempt.iterations = iterations;
   if (!out.attempt.ok) return out;
-  out.error = extrapolation_error(e.best - e.second, out.attempt.state);
+  const ContactState& end = out.attempt.state;
+  out.error = integrators::guarded_estimate(extrapolation_error(e.best - e.second, end),
+                                            extrapolation_error(e.previous_estimate, end),
+                                            extrapolation_error(e.before_estimate, end));
   if (switches_phase(s0, sliding, opt.order)) {
     // A switch between sticking and sliding inside the step: the solution has a kink there and
     // no error expansion in powers of the step, so the estimate is backward Euler's own (one

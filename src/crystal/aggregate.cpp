@@ -515,6 +515,13 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
           rotation_exp(extrapolate_implicit_euler(turn, order).best) * finest.orientation;
       reports_[gi] = restore_extrapolated_state(phase_, finest, out);
       extrapolation_errors_[gi] = system_errors(e_stress.best - e_stress.second, out.mu);
+      if (order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
+        const VecN previous = system_errors(e_stress.previous_estimate, out.mu);
+        const VecN before = system_errors(e_stress.before_estimate, out.mu);
+        VecN& error = extrapolation_errors_[gi];
+        for (int a = 0; a < phase_.slip_count; ++a)
+          error(a) = integrators::guarded_estimate(error(a), previous(a), before(a));
+      }
       if (switches_phase(step_start_[gi], gi, order)) {
         // A system switched between elastic and slipping inside the step: the solution has a
         // kink there and no error expansion in powers of the step, so the estimate is backward
