@@ -442,9 +442,12 @@ ExtrapolatedStep extrapolated_step(const law::SubloadingFrictionLaw& law, const 
   out.attempt.iterations = iterations;
   if (!out.attempt.ok) return out;
   const ContactState& end = out.attempt.state;
-  out.error = integrators::guarded_estimate(extrapolation_error(e.best - e.second, end),
-                                            extrapolation_error(e.previous_estimate, end),
-                                            extrapolation_error(e.before_estimate, end));
+  out.error = extrapolation_error(e.best - e.second, end);
+  if (opt.order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
+    const auto earlier = integrators::earlier_column_estimates(solutions);
+    out.error = integrators::guarded_estimate(out.error, extrapolation_error(earlier[0], end),
+                                              extrapolation_error(earlier[1], end));
+  }
   if (switches_phase(s0, sliding, opt.order)) {
     // A switch between sticking and sliding inside the step: the solution has a kink there and
     // no error expansion in powers of the step, so the estimate is backward Euler's own (one

@@ -516,8 +516,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       reports_[gi] = restore_extrapolated_state(phase_, finest, out);
       extrapolation_errors_[gi] = system_errors(e_stress.best - e_stress.second, out.mu);
       if (order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
-        const VecN previous = system_errors(e_stress.previous_estimate, out.mu);
-        const VecN before = system_errors(e_stress.before_estimate, out.mu);
+        const auto earlier = integrators::earlier_column_estimates(stress);
+        const VecN previous = system_errors(earlier[0], out.mu);
+        const VecN before = system_errors(earlier[1], out.mu);
         VecN& error = extrapolation_errors_[gi];
         for (int a = 0; a < phase_.slip_count; ++a)
           error(a) = integrators::guarded_estimate(error(a), previous(a), before(a));

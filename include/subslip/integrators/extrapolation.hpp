@@ -33,11 +33,6 @@ template <class Vector>
 struct Extrapolated {
   Vector best;    // T[k][k-1], order k
   Vector second;  // T[k][k-2], order k - 1: best - second estimates second's local error
-  // The estimates of the two extrapolated columns before (guarded_estimate): those of the
-  // order k - 2 and k - 3 combinations, T[k-1][k-2] - T[k-1][k-3] and T[k-2][k-3] - T[k-2][k-4]
-  // in 1-based rows, where they exist (order 4); zero otherwise.
-  Vector previous_estimate;
-  Vector before_estimate;
 };
 
 // `solutions[j]` is the result of j + 1 substeps, j = 0 .. order - 1 (order >= 2; the entries
@@ -48,32 +43,34 @@ Extrapolated<Vector> extrapolate_implicit_euler(
     const std::array<Vector, kMaxExtrapolationOrder>& solutions, int order) {
   assert(order >= 2 && order <= kMaxExtrapolationOrder);
   std::array<Vector, kMaxExtrapolationOrder> row = solutions;  // row[j] = T[j][m]
-  // diagonal[m] = T[m][m] - T[m][m-1] (0-based, m >= 1), the estimate of column m - 1's local
-  // error; diagonal[0] stays zero.
-  std::array<Vector, kMaxExtrapolationOrder> diagonal;
-  diagonal.fill(row[0] - row[0]);
   Vector second = row[static_cast<size_t>(order - 1)];
   for (int m = 1; m < order; ++m) {
     if (m == order - 1) second = row[static_cast<size_t>(order - 1)];
-    const auto um = static_cast<size_t>(m);
-    const Vector before_column = row[um];  // T[m][m-1]
     // Bottom up, so that row[j - 1] still holds T[j-1][m-1] when T[j][m] is formed.
     for (int j = order - 1; j >= m; --j) {
       const auto uj = static_cast<size_t>(j);
       const double ratio = static_cast<double>(j + 1) / static_cast<double>(j + 1 - m);
       row[uj] = row[uj] + (row[uj] - row[uj - 1]) / (ratio - 1.0);
     }
-    diagonal[um] = row[um] - before_column;
   }
-  const auto k = static_cast<size_t>(order);
-  const Vector zero = row[0] - row[0];
-  return {row[k - 1], second, k >= 4 ? diagonal[k - 2] : zero, k >= 4 ? diagonal[k - 3] : zero};
+  return {row[static_cast<size_t>(order - 1)], second};
+}
+
+// The estimates |best - second| of the two columns before order 4's last (guarded_estimate):
+// those of the order-3 and order-2 combinations of the same solutions, whose tableaus are the
+// first rows of order 4's. Computed only where order 4 estimates its error.
+template <class Vector>
+std::array<Vector, 2> earlier_column_estimates(
+    const std::array<Vector, kMaxExtrapolationOrder>& solutions) {
+  const auto three = extrapolate_implicit_euler(solutions, 3);
+  const auto two = extrapolate_implicit_euler(solutions, 2);
+  return {three.best - three.second, two.best - two.second};
 }
 
 // The local error estimate of the order-k combination in some norm, from the norms of the last
-// three column estimates (`last` = |best - second|, `previous`, `before`: Extrapolated's). In
-// the asymptotic range the estimate of the order-m combination falls as H^(m+1), so the
-// columns fall geometrically (by about the same factor C H each), and previous^2 / before is,
+// three column estimates (`last` = |best - second|, `previous` and `before`: those of
+// earlier_column_estimates). In the asymptotic range the estimate of the order-m combination
+// falls as H^(m+1), so the columns fall geometrically (by about the same factor C H each), and previous^2 / before is,
 // like `last`, of order H^k. Outside it two columns can agree by accident: a step of the
 // 200 mm/min friction fit across the onset of sliding (its viscoplastic rate rising 2000-fold
 // inside the step) had column estimates 2.6e-2, 3.2e-3 and 6e-7 at order 4, an error of 2.3e-3
