@@ -70,11 +70,11 @@ std::array<Vector, 2> earlier_column_estimates(
 // The local error estimate of the order-k combination in some norm, from the norms of the last
 // three column estimates (`last` = |best - second|, `previous` and `before`: those of
 // earlier_column_estimates). In the asymptotic range the estimate of the order-m combination
-// falls as H^(m+1), so the columns fall geometrically (by about the same factor C H each), and previous^2 / before is,
-// like `last`, of order H^k. Outside it two columns can agree by accident: a step of the
-// 200 mm/min friction fit across the onset of sliding (its viscoplastic rate rising 2000-fold
-// inside the step) had column estimates 2.6e-2, 3.2e-3 and 6e-7 at order 4, an error of 2.3e-3
-// on the best solution, and was accepted at tolerance 1e-4. The estimate is the larger of
+// falls as H^(m+1), so the columns fall geometrically (by about the same factor C H each), and
+// previous^2 / before is, like `last`, of order H^k. Outside it two columns can agree by accident:
+// a step of the 200 mm/min friction fit across the onset of sliding (its viscoplastic rate rising
+// 2000-fold inside the step) had column estimates 2.6e-2, 3.2e-3 and 6e-7 at order 4, an error
+// of 2.3e-3 on the best solution, and was accepted at tolerance 1e-4. The estimate is the larger of
 // `last` and its prediction from the two columns before, so that the last column falls no
 // faster than the ones before it did. Only extrapolated columns count: backward Euler's own
 // difference y_2 - y_1 carries the first-order term alone and falls to the next column by a
