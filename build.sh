@@ -13,7 +13,8 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev libcli11-dev
-          libgtest-dev libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
+          libgtest-dev libxsimd-dev  # SIMD batches of slip systems in the grain solver
+          libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
           libhdf5-openmpi-dev  # ranks writing one result file together (parallel HDF5)
           python3-h5py python3-matplotlib python3-numpy)  # scripts/subslip_plots.py and its test
 # The sanitizer and fuzz stages of `test` build the fuzz targets with clang (libFuzzer, OpenMP).

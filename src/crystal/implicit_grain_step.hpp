@@ -31,6 +31,7 @@
 
 #include "kernel_detail.hpp"
 #include "semismooth_grain_step.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
 #include "vertex_grain_step.hpp"
 
 namespace subslip::crystal {
@@ -121,6 +122,8 @@ class StressSolver {
       exponent_[static_cast<size_t>(a)] = std::max(law.slip_exponent(), 2.0);
       crss = std::max(crss, s0.mu(a) * ph.tau0(a));
     }
+    batched_ = flow_batches_pay() && has_batched_flow_points(ph.laws, n_);
+    if (batched_) clear_batch_padding(batch_in_, n_);
     stress_scale_ = std::max(trial.cwiseAbs().maxCoeff(), crss);
     residual_tolerance_ = opt.tolerance * stress_scale_;
     // The scalar roots an order tighter than the outer residual asks (ratio units).
@@ -614,6 +617,7 @@ class StressSolver {
     p.slip_resolution = 4.0 * kEps * dgamma.cwiseAbs().maxCoeff();
     const double slip_resolution = p.slip_resolution;
     RoleChange change;
+    if (batched_) batch_flow_points(dgamma, tau, fn, latent_drive);
     for (int a = 0; a < n_; ++a) {
       if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
       const double latent = latent_drive(a);
@@ -622,9 +626,10 @@ class StressSolver {
       const auto& law = ph_.laws[static_cast<size_t>(a)];
       double z = 0.0;
       if (dgamma(a) == 0.0) {
-        const auto mu = law.friction_coefficient_after(s0_.mu(a), latent, dt_);
-        const double excess = std::abs(tau(a)) / (mu.value * fn(a)) - start.r0;
-        p.mu(a) = mu.value, p.r_s(a) = start.r0;
+        const double mu = batched_ ? batch_out_.mu[static_cast<size_t>(a)]
+                                   : law.friction_coefficient_after(s0_.mu(a), latent, dt_).value;
+        const double excess = std::abs(tau(a)) / (mu * fn(a)) - start.r0;
+        p.mu(a) = mu, p.r_s(a) = start.r0;
         if (!(excess > tolerance_)) continue;  // idle: G(0) = r - r_s0 <= 0
         // Loaded past r_s0: active at zero slip, linearised on the side of its shear.
       } else if (tau(a) * dgamma(a) <= 0.0) {
@@ -635,7 +640,8 @@ class StressSolver {
         const double slip = std::abs(dgamma(a));
         z = p_exp == 2.0 ? std::sqrt(slip) : std::pow(slip, 1.0 / p_exp);
       }
-      const FlowPoint f = flow_point(a, std::abs(tau(a)), fn(a), latent, against, z);
+      const FlowPoint f = batched_ ? batched_flow_point(a, z)
+                                   : flow_point(a, std::abs(tau(a)), fn(a), latent, against, z);
       if (!std::isfinite(f.g)) return {RoleChange::inadmissible, a};
       if (is_saturated(a, f, fn(a))) {
         // Slipping (or loaded past r = r_s0 = 1 at zero slip: the slip is then ready to grow)
@@ -835,6 +841,38 @@ class StressSolver {
   }
 
  private:
+  // Every system's flow point at the slips `dgamma` in SIMD batches (one law of closed-form
+  // updates, see flow_point_batch.hpp): what flow_point gives system by system, with each
+  // system's slip at z = |ds|^(1/2) (the exponent of the exponential form) as evaluate_slips
+  // takes it.
+  void batch_flow_points(const VecN& dgamma, const VecN& tau, const VecN& fn,
+                         const VecN& latent_drive) const {
+    const double q = ph_.has_latent ? ph_.latent_self : 1.0;
+    FlowBatchInput& in = batch_in_;
+    for (int a = 0; a < n_; ++a) {
+      const auto i = static_cast<size_t>(a);
+      const double z = dgamma(a) == 0.0 ? 0.0 : std::sqrt(std::abs(dgamma(a)));
+      const auto& start = starts_[i][tau(a) * tau_start_(a) < 0.0 ? 1 : 0];
+      in.mu0[i] = s0_.mu(a);
+      in.slip[i] = z * z;
+      in.effective[i] = q * in.slip[i] + latent_drive(a);
+      in.r0[i] = start.r0, in.cos0[i] = start.cos0, in.one_minus_cos0[i] = start.one_minus_cos0;
+      in.rate0[i] = start.rate0;
+      in.shear[i] = std::abs(tau(a));
+      in.normal[i] = fn(a);
+    }
+    batched_flow_points(ph_.laws.front().parameters(), dt_, q, n_, in, batch_out_);
+  }
+  FlowPoint batched_flow_point(int a, double z) const {
+    const auto i = static_cast<size_t>(a);
+    const FlowBatchOutput& o = batch_out_;
+    const double slip = batch_in_.slip[i];
+    return {o.g[i],      slip > 0.0 ? o.g_slip[i] * (2.0 * z) : 0.0,
+            o.g_slip[i], o.g_r[i],
+            o.r[i],      o.mu_slope[i],
+            o.mu[i],     o.r_s[i]};
+  }
+
   FlowPoint flow_point(int a, double abs_tau, double fn, double latent, bool against,
                        double z) const {
     const auto& law = ph_.laws[static_cast<size_t>(a)];
@@ -959,6 +997,9 @@ class StressSolver {
   double stress_scale_ = 0.0, residual_tolerance_ = 0.0, flow_tolerance_ = 0.0, tolerance_ = 0.0;
   std::array<std::array<law::SubloadingFrictionLaw::SubloadingStart, 2>, T::MaxN> starts_;
   std::array<double, T::MaxN> exponent_{};
+  bool batched_ = false;  // every system's flow point in SIMD batches (batch_flow_points)
+  mutable FlowBatchInput batch_in_;
+  mutable FlowBatchOutput batch_out_;
 };
 
 }  // namespace implicit_detail

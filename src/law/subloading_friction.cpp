@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "subslip/integrators/scalar_root.hpp"
+#include "subslip/law/closed_form.hpp"
 
 namespace subslip::law {
 
@@ -13,30 +14,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// (1 - e^{-b}) / b and its derivative, regular at b = 0.
-struct Phi1 {
-  double value;
-  double slope;
-};
-Phi1 phi1(double b) {
-  // The series sum_k (-b)^k / (k+1)! to k = 9 has a truncation error below b^10/11! < 3e-20 for
-  // |b| < 1/16 (its slope: below 4e-18): below the rounding of the closed form, which also
-  // pays an expm1. Implicit steps evaluate mu here for every system and trial slip, with b the
-  // slip of one small step times kappa/mu_k.
-  if (std::abs(b) < 0.0625) {
-    double value = 0.0, slope = 0.0;
-    // Horner from the highest term: c_k = (-1)^k/(k+1)!, slope = sum k c_k b^(k-1).
-    constexpr std::array<double, 10> c = {1.0,          -1.0 / 2,      1.0 / 6,    -1.0 / 24,
-                                          1.0 / 120,    -1.0 / 720,    1.0 / 5040, -1.0 / 40320,
-                                          1.0 / 362880, -1.0 / 3628800};
-    for (int k = 9; k >= 0; --k) value = value * b + c[static_cast<size_t>(k)];
-    for (int k = 9; k >= 1; --k) slope = slope * b + k * c[static_cast<size_t>(k)];
-    return {value, slope};
-  }
-  const double one_minus_exp = -std::expm1(-b);
-  return {one_minus_exp / b, ((1.0 - one_minus_exp) * b - one_minus_exp) / (b * b)};
-}
 
 }  // namespace
 
@@ -192,40 +169,21 @@ ValueAndSlope SubloadingFrictionLaw::subloading_ratio_after(const SubloadingStar
     const double r1 = std::clamp(subloading_inverse_integral(st.integral0 + slip), st.r0, 1.0);
     return {r1, subloading_rate(r1)};
   }
-  // (2.28): x = cos(pi r1/2) = cos(pi r0/2) exp(-pi u s/2), carried with 1 - x so that small r0
-  // and small s keep their digits (acos is ill-conditioned next to 1). The slope
-  // U(r1) = u cot(pi r1/2) = u x / sqrt((1 - x)(1 + x)) needs no further trigonometry.
-  const double u = p_.subloading.u_tilde;
-  const double a = 0.5 * kPi * u * slip;
-  const double decay = std::expm1(-a);
-  const double x = st.cos0 * (1.0 + decay);
-  const double one_minus_x = st.one_minus_cos0 - st.cos0 * decay;
-  const double r1 = (x > 0.5) ? (4.0 / kPi) * std::asin(std::sqrt(0.5 * one_minus_x))
-                              : (2.0 / kPi) * std::acos(x);
-  if (r1 <= st.r0) return {st.r0, st.rate0};
-  if (r1 >= 1.0) return {1.0, 0.0};
-  return {r1, u * x / std::sqrt(one_minus_x * (1.0 + x))};
+  const auto r1 = closed_form::cot_subloading_ratio_after(p_.subloading.u_tilde, st.r0, st.cos0,
+                                                          st.one_minus_cos0, st.rate0, slip);
+  return {r1.value, r1.slope};
 }
 
 ValueAndSlope SubloadingFrictionLaw::friction_coefficient_after(double mu0, double slip,
                                                                 double dt) const {
-  // dmu/dt = a - b mu with a = kappa sdot + xi, b = kappa sdot/mu_k + xi/mu_s is linear in mu
-  // for a constant slip rate sdot = slip/dt, so the step has the exact solution
-  //   mu1 = mu0 + (A - B mu0) (1 - e^{-B}) / B,  A = a dt, B = b dt,
-  // which is unconditionally stable and never crosses mu_s or mu_k.
   const auto& f = p_.friction;
   if (f.kappa == 0.0 && f.xi == 0.0) return {mu0, 0.0};
-  const double A = f.kappa * slip + f.xi * dt;
-  const double B = f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s;
-  const double d_drive = f.kappa - f.kappa / f.mu_k * mu0;
   // No slip and no recovery time (an idle system in an implicit step's evaluation, the common
-  // case): mu stays, and the series below would give exactly that (phi1(0) = 1, drive = 0).
-  if (B == 0.0) return {mu0, d_drive};
-  const Phi1 ph = phi1(B);
-  const double drive = A - B * mu0;
-  const double mu1 = mu0 + drive * ph.value;
-  const double d_mu1 = d_drive * ph.value + drive * ph.slope * (f.kappa / f.mu_k);
-  return {mu1, d_mu1};
+  // case): mu stays, which the closed form gives exactly (phi1(0) = 1, drive = 0).
+  if (f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s == 0.0)
+    return {mu0, f.kappa - f.kappa / f.mu_k * mu0};
+  const auto mu1 = closed_form::friction_coefficient_after(f, mu0, slip, dt);
+  return {mu1.value, mu1.slope};
 }
 
 FlowResidual SubloadingFrictionLaw::flow_residual(double r, double r_s, double slip,
@@ -233,26 +191,21 @@ FlowResidual SubloadingFrictionLaw::flow_residual(double r, double r_s, double s
   const auto& o = p_.overstress;
   if (is_rate_independent()) return {r - r_s, 1.0, -1.0, 0.0, true};
   if (r >= o.r_hat) return {kInf, 0.0, 0.0, 0.0, false};
+  if (o.form == OverstressForm::exponential) {
+    const auto g = closed_form::exponential_flow_residual(o, r, r_s, slip, dt);
+    return {g.value, g.d_r, -1.0, g.d_slip, true};
+  }
   const double gap = o.r_hat - r;
   const double rate = slip / dt;
   const double y = o.eta_v * gap * rate;  // = g(r - r_s) on the solution
-  double inv, d_inv_dy;
-  if (o.form == OverstressForm::exponential) {
-    inv = std::log1p(y) / o.n;
-    d_inv_dy = 1.0 / (o.n * (1.0 + y));
-  } else {
-    if (y > 0.0) {
-      inv = std::pow(y, 1.0 / o.n);
-      d_inv_dy = inv / (o.n * y);
-    } else {
-      inv = 0.0;
-      d_inv_dy = kInf;
-    }
+  double inv = 0.0, d_inv_dy = kInf;
+  if (y > 0.0) {
+    inv = std::pow(y, 1.0 / o.n);
+    d_inv_dy = inv / (o.n * y);
   }
   const double dy_dr = -o.eta_v * rate;
   const double dy_dslip = o.eta_v * gap / dt;
-  const double d_slip =
-      (y > 0.0 || o.form == OverstressForm::exponential) ? -d_inv_dy * dy_dslip : -kInf;
+  const double d_slip = y > 0.0 ? -d_inv_dy * dy_dslip : -kInf;
   const double d_r = 1.0 - (y > 0.0 ? d_inv_dy * dy_dr : 0.0);
   return {(r - r_s) - inv, d_r, -1.0, d_slip, true};
 }

@@ -1,0 +1,137 @@
+#pragma once
+// The law's closed-form step updates written once for a scalar (double) and for a batch of
+// systems (an xsimd batch<double>): the friction coefficient after a slip (3.4 integrated at a
+// constant rate), the cot subloading ratio after a slip (2.28) and the exponential overstress
+// residual (3.15 inverted). The scalar law (subloading_friction.cpp) calls them with double and
+// keeps its early returns; the crystal's batched flow points (src/crystal/flow_point_batch.cpp)
+// call them with batches, where a branch becomes a select over both sides. Each formula is the same
+// sequence of operations for both, so a batch lane rounds as the scalar law does wherever the
+// libm functions and their vector counterparts agree.
+//
+// Unqualified calls (expm1, select, any, ...) resolve to std and the overloads below for double,
+// and by argument-dependent lookup to xsimd for batches: this header needs no xsimd itself.
+
+#include <array>
+#include <cmath>
+#include <numbers>
+
+#include "subslip/law/subloading_friction.hpp"
+
+namespace subslip::law::closed_form {
+
+using std::abs;
+using std::acos;
+using std::asin;
+using std::expm1;
+using std::log1p;
+using std::sqrt;
+inline double select(bool condition, double if_true, double if_false) {
+  return condition ? if_true : if_false;
+}
+inline bool any(bool condition) {
+  return condition;
+}
+inline bool all(bool condition) {
+  return condition;
+}
+
+template <class V>
+struct ValueAndSlopeOf {
+  V value;
+  V slope;
+};
+
+// (1 - e^{-b}) / b and its derivative, regular at b = 0. The series sum_k (-b)^k / (k+1)! to
+// k = 9 has a truncation error below b^10/11! < 3e-20 for |b| < 1/16 (its slope: below 4e-18):
+// below the rounding of the closed form, which also pays an expm1. Implicit steps evaluate mu
+// for every system and trial slip, with b the slip of one small step times kappa/mu_k.
+template <class V>
+ValueAndSlopeOf<V> phi1(const V& b) {
+  // Horner from the highest term: c_k = (-1)^k/(k+1)!, slope = sum k c_k b^(k-1).
+  constexpr std::array<double, 10> c = {1.0,          -1.0 / 2,      1.0 / 6,    -1.0 / 24,
+                                        1.0 / 120,    -1.0 / 720,    1.0 / 5040, -1.0 / 40320,
+                                        1.0 / 362880, -1.0 / 3628800};
+  V value(c[9]);
+  V slope(9 * c[9]);
+  for (int k = 8; k >= 0; --k) value = value * b + c[static_cast<size_t>(k)];
+  for (int k = 8; k >= 1; --k) slope = slope * b + k * c[static_cast<size_t>(k)];
+  const auto beyond_series = !(abs(b) < 0.0625);
+  if (any(beyond_series)) {
+    const V one_minus_exp = -expm1(-b);
+    value = select(beyond_series, V(one_minus_exp / b), value);
+    slope = select(beyond_series, V(((1.0 - one_minus_exp) * b - one_minus_exp) / (b * b)), slope);
+  }
+  return {value, slope};
+}
+
+// dmu/dt = a - b mu with a = kappa sdot + xi, b = kappa sdot/mu_k + xi/mu_s is linear in mu
+// for a constant slip rate sdot = slip/dt, so the step has the exact solution
+//   mu1 = mu0 + (A - B mu0) (1 - e^{-B}) / B,  A = a dt, B = b dt,
+// which is unconditionally stable and never crosses mu_s or mu_k. At B = 0 (no slip and no
+// recovery time) it gives mu0 and the slope kappa (1 - mu0/mu_k) exactly.
+template <class V>
+ValueAndSlopeOf<V> friction_coefficient_after(const FrictionCoefficientEvolution& f, const V& mu0,
+                                              const V& slip, double dt) {
+  const V A = f.kappa * slip + f.xi * dt;
+  const V B = f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s;
+  const V d_drive = f.kappa - f.kappa / f.mu_k * mu0;
+  const ValueAndSlopeOf<V> ph = phi1(B);
+  const V drive = A - B * mu0;
+  return {mu0 + drive * ph.value, d_drive * ph.value + drive * ph.slope * (f.kappa / f.mu_k)};
+}
+
+// The cot subloading ratio after a slip from a start (r0, cos(pi r0/2), 1 - cos(pi r0/2), U(r0)):
+// x = cos(pi r1/2) = cos(pi r0/2) exp(-pi u s/2) (2.28), carried with 1 - x so that small r0
+// and small s keep their digits (acos is ill-conditioned next to 1). The slope
+// U(r1) = u cot(pi r1/2) = u x / sqrt((1 - x)(1 + x)) needs no further trigonometry. No slip,
+// a saturated start or a ratio rounded below the start keep the start; r1 stops at 1.
+template <class V>
+ValueAndSlopeOf<V> cot_subloading_ratio_after(double u_tilde, const V& r0, const V& cos0,
+                                              const V& one_minus_cos0, const V& rate0,
+                                              const V& slip) {
+  constexpr double kPi = std::numbers::pi;
+  const V a = 0.5 * kPi * u_tilde * slip;
+  const V decay = expm1(-a);
+  const V x = cos0 * (1.0 + decay);
+  const V one_minus_x = one_minus_cos0 - cos0 * decay;
+  const auto near_zero = x > 0.5;  // r1 < 2/3: through the half-angle sine
+  V r1;
+  if (all(near_zero)) {
+    r1 = (4.0 / kPi) * asin(sqrt(0.5 * one_minus_x));
+  } else if (!any(near_zero)) {
+    r1 = (2.0 / kPi) * acos(x);
+  } else {
+    r1 =
+        select(near_zero, V((4.0 / kPi) * asin(sqrt(0.5 * one_minus_x))), V((2.0 / kPi) * acos(x)));
+  }
+  const V slope = u_tilde * x / sqrt(one_minus_x * (1.0 + x));
+  const auto keep_start = (slip <= 0.0) || (r0 >= 1.0) || (r1 <= r0);
+  const auto saturated = r1 >= 1.0;
+  return {select(keep_start, r0, select(saturated, V(1.0), r1)),
+          select(keep_start, rate0, select(saturated, V(0.0), slope))};
+}
+
+// The exponential overstress residual G = (r - r_s) - g^-1(eta_v (r_hat - r) slip/dt),
+// g^-1(y) = ln(1 + y)/n, with dG/dr and dG/d slip (dG/dr_s = -1). For r < r_hat.
+template <class V>
+struct ResidualOf {
+  V value;
+  V d_r;
+  V d_slip;
+};
+template <class V>
+ResidualOf<V> exponential_flow_residual(const Overstress& o, const V& r, const V& r_s,
+                                        const V& slip, double dt) {
+  const V gap = o.r_hat - r;
+  const V rate = slip / dt;
+  const V y = o.eta_v * gap * rate;  // = g(r - r_s) on the solution
+  const V inv = log1p(y) / o.n;
+  const V d_inv_dy = 1.0 / (o.n * (1.0 + y));
+  const V dy_dr = -o.eta_v * rate;
+  const V dy_dslip = o.eta_v * gap / dt;
+  const V d_slip = -d_inv_dy * dy_dslip;
+  const V d_r = 1.0 - select(y > 0.0, V(d_inv_dy * dy_dr), V(0.0));
+  return {(r - r_s) - inv, d_r, d_slip};
+}
+
+}  // namespace subslip::law::closed_form
