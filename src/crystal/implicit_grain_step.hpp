@@ -867,10 +867,14 @@ class StressSolver {
     const auto i = static_cast<size_t>(a);
     const FlowBatchOutput& o = batch_out_;
     const double slip = batch_in_.slip[i];
-    return {o.g[i],      slip > 0.0 ? o.g_slip[i] * (2.0 * z) : 0.0,
-            o.g_slip[i], o.g_r[i],
-            o.r[i],      o.mu_slope[i],
-            o.mu[i],     o.r_s[i]};
+    return {.g = o.g[i],
+            .g_z = slip > 0.0 ? o.g_slip[i] * (2.0 * z) : 0.0,  // dslip/dz = 2 z
+            .g_s = o.g_slip[i],
+            .g_dr = o.g_r[i],
+            .r = o.r[i],
+            .dmu_de = o.mu_slope[i],
+            .mu = o.mu[i],
+            .r_s = o.r_s[i]};
   }
 
   FlowPoint flow_point(int a, double abs_tau, double fn, double latent, bool against,
