@@ -19,19 +19,6 @@ bool flow_batches_pay() {
   return kWidth >= 4;
 }
 
-namespace {
-bool same_law(const law::LawParameters& a, const law::LawParameters& b) {
-  const auto& fa = a.friction;
-  const auto& fb = b.friction;
-  const auto& oa = a.overstress;
-  const auto& ob = b.overstress;
-  return fa.mu_s == fb.mu_s && fa.mu_k == fb.mu_k && fa.kappa == fb.kappa && fa.xi == fb.xi &&
-         a.subloading.function == b.subloading.function &&
-         a.subloading.u_tilde == b.subloading.u_tilde && oa.form == ob.form &&
-         oa.eta_v == ob.eta_v && oa.n == ob.n && oa.r_hat == ob.r_hat;
-}
-}  // namespace
-
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count) {
   if (count < 1 || count > kMaxSlipSystems || laws.size() < static_cast<size_t>(count))
     return false;
@@ -40,7 +27,7 @@ bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws
       p.overstress.form != law::OverstressForm::exponential)
     return false;
   for (int a = 1; a < count; ++a)
-    if (!same_law(laws[static_cast<size_t>(a)].parameters(), p)) return false;
+    if (!(laws[static_cast<size_t>(a)].parameters() == p)) return false;
   return true;
 }
 

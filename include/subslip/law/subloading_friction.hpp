@@ -41,11 +41,13 @@ struct FrictionCoefficientEvolution {
   double mu_k = 0.085;  // kinetic friction coefficient: target of sliding
   double kappa = 1.0;   // sliding softening (or hardening) rate [1/slip unit]
   double xi = 0.005;    // recovery (creep-hardening) rate [1/time unit]
+  bool operator==(const FrictionCoefficientEvolution&) const = default;
 };
 
 struct SubloadingEvolution {
   SubloadingFunction function = SubloadingFunction::cot;
   double u_tilde = 80.0;  // [1/slip unit]
+  bool operator==(const SubloadingEvolution&) const = default;
 };
 
 struct Overstress {
@@ -53,12 +55,14 @@ struct Overstress {
   double eta_v = 1000.0;  // viscoplastic coefficient [time/slip unit]
   double n = 16.0;        // exponent
   double r_hat = 1.6;     // limit dynamic loading ratio (> 1)
+  bool operator==(const Overstress&) const = default;
 };
 
 struct LawParameters {
   FrictionCoefficientEvolution friction;
   SubloadingEvolution subloading;
   Overstress overstress;
+  bool operator==(const LawParameters&) const = default;
 };
 
 // The state the law carries from step to step.
