@@ -1,7 +1,8 @@
 // The grain solver's batched flow points (SIMD over slip systems) against the law evaluated
 // system by system: the same G, slopes, mu and r_s to a few ulps, over the law's whole domain
-// (virgin and saturated starts, no slip, series and closed-form hardening, both branches of the
-// cot update, points outside the flow rule), for every slip count up to the largest.
+// (virgin and saturated starts, no slip, series and closed-form hardening, cot updates to ratios
+// near 1, points outside the flow rule), for every slip count up to the largest; and the batched
+// subloading starts against the law's.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,6 +18,7 @@ namespace subslip {
 namespace {
 
 using crystal::detail::FlowBatchInput;
+using crystal::detail::FlowBatchIsa;
 using crystal::detail::FlowBatchOutput;
 
 struct Expected {
@@ -64,6 +66,14 @@ FlowBatchInput random_systems(const law::SubloadingFrictionLaw& law, int count, 
   return in;
 }
 
+// Every instruction set this machine runs: each is checked, not only the one the solver takes.
+std::vector<FlowBatchIsa> available_isas() {
+  std::vector<FlowBatchIsa> isas;
+  for (FlowBatchIsa isa : {FlowBatchIsa::build, FlowBatchIsa::avx2, FlowBatchIsa::avx512})
+    if (crystal::detail::flow_batch_isa_available(isa)) isas.push_back(isa);
+  return isas;
+}
+
 bool close(double batch, double scalar, double scale) {
   if (std::isinf(scalar)) return batch == scalar;
   return std::abs(batch - scalar) <= 1e-13 * scale;
@@ -83,31 +93,34 @@ TEST(FlowPointBatch, AgreesWithTheLawSystemBySystem) {
     for (const double q : {1.0, 0.4}) {
       for (int count = 1; count <= crystal::kMaxSlipSystems; ++count) {
         const FlowBatchInput in = random_systems(law, count, q, rng);
-        FlowBatchOutput out;
-        crystal::detail::batched_flow_points(p, dt, q, count, in, out);
-        for (int a = 0; a < count; ++a) {
-          const auto i = static_cast<size_t>(a);
-          const Expected e = scalar_flow_point(law, in, a, q, dt);
-          const double scale = 1.0 + std::abs(e.r) + std::abs(e.r_s) + std::abs(e.g);
-          SCOPED_TRACE(::testing::Message() << "system " << a << " of " << count << ", slip "
-                                            << in.slip[i] << ", r_s0 " << in.r0[i]);
-          EXPECT_TRUE(close(out.g[i], e.g, scale)) << out.g[i] << " vs " << e.g;
-          EXPECT_TRUE(close(out.mu[i], e.mu, std::abs(e.mu))) << out.mu[i] << " vs " << e.mu;
-          EXPECT_TRUE(close(out.r_s[i], e.r_s, 1.0)) << out.r_s[i] << " vs " << e.r_s;
-          EXPECT_TRUE(close(out.r[i], e.r, std::abs(e.r))) << out.r[i] << " vs " << e.r;
-          if (std::isinf(e.g)) {
-            ++outside;
-            continue;
+        for (const FlowBatchIsa isa : available_isas()) {
+          FlowBatchOutput out;
+          crystal::detail::batched_flow_points(p, dt, q, count, in, out, isa);
+          for (int a = 0; a < count; ++a) {
+            const auto i = static_cast<size_t>(a);
+            const Expected e = scalar_flow_point(law, in, a, q, dt);
+            const double scale = 1.0 + std::abs(e.r) + std::abs(e.r_s) + std::abs(e.g);
+            SCOPED_TRACE(::testing::Message()
+                         << "system " << a << " of " << count << ", slip " << in.slip[i]
+                         << ", r_s0 " << in.r0[i] << ", isa " << static_cast<int>(isa));
+            EXPECT_TRUE(close(out.g[i], e.g, scale)) << out.g[i] << " vs " << e.g;
+            EXPECT_TRUE(close(out.mu[i], e.mu, std::abs(e.mu))) << out.mu[i] << " vs " << e.mu;
+            EXPECT_TRUE(close(out.r_s[i], e.r_s, 1.0)) << out.r_s[i] << " vs " << e.r_s;
+            EXPECT_TRUE(close(out.r[i], e.r, std::abs(e.r))) << out.r[i] << " vs " << e.r;
+            if (std::isinf(e.g)) {
+              ++outside;
+              continue;
+            }
+            EXPECT_TRUE(close(out.g_slip[i], e.g_slip, std::abs(e.g_slip)))
+                << out.g_slip[i] << " vs " << e.g_slip;
+            EXPECT_TRUE(close(out.g_r[i], e.g_r, std::abs(e.g_r)));
+            EXPECT_TRUE(close(out.mu_slope[i], e.mu_slope, std::abs(e.mu_slope) + 1.0));
+            const double b = p.friction.kappa * in.effective[i] / p.friction.mu_k +
+                             p.friction.xi * dt / p.friction.mu_s;
+            closed_form_hardening += std::abs(b) >= 0.0625;
+            far_update += e.r_s > 2.0 / 3.0 && in.slip[i] > 0.0 && e.r_s > in.r0[i];
+            ++compared;
           }
-          EXPECT_TRUE(close(out.g_slip[i], e.g_slip, std::abs(e.g_slip)))
-              << out.g_slip[i] << " vs " << e.g_slip;
-          EXPECT_TRUE(close(out.g_r[i], e.g_r, std::abs(e.g_r)));
-          EXPECT_TRUE(close(out.mu_slope[i], e.mu_slope, std::abs(e.mu_slope) + 1.0));
-          const double b = p.friction.kappa * in.effective[i] / p.friction.mu_k +
-                           p.friction.xi * dt / p.friction.mu_s;
-          closed_form_hardening += std::abs(b) >= 0.0625;
-          far_update += e.r_s > 2.0 / 3.0 && in.slip[i] > 0.0 && e.r_s > in.r0[i];
-          ++compared;
         }
       }
     }
@@ -117,6 +130,55 @@ TEST(FlowPointBatch, AgreesWithTheLawSystemBySystem) {
   EXPECT_GT(closed_form_hardening, 100);
   EXPECT_GT(far_update, 100);
   EXPECT_GT(compared, 3000);
+}
+
+TEST(FlowPointBatch, SubloadingStartsAgreeWithTheLaw) {
+  const law::SubloadingFrictionLaw law(testing::crystal_law(1.7, 12.24, 46.45, 0.0, 200.0, 1e-3));
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int compared = 0;
+  for (int count = 1; count <= crystal::kMaxSlipSystems; ++count) {
+    crystal::detail::SubloadingStartBatch b;
+    // Both sides of r0 = 1/2 (the two sines), the ends 0 and 1, ratios next to 0 and 1.
+    for (int a = 0; a < count; ++a) {
+      const int kind = a % 6;
+      b.r0[static_cast<size_t>(a)] = kind == 0   ? 0.0
+                                     : kind == 1 ? 1.0
+                                     : kind == 2 ? 1e-9 * unit(rng)
+                                     : kind == 3 ? 1.0 - 1e-9 * unit(rng)
+                                                 : unit(rng);
+    }
+    for (const FlowBatchIsa isa : available_isas()) {
+      crystal::detail::batched_subloading_starts(law.parameters().subloading.u_tilde, count, b,
+                                                 isa);
+      for (int a = 0; a < count; ++a) {
+        const auto i = static_cast<size_t>(a);
+        const auto e = law.subloading_start(b.r0[i]);
+        SCOPED_TRACE(::testing::Message() << "r0 " << b.r0[i]);
+        EXPECT_TRUE(close(b.cos0[i], e.cos0, 1.0)) << b.cos0[i] << " vs " << e.cos0;
+        // 1 - cos keeps its digits for small r0: relative.
+        EXPECT_TRUE(close(b.one_minus_cos0[i], e.one_minus_cos0, e.one_minus_cos0));
+        EXPECT_TRUE(close(b.rate0[i], e.rate0, std::abs(e.rate0)))
+            << b.rate0[i] << " vs " << e.rate0;
+        ++compared;
+      }
+    }
+  }
+  EXPECT_EQ(compared, static_cast<int>(available_isas().size()) * crystal::kMaxSlipSystems *
+                          (crystal::kMaxSlipSystems + 1) / 2);
+}
+
+// The solver's batches are the widest this machine runs.
+TEST(FlowPointBatch, TheWidestAvailableInstructionSetIsChosen) {
+  const int expected = crystal::detail::flow_batch_isa_available(FlowBatchIsa::avx512) ? 8
+                       : crystal::detail::flow_batch_isa_available(FlowBatchIsa::avx2) ? 4
+                                                                                       : 0;
+  if (expected > 0) {
+    EXPECT_EQ(crystal::detail::flow_batch_width(), expected);
+  } else {
+    EXPECT_LE(crystal::detail::flow_batch_width(), 8);
+  }
+  EXPECT_EQ(crystal::detail::flow_batches_pay(), crystal::detail::flow_batch_width() >= 4);
 }
 
 TEST(FlowPointBatch, OnlyOneClosedFormLawIsBatched) {

@@ -206,6 +206,15 @@ TEST(Rotation, ExponentialMapIsTheActiveRotation) {
       EXPECT_LT((rotation_log(rotation_exp(w)) - w).norm(), 1e-12);
     }
   }
+  // Both sides of the series' bound (t = 1/10), where one step's lattice spin lies: the
+  // quaternion's rotation to round-off.
+  for (double angle = 1e-6; angle < 0.4; angle *= 1.21) {
+    const Eigen::Vector3d axis(normal(engine), normal(engine), normal(engine));
+    const Eigen::Vector3d w = angle * axis.normalized();
+    EXPECT_LT(max_abs_difference(rotation_exp(w), axis_angle_to_matrix(axis, angle).transpose()),
+              1e-15)
+        << angle;
+  }
   // The series branch: a tiny increment must be exact to first and second order.
   const Eigen::Vector3d tiny(1e-9, -2e-9, 3e-9);
   Eigen::Matrix3d K;

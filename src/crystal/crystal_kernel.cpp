@@ -1,6 +1,7 @@
 #include "subslip/crystal/crystal_kernel.hpp"
 
 #include "kernel_detail.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
 
 #include <algorithm>
 #include <array>
@@ -97,12 +98,17 @@ void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, 
     slip_spin.col(a) = 0.5 * m[static_cast<size_t>(a)].cross(s[static_cast<size_t>(a)]);
   }
   c_schmid = c * schmid;
+  schmid_dyads.resize(21, n);
+  for (int a = 0; a < n; ++a)
+    for (int j = 0, k = 0; j < 6; ++j)
+      for (int i = j; i < 6; ++i) schmid_dyads(k++, a) = schmid(i, a) * schmid(j, a);
   interaction = schmid.transpose() * c_schmid;
   c_normal_dyad = c * plane_normal_dyad;
   normal_interaction = plane_normal_dyad.transpose() * c_schmid;
   if (tau0.size() != n) tau0 = SlipTypes<N>::VecN::Ones(n);
   if (latent.rows() != n) latent = SlipTypes<N>::MatNN::Identity(n, n);
   factor_latent(*this);
+  batched_flow_points = detail::flow_batches_pay() && detail::has_batched_flow_points(laws, n);
 }
 
 template <int N>

@@ -1,22 +1,74 @@
 #include "subslip/crystal/flow_point_batch.hpp"
 
-#include <xsimd/xsimd.hpp>
-
 #include <algorithm>
-#include <limits>
 
-#include "subslip/law/closed_form.hpp"
+#include "flow_point_batch_kernels.hpp"
 
 namespace subslip::crystal::detail {
-
 namespace {
-using Batch = xsimd::batch<double>;
-constexpr int kWidth = static_cast<int>(Batch::size);
-static_assert(kFlowBatchCapacity % kWidth == 0, "the arrays hold whole batches");
+
+using SubloadingStartsKernel = void (*)(double, int, SubloadingStartBatch&);
+using FlowPointsKernel = void (*)(const law::LawParameters&, double, double, int,
+                                  const FlowBatchInput&, FlowBatchOutput&);
+struct IsaKernels {
+  SubloadingStartsKernel subloading_starts;
+  FlowPointsKernel flow_points;
+  int width;  // doubles per batch
+};
+
+IsaKernels kernels_of(FlowBatchIsa isa) {
+  switch (isa) {
+#if SUBSLIP_FLOW_BATCH_X86
+    case FlowBatchIsa::avx512:
+      return {&subloading_starts_avx512, &flow_points_avx512, 8};
+    case FlowBatchIsa::avx2:
+      return {&subloading_starts_avx2, &flow_points_avx2, 4};
+#endif
+    default:
+      return {&subloading_starts_for<xsimd::default_arch>, &flow_points_for<xsimd::default_arch>,
+              static_cast<int>(xsimd::batch<double>::size)};
+  }
+}
+
+// The widest instruction set this machine runs (the CPU has it and the operating system saves
+// its registers: GCC's __builtin_cpu_supports checks both).
+FlowBatchIsa widest_available() {
+  for (FlowBatchIsa isa : {FlowBatchIsa::avx512, FlowBatchIsa::avx2})
+    if (flow_batch_isa_available(isa)) return isa;
+  return FlowBatchIsa::build;
+}
+
+const IsaKernels& chosen() {
+  static const IsaKernels kernels = kernels_of(widest_available());
+  return kernels;
+}
+
 }  // namespace
 
+bool flow_batch_isa_available(FlowBatchIsa isa) {
+  switch (isa) {
+    case FlowBatchIsa::build:
+      return true;
+#if SUBSLIP_FLOW_BATCH_X86
+    case FlowBatchIsa::avx2:
+      __builtin_cpu_init();
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case FlowBatchIsa::avx512:
+      __builtin_cpu_init();
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512cd") &&
+             __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+#endif
+    default:
+      return false;
+  }
+}
+
+int flow_batch_width() {
+  return chosen().width;
+}
+
 bool flow_batches_pay() {
-  return kWidth >= 4;
+  return chosen().width >= 4;
 }
 
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count) {
@@ -38,33 +90,21 @@ void clear_batch_padding(FlowBatchInput& in, int count) {
     std::fill(v->begin() + count, v->begin() + end, 0.0);
 }
 
+void batched_subloading_starts(double u_tilde, int count, SubloadingStartBatch& s,
+                               FlowBatchIsa isa) {
+  kernels_of(isa).subloading_starts(u_tilde, count, s);
+}
+void batched_subloading_starts(double u_tilde, int count, SubloadingStartBatch& s) {
+  chosen().subloading_starts(u_tilde, count, s);
+}
+
+void batched_flow_points(const law::LawParameters& p, double dt, double latent_self, int count,
+                         const FlowBatchInput& in, FlowBatchOutput& out, FlowBatchIsa isa) {
+  kernels_of(isa).flow_points(p, dt, latent_self, count, in, out);
+}
 void batched_flow_points(const law::LawParameters& p, double dt, double latent_self, int count,
                          const FlowBatchInput& in, FlowBatchOutput& out) {
-  namespace cf = law::closed_form;
-  const double inf = std::numeric_limits<double>::infinity();
-  // Lanes past `count` compute on whatever the arrays hold there; their results are not read.
-  for (int a = 0; a < count; a += kWidth) {
-    auto load = [a](const FlowBatchArray& v) { return Batch::load_aligned(v.data() + a); };
-    const Batch slip = load(in.slip);
-    const auto mu =
-        cf::friction_coefficient_after(p.friction, load(in.mu0), load(in.effective), dt);
-    const auto r_s =
-        cf::cot_subloading_ratio_after(p.subloading.u_tilde, load(in.r0), load(in.cos0),
-                                       load(in.one_minus_cos0), load(in.rate0), slip);
-    const Batch r = load(in.shear) / (mu.value * load(in.normal));
-    const auto g = cf::exponential_flow_residual(p.overstress, r, r_s.value, slip, dt);
-    // dG/d ds through r (hardening: dr/d ds = -r/mu dmu/d ds, q of it the system's own slip),
-    // through r_s (dG/dr_s = -1) and the overstress term.
-    const Batch g_slip = g.d_r * (-r / mu.value * mu.slope * latent_self) - r_s.slope + g.d_slip;
-    const auto outside = !(r < p.overstress.r_hat) || !(mu.value > 0.0);
-    xsimd::select(outside, Batch(inf), g.value).store_aligned(out.g.data() + a);
-    g_slip.store_aligned(out.g_slip.data() + a);
-    g.d_r.store_aligned(out.g_r.data() + a);
-    r.store_aligned(out.r.data() + a);
-    mu.slope.store_aligned(out.mu_slope.data() + a);
-    mu.value.store_aligned(out.mu.data() + a);
-    r_s.value.store_aligned(out.r_s.data() + a);
-  }
+  chosen().flow_points(p, dt, latent_self, count, in, out);
 }
 
 }  // namespace subslip::crystal::detail

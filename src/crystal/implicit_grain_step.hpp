@@ -104,7 +104,12 @@ class StressSolver {
 
   StressSolver(const Phase<N>& ph, const GrainState<N>& s0, const Vec6& trial, double dt,
                const GrainStepOptions& opt)
-      : ph_(ph), s0_(s0), dt_(dt), n_(ph.slip_count), trial_(trial) {
+      : ph_(ph),
+        s0_(s0),
+        dt_(dt),
+        n_(ph.slip_count),
+        trial_(trial),
+        batched_(ph.batched_flow_points) {
     tau_start_ = ph.schmid.transpose() * s0.stress;
     tau_trial_ = ph.schmid.transpose() * trial;
     stiffness_ = ph.interaction.diagonal();
@@ -114,16 +119,19 @@ class StressSolver {
     open_.setConstant(n_, false);
     warm_z_.setZero(n_);
     warm_against_.setConstant(n_, false);
+    if (batched_) {
+      clear_batch_padding(batch_in_, n_);
+      set_batched_starts();
+    }
     double crss = 0.0;
     for (int a = 0; a < n_; ++a) {
       const auto& law = ph.laws[static_cast<size_t>(a)];
-      starts_[static_cast<size_t>(a)] = {law.subloading_start(s0.r_s(a)),
-                                         law.subloading_start(0.0)};
+      if (!batched_)
+        starts_[static_cast<size_t>(a)] = {law.subloading_start(s0.r_s(a)),
+                                           law.subloading_start(0.0)};
       exponent_[static_cast<size_t>(a)] = std::max(law.slip_exponent(), 2.0);
       crss = std::max(crss, s0.mu(a) * ph.tau0(a));
     }
-    batched_ = flow_batches_pay() && has_batched_flow_points(ph.laws, n_);
-    if (batched_) clear_batch_padding(batch_in_, n_);
     stress_scale_ = std::max(trial.cwiseAbs().maxCoeff(), crss);
     residual_tolerance_ = opt.tolerance * stress_scale_;
     // The scalar roots an order tighter than the outer residual asks (ratio units).
@@ -635,6 +643,8 @@ class StressSolver {
       } else if (tau(a) * dgamma(a) <= 0.0) {
         if (change.kind == RoleChange::none) change = {RoleChange::turned_against, a};
         continue;
+      } else if (batched_) {
+        z = batch_z_[static_cast<size_t>(a)];
       } else {
         const double p_exp = exponent_[static_cast<size_t>(a)];
         const double slip = std::abs(dgamma(a));
@@ -730,7 +740,11 @@ class StressSolver {
       s.noalias() += ph_.schmid.lazyProduct(c.k.transpose());
       c.lu.compute(s);
     } else {
-      s.noalias() += c.k.lazyProduct(ph_.schmid.transpose());
+      // Symmetric: its lower triangle (which the Cholesky factorisation reads) as one product
+      // of the phase's 21 x n dyads with d.
+      const Eigen::Matrix<double, 21, 1> lower = ph_.schmid_dyads * p.d;
+      for (int j = 0, k = 0; j < 6; ++j)
+        for (int i = j; i < 6; ++i) s(i, j) += lower(k++);
       c.llt.compute(s);
     }
     if (latent_rank_ > 0) {
@@ -841,6 +855,25 @@ class StressSolver {
   }
 
  private:
+  // Every system's subloading starts, the batched flow points' law's (cot) in SIMD batches: at
+  // its r_s from the start of the step and, for a slip against its start shear, at 0.
+  void set_batched_starts() {
+    const auto& law = ph_.laws.front();
+    SubloadingStartBatch b;
+    for (int a = 0; a < n_; ++a) b.r0[static_cast<size_t>(a)] = std::clamp(s0_.r_s(a), 0.0, 1.0);
+    batched_subloading_starts(law.parameters().subloading.u_tilde, n_, b);
+    const auto virgin = law.subloading_start(0.0);
+    for (int a = 0; a < n_; ++a) {
+      const auto i = static_cast<size_t>(a);
+      starts_[i][0] = {.r0 = b.r0[i],
+                       .cos0 = b.cos0[i],
+                       .one_minus_cos0 = b.one_minus_cos0[i],
+                       .integral0 = 0.0,
+                       .rate0 = b.rate0[i]};
+      starts_[i][1] = virgin;
+    }
+  }
+
   // Every system's flow point at the slips `dgamma` in SIMD batches (one law of closed-form
   // updates, see flow_point_batch.hpp): what flow_point gives system by system, with each
   // system's slip at z = |ds|^(1/2) (the exponent of the exponential form) as evaluate_slips
@@ -852,6 +885,7 @@ class StressSolver {
     for (int a = 0; a < n_; ++a) {
       const auto i = static_cast<size_t>(a);
       const double z = dgamma(a) == 0.0 ? 0.0 : std::sqrt(std::abs(dgamma(a)));
+      batch_z_[i] = z;
       const auto& start = starts_[i][tau(a) * tau_start_(a) < 0.0 ? 1 : 0];
       in.mu0[i] = s0_.mu(a);
       in.slip[i] = z * z;
@@ -1001,9 +1035,10 @@ class StressSolver {
   double stress_scale_ = 0.0, residual_tolerance_ = 0.0, flow_tolerance_ = 0.0, tolerance_ = 0.0;
   std::array<std::array<law::SubloadingFrictionLaw::SubloadingStart, 2>, T::MaxN> starts_;
   std::array<double, T::MaxN> exponent_{};
-  bool batched_ = false;  // every system's flow point in SIMD batches (batch_flow_points)
+  bool batched_;  // every system's flow point in SIMD batches (batch_flow_points)
   mutable FlowBatchInput batch_in_;
   mutable FlowBatchOutput batch_out_;
+  mutable std::array<double, T::MaxN> batch_z_;  // each system's z = |ds|^(1/2) in the batch
 };
 
 }  // namespace implicit_detail

@@ -144,20 +144,8 @@ SubloadingFrictionLaw::SubloadingStart SubloadingFrictionLaw::subloading_start(d
   const double r0 = std::clamp(r_s0, 0.0, 1.0);
   if (p_.subloading.function == SubloadingFunction::cot) {
     if (r0 == 0.0) return {0.0, 1.0, 0.0, 0.0, kInf};  // a virgin (or restarted) system
-    // One sine, taken where it keeps the digits: 1 - cos through sin(pi r/4) for small r,
-    // cos through the sine of the distance to 1 otherwise. U(r0) = u cos/sin needs no tangent.
-    double cos0, one_minus_cos0;
-    if (r0 < 0.5) {
-      const double h = std::sin(0.25 * kPi * r0);
-      one_minus_cos0 = 2.0 * h * h;
-      cos0 = 1.0 - one_minus_cos0;
-    } else {
-      cos0 = std::sin(0.5 * kPi * (1.0 - r0));
-      one_minus_cos0 = 1.0 - cos0;
-    }
-    const double sin0 = std::sqrt(one_minus_cos0 * (1.0 + cos0));
-    const double rate0 = p_.subloading.u_tilde * cos0 / sin0;  // +inf at r0 = 0, as U(0)
-    return {r0, cos0, one_minus_cos0, 0.0, rate0};
+    const auto start = closed_form::cot_subloading_start(p_.subloading.u_tilde, r0);
+    return {r0, start.cos0, start.one_minus_cos0, 0.0, start.rate0};
   }
   return {r0, 0.0, 0.0, subloading_slip_integral(r0), subloading_rate(r0)};
 }

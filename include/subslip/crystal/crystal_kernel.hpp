@@ -62,10 +62,13 @@ template <int N>
 struct Phase {
   using T = SlipTypes<N>;
   int slip_count = N == Eigen::Dynamic ? 0 : N;
-  Mat6 stiffness;                        // C
-  Mat6 compliance;                       // C^-1
-  typename T::Mat6N schmid;              // P_a = sym(s_a (x) m_a)
-  typename T::Mat6N c_schmid;            // C P_a
+  Mat6 stiffness;              // C
+  Mat6 compliance;             // C^-1
+  typename T::Mat6N schmid;    // P_a = sym(s_a (x) m_a)
+  typename T::Mat6N c_schmid;  // C P_a
+  // The lower triangle of P_a P_a^T (column by column: 11, 21, ..., 61, 22, 32, ..., 66), so that
+  // the implicit step's C^-1 + P diag(d) P^T is one product of this with d.
+  Eigen::Matrix<double, 21, N, 0, 21, T::MaxN> schmid_dyads;
   typename T::MatNN interaction;         // A_ab = P_a : C : P_b
   typename T::Mat6N plane_normal_dyad;   // M_a = m_a (x) m_a (pressure-sensitive reading)
   typename T::Mat6N c_normal_dyad;       // C M_a
@@ -84,9 +87,13 @@ struct Phase {
   bool pressure_sensitive = false;
   Kinematics kinematics = Kinematics::finite_rotation;
   std::vector<law::SubloadingFrictionLaw> laws;  // one per slip system
+  // Whether the implicit step evaluates the flow points in SIMD batches (one law with closed-form
+  // updates for all systems, batches wide enough to pay: flow_point_batch.hpp). Set by
+  // assemble() from `laws`, which are assigned first.
+  bool batched_flow_points = false;
 
   // Builds the derived matrices from the slip directions/normals (lattice frame, unit vectors)
-  // and the lattice-frame stiffness.
+  // and the lattice-frame stiffness (after the laws, tau0 and the latent settings are set).
   void assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, const Mat6& c);
 };
 

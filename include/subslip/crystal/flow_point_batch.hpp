@@ -1,9 +1,9 @@
 #pragma once
 // Every slip system's implicit flow rule at one trial point, evaluated as a structure of arrays
-// in SIMD batches (xsimd, the widest instruction set the build targets): the grain solver's
-// evaluations spend most of their time in the law's transcendentals (expm1, asin or acos,
-// log1p per system), which one batch computes for 2 (SSE2), 4 (AVX2) or 8 (AVX-512) systems at
-// once. The formulas are the law's own (law/closed_form.hpp); only laws whose updates are in
+// in SIMD batches (xsimd): the grain solver's evaluations spend most of their time in the law's
+// transcendentals (expm1, asin, log1p per system), which one batch computes for 4 (AVX2) or 8
+// (AVX-512) systems at once, with the widest instruction set the machine has, chosen at run
+// time. The formulas are the law's own (law/closed_form.hpp); only laws whose updates are in
 // closed form are batched (cot subloading, exponential overstress: the paper's law), the others
 // keep the system-by-system path.
 
@@ -35,12 +35,23 @@ struct FlowBatchOutput {
   alignas(64) FlowBatchArray g, g_slip, g_r, r, mu_slope, mu, r_s;
 };
 
-// Whether the build's batches are wide enough to pay: 4 or 8 doubles (AVX2, AVX-512; a build
-// with -DSUBSLIP_NATIVE=ON on such a machine). With SSE2's 2 (the portable build) the batched
-// transcendentals measured slower than glibc's scalar ones (which select FMA code at run time):
-// the solver then evaluates system by system.
-bool flow_batches_pay();
+// Every system's cot subloading start (law::SubloadingFrictionLaw::subloading_start) from its
+// r0 in [0, 1]: cos(pi r0/2), 1 - cos(pi r0/2), U(r0). The lanes after the systems hold r0 = 0.
+struct SubloadingStartBatch {
+  alignas(64) FlowBatchArray r0{}, cos0, one_minus_cos0, rate0;
+};
 
+// The instruction sets a batch can use: the build's own (SSE2 in the portable build; what the
+// machine has in a -DSUBSLIP_NATIVE=ON one) and, in an x86-64 build, AVX2 with FMA (4 doubles)
+// and AVX-512 (8 doubles), compiled apart and chosen at run time: the widest the machine has.
+enum class FlowBatchIsa { build, avx2, avx512 };
+bool flow_batch_isa_available(FlowBatchIsa isa);
+// Doubles per batch of the chosen instruction set.
+int flow_batch_width();
+// Whether the chosen batches are wide enough to pay: 4 or 8 doubles. With SSE2's 2 (a machine
+// without AVX2) the batched transcendentals measured slower than glibc's scalar ones (which
+// select FMA code at run time): the solver then evaluates system by system.
+bool flow_batches_pay();
 // Whether the first `count` systems share one law whose flow points have the batched closed form.
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count);
 
@@ -48,9 +59,17 @@ bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws
 // computes on and does not report (so that they hold numbers, not whatever memory was there).
 void clear_batch_padding(FlowBatchInput& in, int count);
 
+// Fills the starts of systems 0 ... count - 1 from their r0, for the cot subloading function of
+// u_tilde, with the chosen instruction set or a given (available) one.
+void batched_subloading_starts(double u_tilde, int count, SubloadingStartBatch& s);
+void batched_subloading_starts(double u_tilde, int count, SubloadingStartBatch& s,
+                               FlowBatchIsa isa);
 // Fills `out` for systems 0 ... count - 1 (count <= kMaxSlipSystems), all of the law `p`;
 // `latent_self` is q, the weight of a system's own slip in its hardening.
 void batched_flow_points(const law::LawParameters& p, double dt, double latent_self, int count,
                          const FlowBatchInput& in, FlowBatchOutput& out);
+// The same with a given (available) instruction set.
+void batched_flow_points(const law::LawParameters& p, double dt, double latent_self, int count,
+                         const FlowBatchInput& in, FlowBatchOutput& out, FlowBatchIsa isa);
 
 }  // namespace subslip::crystal::detail

@@ -1,12 +1,12 @@
 #pragma once
 // The law's closed-form step updates written once for a scalar (double) and for a batch of
 // systems (an xsimd batch<double>): the friction coefficient after a slip (3.4 integrated at a
-// constant rate), the cot subloading ratio after a slip (2.28) and the exponential overstress
-// residual (3.15 inverted). The scalar law (subloading_friction.cpp) calls them with double and
-// keeps its early returns; the crystal's batched flow points (src/crystal/flow_point_batch.cpp)
-// call them with batches, where a branch becomes a select over both sides. Each formula is the same
-// sequence of operations for both, so a batch lane rounds as the scalar law does wherever the
-// libm functions and their vector counterparts agree.
+// constant rate), the cot subloading start and ratio after a slip (2.28) and the exponential
+// overstress residual (3.15 inverted). The scalar law (subloading_friction.cpp) calls them with
+// double and keeps its early returns; the crystal's batched flow points
+// (src/crystal/flow_point_batch_kernels.hpp) call them with batches, where a branch becomes a
+// select over both sides. Each formula is the same sequence of operations for both, so a batch lane
+// rounds as the scalar law does wherever the libm functions and their vector counterparts agree.
 //
 // Unqualified calls (expm1, select, any, ...) resolve to std and the overloads below for double,
 // and by argument-dependent lookup to xsimd for batches: this header needs no xsimd itself.
@@ -24,14 +24,12 @@ using std::acos;
 using std::asin;
 using std::expm1;
 using std::log1p;
+using std::sin;
 using std::sqrt;
 inline double select(bool condition, double if_true, double if_false) {
   return condition ? if_true : if_false;
 }
 inline bool any(bool condition) {
-  return condition;
-}
-inline bool all(bool condition) {
   return condition;
 }
 
@@ -80,9 +78,31 @@ ValueAndSlopeOf<V> friction_coefficient_after(const FrictionCoefficientEvolution
   return {mu0 + drive * ph.value, d_drive * ph.value + drive * ph.slope * (f.kappa / f.mu_k)};
 }
 
+// The cot subloading start from r0 in [0, 1]: cos(pi r0/2), 1 - cos(pi r0/2) and
+// U(r0) = u cot(pi r0/2), from one sine taken where it keeps the digits: 1 - cos through
+// sin(pi r0/4) for small r0, cos through the sine of the distance to 1 otherwise. U(r0) =
+// u cos/sin needs no tangent; it is +inf at r0 = 0 (a virgin system).
+template <class V>
+struct CotStartOf {
+  V cos0, one_minus_cos0, rate0;
+};
+template <class V>
+CotStartOf<V> cot_subloading_start(double u_tilde, const V& r0) {
+  constexpr double kPi = std::numbers::pi;
+  const auto small = r0 < 0.5;
+  const V h = sin(select(small, V(0.25 * kPi * r0), V(0.5 * kPi * (1.0 - r0))));
+  const V twice_square = 2.0 * h * h;
+  const V cos0 = select(small, V(1.0 - twice_square), h);
+  const V one_minus_cos0 = select(small, twice_square, V(1.0 - h));
+  const V sin0 = sqrt(one_minus_cos0 * (1.0 + cos0));
+  return {cos0, one_minus_cos0, u_tilde * cos0 / sin0};
+}
+
 // The cot subloading ratio after a slip from a start (r0, cos(pi r0/2), 1 - cos(pi r0/2), U(r0)):
 // x = cos(pi r1/2) = cos(pi r0/2) exp(-pi u s/2) (2.28), carried with 1 - x so that small r0
-// and small s keep their digits (acos is ill-conditioned next to 1). The slope
+// and small s keep their digits (acos is ill-conditioned next to 1). r1 comes from the half
+// angle, pi r1/4 = asin(((1 - x)/2)^(1/2)), whose argument stays within [0, 2^-1/2] where asin
+// is well conditioned (x in [0, 1]): one formula over the whole range, no branch. The slope
 // U(r1) = u cot(pi r1/2) = u x / sqrt((1 - x)(1 + x)) needs no further trigonometry. No slip,
 // a saturated start or a ratio rounded below the start keep the start; r1 stops at 1.
 template <class V>
@@ -94,16 +114,7 @@ ValueAndSlopeOf<V> cot_subloading_ratio_after(double u_tilde, const V& r0, const
   const V decay = expm1(-a);
   const V x = cos0 * (1.0 + decay);
   const V one_minus_x = one_minus_cos0 - cos0 * decay;
-  const auto near_zero = x > 0.5;  // r1 < 2/3: through the half-angle sine
-  V r1;
-  if (all(near_zero)) {
-    r1 = (4.0 / kPi) * asin(sqrt(0.5 * one_minus_x));
-  } else if (!any(near_zero)) {
-    r1 = (2.0 / kPi) * acos(x);
-  } else {
-    r1 =
-        select(near_zero, V((4.0 / kPi) * asin(sqrt(0.5 * one_minus_x))), V((2.0 / kPi) * acos(x)));
-  }
+  const V r1 = (4.0 / kPi) * asin(sqrt(0.5 * one_minus_x));
   const V slope = u_tilde * x / sqrt(one_minus_x * (1.0 + x));
   const auto keep_start = (slip <= 0.0) || (r0 >= 1.0) || (r1 <= r0);
   const auto saturated = r1 >= 1.0;
