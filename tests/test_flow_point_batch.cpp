@@ -87,7 +87,7 @@ TEST(FlowPointBatch, AgreesWithTheLawSystemBySystem) {
       testing::crystal_law(1.0, 3.0, 10.0, 0.5, 20.0, 1.0, 8.0, 1.8),
       testing::crystal_law(0.097, 0.085, 0.2, 0.009, 80.0, 950.0, 16.0, 1.8)};
   std::mt19937_64 rng(7);
-  int compared = 0, outside = 0, closed_form_hardening = 0, far_update = 0;
+  int compared = 0, outside = 0, closed_form_hardening = 0, far_update = 0, newton_coefficients = 0;
   for (const auto& p : laws) {
     const law::SubloadingFrictionLaw law(p);
     for (const double q : {1.0, 0.4}) {
@@ -115,6 +115,20 @@ TEST(FlowPointBatch, AgreesWithTheLawSystemBySystem) {
                 << out.g_slip[i] << " vs " << e.g_slip;
             EXPECT_TRUE(close(out.g_r[i], e.g_r, std::abs(e.g_r)));
             EXPECT_TRUE(close(out.mu_slope[i], e.mu_slope, std::abs(e.mu_slope) + 1.0));
+            if (out.g_slip[i] < 0.0 && std::isfinite(out.g_slip[i])) {
+              // The Newton coefficients (StressSolver::SlipPoint's w, d, l without the sign) are
+              // the solver's formulas of this flow point (whose parts are checked above), to a
+              // few ulps.
+              const double inverse_slope = 1.0 / (-out.g_slip[i]);
+              const double w = out.g[i] * inverse_slope;
+              const double d = out.g_r[i] / (out.mu[i] * in.normal[i]) * inverse_slope;
+              const double l =
+                  out.g_r[i] * (-out.r[i] / out.mu[i]) * out.mu_slope[i] * inverse_slope;
+              EXPECT_NEAR(out.newton_w[i], w, 1e-15 * std::abs(w));
+              EXPECT_NEAR(out.newton_d[i], d, 1e-15 * std::abs(d));
+              EXPECT_NEAR(out.newton_l[i], l, 1e-15 * std::abs(l));
+              ++newton_coefficients;
+            }
             const double b = p.friction.kappa * in.effective[i] / p.friction.mu_k +
                              p.friction.xi * dt / p.friction.mu_s;
             closed_form_hardening += std::abs(b) >= 0.0625;
@@ -130,6 +144,7 @@ TEST(FlowPointBatch, AgreesWithTheLawSystemBySystem) {
   EXPECT_GT(closed_form_hardening, 100);
   EXPECT_GT(far_update, 100);
   EXPECT_GT(compared, 3000);
+  EXPECT_GT(newton_coefficients, 1000);
 }
 
 TEST(FlowPointBatch, SubloadingStartsAgreeWithTheLaw) {

@@ -51,6 +51,11 @@ void flow_points_for(const law::LawParameters& p, double dt, double latent_self,
     // dG/d ds through r (hardening: dr/d ds = -r/mu dmu/d ds, q of it the system's own slip),
     // through r_s (dG/dr_s = -1) and the overstress term.
     const Batch g_slip = g.d_r * (-r / mu.value * mu.slope * latent_self) - r_s.slope + g.d_slip;
+    // The Newton coefficients in the order of the solver's scalar path, so each rounds as there.
+    const Batch inverse_slope = 1.0 / (-g_slip);
+    (g.value * inverse_slope).store_aligned(out.newton_w.data() + a);
+    (g.d_r / (mu.value * load(in.normal)) * inverse_slope).store_aligned(out.newton_d.data() + a);
+    (g.d_r * (-r / mu.value) * mu.slope * inverse_slope).store_aligned(out.newton_l.data() + a);
     const auto outside = !(r < p.overstress.r_hat) || !(mu.value > 0.0);
     xsimd::select(outside, Batch(inf), g.value).store_aligned(out.g.data() + a);
     g_slip.store_aligned(out.g_slip.data() + a);

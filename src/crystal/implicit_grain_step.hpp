@@ -684,8 +684,15 @@ class StressSolver {
       p.worst = std::max(p.worst, std::abs(f.g));
       p.converged = p.converged && within_floor(f, z, a, dgamma, fn(a));
       const double s = sign_of(tau(a));
-      const double inverse_slope = 1.0 / (-f.g_s);
       p.sign(a) = s;
+      if (batched_) {
+        const auto i = static_cast<size_t>(a);
+        p.w(a) = s * batch_out_.newton_w[i];
+        p.d(a) = batch_out_.newton_d[i];
+        p.l(a) = s * batch_out_.newton_l[i];
+        continue;
+      }
+      const double inverse_slope = 1.0 / (-f.g_s);
       p.w(a) = s * f.g * inverse_slope;
       p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
       p.e(a) = ph_.pressure_sensitive ? s * f.g_dr * (-f.r / fn(a)) * inverse_slope : 0.0;
@@ -742,7 +749,8 @@ class StressSolver {
     } else {
       // Symmetric: its lower triangle (which the Cholesky factorisation reads) as one product
       // of the phase's 21 x n dyads with d.
-      const Eigen::Matrix<double, 21, 1> lower = ph_.schmid_dyads * p.d;
+      Eigen::Matrix<double, 21, 1> lower = Eigen::Matrix<double, 21, 1>::Zero();
+      for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
       for (int j = 0, k = 0; j < 6; ++j)
         for (int i = j; i < 6; ++i) s(i, j) += lower(k++);
       c.llt.compute(s);

@@ -30,9 +30,15 @@ struct FlowBatchInput {
 };
 
 // Per system: G, dG/d ds, dG/dr, r = |tau|/(mu f_n), d mu / d(effective slip), mu, r_s.
-// G = +inf where r >= r_hat or mu <= 0 (outside the flow rule's domain).
+// G = +inf where r >= r_hat or mu <= 0 (outside the flow rule's domain). And the coefficients of
+// its slip's Newton linearisation without the shear's sign s (StressSolver::SlipPoint: w = s
+// newton_w, d = newton_d, l = s newton_l), each divided by -dG/d ds: meaningful where
+// dG/d ds < 0 and finite.
 struct FlowBatchOutput {
   alignas(64) FlowBatchArray g, g_slip, g_r, r, mu_slope, mu, r_s;
+  alignas(64) FlowBatchArray newton_w;  // G / (-dG/d ds)
+  alignas(64) FlowBatchArray newton_d;  // dG/dr / (mu f_n) / (-dG/d ds)
+  alignas(64) FlowBatchArray newton_l;  // dG/dr (-r/mu) d mu/d(effective slip) / (-dG/d ds)
 };
 
 // Every system's cot subloading start (law::SubloadingFrictionLaw::subloading_start) from its
