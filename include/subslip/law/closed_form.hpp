@@ -20,7 +20,6 @@
 namespace subslip::law::closed_form {
 
 using std::abs;
-using std::acos;
 using std::asin;
 using std::expm1;
 using std::log1p;
