@@ -768,12 +768,22 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     return msg.str();
   }
 
-  // The volume average of the grains' sample-frame stress, over the team (exact sums).
+  // The volume average of the grains' sample-frame stress, over the team (exact sums). The
+  // threads sum their grains apart and merge: exact, so the same bits at any thread count.
   Vec6 average_stress(const std::vector<GrainState<N>>& grains) const {
     std::array<parallel::ExactSum, 6> sum;
-    for (size_t g = 0; g < grains.size(); ++g) {
-      const Vec6 s = weights_[g] * grains[g].sample_stress();
-      for (int i = 0; i < 6; ++i) sum[static_cast<size_t>(i)].add(s(i));
+    const long n = static_cast<long>(grains.size());
+#pragma omp parallel if (n > 1)
+    {
+      std::array<parallel::ExactSum, 6> part;
+#pragma omp for schedule(static) nowait
+      for (long g = 0; g < n; ++g) {
+        const auto gi = static_cast<size_t>(g);
+        const Vec6 s = weights_[gi] * grains[gi].sample_stress();
+        for (int i = 0; i < 6; ++i) part[static_cast<size_t>(i)].add(s(i));
+      }
+#pragma omp critical(subslip_average_stress)
+      for (int i = 0; i < 6; ++i) sum[static_cast<size_t>(i)].merge(part[static_cast<size_t>(i)]);
     }
     team_.sum(sum);
     Vec6 mean;
@@ -1044,8 +1054,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
               const Eigen::VectorXd& u, double dt) {
-    for (size_t g = 0; g < committed_.size(); ++g)
-      trend_[g] = (trial_[g].rate - committed_[g].rate) / dt;
+    const long n = static_cast<long>(committed_.size());
+#pragma omp parallel for schedule(static) if (n > 1)
+    for (long g = 0; g < n; ++g) {
+      const auto gi = static_cast<size_t>(g);
+      trend_[gi] = (trial_[gi].rate - committed_[gi].rate) / dt;
+    }
     std::swap(committed_, trial_);
     stats_.grain_steps += static_cast<long>(total_);
     const Mat3 l = fc.empty() ? seg.velocity_gradient
