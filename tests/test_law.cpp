@@ -487,6 +487,23 @@ TEST(LawExactUpdates, CotFormMatchesPaperClosedForm) {
   }
 }
 
+// The cot start (cos(pi r0/2), 1 - cos(pi r0/2), U(r0)), taken from one sine of a quarter or
+// half angle, against libm's cosine and tangent of the ratio itself, to a few ulps of each
+// (1 - cos relative: it keeps its digits at small r0 through sin^2(pi r0/4)).
+TEST(LawExactUpdates, CotStartIsTheCosineOfItsRatio) {
+  const double u = 80.0;
+  const SubloadingFrictionLaw law(paper_law());
+  for (double r0 = 1e-9; r0 <= 1.0; r0 = r0 < 0.01 ? 3.0 * r0 : r0 + 0.0137) {
+    const auto start = law.subloading_start(r0);
+    const double half = std::sin(0.25 * kPi * r0);
+    const double cos0 = std::cos(0.5 * kPi * r0);
+    EXPECT_NEAR(start.cos0, cos0, 4 * kEps) << r0;
+    EXPECT_NEAR(start.one_minus_cos0, 2.0 * half * half, 4 * kEps * 2.0 * half * half) << r0;
+    const double rate = u / std::tan(0.5 * kPi * r0);
+    EXPECT_NEAR(start.rate0, rate, 8 * kEps * rate + 4 * kEps * u / std::sin(0.5 * kPi * r0)) << r0;
+  }
+}
+
 // The slip integral s(r) = int_0^r dr/U (the inverse of the update from 0) is consistent with
 // the update, and equals an independent quadrature.
 TEST(LawExactUpdates, SlipIntegralInvertsTheUpdate) {
@@ -667,8 +684,8 @@ TEST(LawExactUpdates, FrictionCoefficientSeriesMatchesClosedFormInLongDouble) {
     const auto got = law.friction_coefficient_after(0.097, slip, 1.0);
     EXPECT_NEAR(got.value, static_cast<double>(mu1), 4 * kEps * 0.097) << "B = " << b;
     // The slope is a sum of two terms of opposite sign: its rounding is relative to theirs.
-    const long double terms = std::abs((kappa - kappa / mu_k * mu0) * phi) +
-                              std::abs(drive * dphi * (kappa / mu_k));
+    const long double terms =
+        std::abs((kappa - kappa / mu_k * mu0) * phi) + std::abs(drive * dphi * (kappa / mu_k));
     EXPECT_NEAR(got.d_slip, static_cast<double>(d_mu1), 16 * kEps * static_cast<double>(terms))
         << "B = " << b;
   }
