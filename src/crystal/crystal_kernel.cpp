@@ -108,7 +108,9 @@ void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, 
   if (tau0.size() != n) tau0 = SlipTypes<N>::VecN::Ones(n);
   if (latent.rows() != n) latent = SlipTypes<N>::MatNN::Identity(n, n);
   factor_latent(*this);
-  batched_flow_points = detail::flow_batches_pay() && detail::has_batched_flow_points(laws, n);
+  // The batch leaves out the plane-pressure coefficient of the slips' Newton step.
+  batched_flow_points =
+      !pressure_sensitive && detail::flow_batches_pay() && detail::has_batched_flow_points(laws, n);
 }
 
 template <int N>
