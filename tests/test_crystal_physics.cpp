@@ -374,6 +374,12 @@ struct TangentCheck {
   double rel_error_lattice;  // g1 (tangent dE) g1^T vs FD of the lattice stress
   double rel_error_slip;     // slip tangent vs FD of the step's slips
   int active;
+  // Per column the better of the two one-sided second-order differences (points 0, h, 2h and
+  // 0, -h, -2h), as the largest over the columns: where the response is only piecewise smooth
+  // (a rate-independent grain at a vertex of its yield polytope) the step's state can lie within
+  // h of a change of the active faces, which a central difference straddles; the side away from
+  // it lies in the tangent's own region. A wrong linearisation misses both sides.
+  double rel_error_one_sided;
 };
 
 // Loads a general grain plastically, then compares the tangent of one more step with central
@@ -415,6 +421,14 @@ TangentCheck tangent_check(Kinematics k, double h,
 
   Mat6 fd, fd_lattice, t_lattice;
   SlipTangent<12> fd_slip(12, 6);
+  // The sample stress of one more step at L + (multiple) dl.
+  auto stress_at = [&](const Mat3& dl, double multiple) {
+    GrainState<12> out = s;
+    const auto r = implicit_grain_step(ph, s, L + multiple * dl, dt, opt, out, nullptr);
+    EXPECT_TRUE(r.ok) << r.why;
+    return Vec6(out.sample_stress());
+  };
+  Mat6 fd_forward, fd_backward;
   for (int col = 0; col < 6; ++col) {
     const Mat3 dl = symmetric_from_mandel(Vec6::Unit(col) * h) / dt;
     Vec6 plus = Vec6::Zero(), minus = Vec6::Zero(), plus_lat = Vec6::Zero(),
@@ -428,6 +442,9 @@ TangentCheck tangent_check(Kinematics k, double h,
       (sgn > 0 ? plus_lat : minus_lat) = out.stress;
       (sgn > 0 ? plus_slip : minus_slip) = out.slip - s.slip;
     }
+    const Vec6 centre = s1.sample_stress();
+    fd_forward.col(col) = (4.0 * plus - stress_at(dl, 2.0) - 3.0 * centre) / (2.0 * h);
+    fd_backward.col(col) = (3.0 * centre - 4.0 * minus + stress_at(dl, -2.0)) / (2.0 * h);
     fd_slip.col(col) = (plus_slip - minus_slip) / (2.0 * h);
     fd.col(col) = (plus - minus) / (2.0 * h);
     fd_lattice.col(col) = (plus_lat - minus_lat) / (2.0 * h);
@@ -435,9 +452,15 @@ TangentCheck tangent_check(Kinematics k, double h,
     const Mat3 ts = symmetric_from_mandel(t.col(col));
     t_lattice.col(col) = mandel_from_symmetric(s1.orientation * ts * s1.orientation.transpose());
   }
+  double one_sided = 0.0;
+  for (int col = 0; col < 6; ++col)
+    one_sided =
+        std::max(one_sided, std::min((t.col(col) - fd_forward.col(col)).cwiseAbs().maxCoeff(),
+                                     (t.col(col) - fd_backward.col(col)).cwiseAbs().maxCoeff()));
   return {(t - fd).cwiseAbs().maxCoeff() / fd.cwiseAbs().maxCoeff(),
           (t_lattice - fd_lattice).cwiseAbs().maxCoeff() / fd_lattice.cwiseAbs().maxCoeff(),
-          (st - fd_slip).cwiseAbs().maxCoeff() / fd_slip.cwiseAbs().maxCoeff(), active};
+          (st - fd_slip).cwiseAbs().maxCoeff() / fd_slip.cwiseAbs().maxCoeff(), active,
+          one_sided / fd.cwiseAbs().maxCoeff()};
 }
 
 }  // namespace
@@ -467,18 +490,22 @@ TEST(CrystalTangent, SlipTangentMatchesCentralDifferences) {
 
 // The rate-independent form with kappa = 0 takes the step on the yield polytope
 // (src/crystal/vertex_grain_step.cpp): its tangent, from the active faces and the held systems'
-// hardening, against central differences; after 1 % strain (20 steps) the grain's yielding
+// hardening, against finite differences; after 1 % strain (20 steps) the grain's yielding
 // systems are held (their hardening below the elastic coupling), after 40 % (800 steps) they are
-// saturated (r_s within 1e-10 of 1).
+// saturated (r_s within 1e-10 of 1). The response is only piecewise smooth there (the active
+// faces change with the strain increment), so the check takes the better of the two one-sided
+// differences per column (tangent_check): a central difference once straddled such a change at
+// 800 steps after a change of one ulp in a start (relative error 0.996 against 6.8e-8).
 TEST(CrystalTangent, VertexStepMatchesCentralDifferences) {
   law::LawParameters p = crystal_law(1.0, 1.0, 0.0, 0.0, 300.0, 0.05);
   p.overstress.form = law::OverstressForm::rate_independent;
   for (int steps : {20, 800}) {
     const TangentCheck c = tangent_check(Kinematics::finite_rotation, 1e-8, p, steps);
     measured() << "vertex step after " << steps << " steps: tangent vs FD rel err " << c.rel_error
+               << " (central), " << c.rel_error_one_sided << " (one-sided, the better side)"
                << ", slip tangent " << c.rel_error_slip << ", active " << c.active << "\n";
     EXPECT_GE(c.active, 3);
-    EXPECT_LT(c.rel_error, 1e-6);
+    EXPECT_LT(c.rel_error_one_sided, 1e-6);
   }
 }
 
