@@ -16,6 +16,7 @@
 
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -321,6 +322,18 @@ TEST(CrystalCli, RunsTheDefaultSceneIntoATempFile) {
   EXPECT_NE(r.out.find("strain_33  stress[MPa]"), std::string::npos) << r.out;
   const h5::File file = h5::File::open_read(dir / "out.h5");
   EXPECT_EQ(file.root().attribute_int("completed"), 1);
+  // How the results were computed: the build and the grain solver's SIMD kernels (results of
+  // different builds, or of "none" against a wide set, differ by round-off).
+  EXPECT_EQ(file.root().attribute_string("build"), SUBSLIP_BUILD);
+  EXPECT_EQ(file.root().attribute_string("simd_kernels"), crystal::detail::flow_batch_isa_name());
+  // The --version line says the same.
+  const Outcome version = run_cli(dir, "--version");
+  ASSERT_EQ(version.code, 0) << version.out;
+  EXPECT_NE(version.out.find(std::string(SUBSLIP_BUILD) + " build"), std::string::npos)
+      << version.out;
+  EXPECT_NE(version.out.find(std::string("batches: ") + crystal::detail::flow_batch_isa_name()),
+            std::string::npos)
+      << version.out;
   // The finished result: its rows only, no checkpoint (the restart file is gone), small.
   EXPECT_EQ(file.root().attribute_int("finished"), 1);
   EXPECT_FALSE(file.root().has("checkpoint"));

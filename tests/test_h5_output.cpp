@@ -94,6 +94,8 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
   EXPECT_EQ(root.attribute_int("format_version"), h5::kFormatVersion);
   EXPECT_EQ(root.attribute_int("layout_complete"), 1);
   EXPECT_EQ(root.attribute_string("program_version"), SUBSLIP_VERSION);
+  EXPECT_EQ(root.attribute_string("build"), SUBSLIP_BUILD);
+  EXPECT_FALSE(root.has_attribute("simd_kernels"));  // the contact solver has no batches
   EXPECT_EQ(root.attribute_string("scene_kind"), "contact");
   EXPECT_EQ(root.attribute_string("scene_file"), "h5_test.yaml");
   EXPECT_EQ(root.attribute_string("title"), "h5 test");

@@ -33,6 +33,7 @@
 
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
 #include "subslip/crystal/texture.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/contact_run.hpp"
@@ -678,6 +679,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     to_file.restart = restart;
     to_file.restart_file = io::restart_file_for(path);
     to_file.checkpoint_capacity = driver::checkpoint_capacity(scene, checkpoint_every);
+    to_file.computed_with = {{"simd_kernels", crystal::detail::flow_batch_isa_name()}};
     return to_file;
   };
   const auto run_collectively = [&] {
@@ -920,15 +922,28 @@ int stop_on(const std::exception& e, const parallel::Team& team) {
   return code;  // (not reached)
 }
 
+// Every rank takes the same grain kernels, so that a run's results do not depend on how its
+// grains are spread over machines whose instruction sets differ: the AVX2 and AVX-512 batches
+// give the same bits, the system-by-system path of a machine without AVX2 does not, so where
+// one rank lacks the batches none takes them.
+void agree_on_flow_batches(const parallel::Team& team) {
+  std::array<std::int64_t, 1> batched{crystal::detail::flow_batches_pay() ? 1 : 0};
+  team.min(batched);
+  if (batched[0] == 0) crystal::detail::refuse_flow_batches();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   // Before anything else: MPI may take its own arguments. Without mpirun this is one rank.
   const parallel::Session session(argc, argv);
   const parallel::Team& team = session.team();
+  agree_on_flow_batches(team);
   CLI::App app{"subslip: subloading-overstress friction on contacts and crystal slip systems"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", SUBSLIP_VERSION);
+  app.set_version_flag("--version", std::string(SUBSLIP_VERSION) + " (" + SUBSLIP_BUILD +
+                                        " build; crystal flow points in SIMD batches: " +
+                                        crystal::detail::flow_batch_isa_name() + ")");
   RunArgs run_args;
   add_run_command(app, run_args);
   OrientationArgs orientation_args;

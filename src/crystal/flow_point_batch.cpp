@@ -1,6 +1,7 @@
 #include "subslip/crystal/flow_point_batch.hpp"
 
 #include <algorithm>
+#include <atomic>
 
 #include "flow_point_batch_kernels.hpp"
 
@@ -67,8 +68,20 @@ int flow_batch_width() {
   return chosen().width;
 }
 
+// Set before any phase is assembled (refuse_flow_batches), read by every later assembly.
+std::atomic<bool> flow_batches_refused{false};
+
 bool flow_batches_pay() {
-  return chosen().width >= 4;
+  return !flow_batches_refused.load(std::memory_order_relaxed) && chosen().width >= 4;
+}
+
+void refuse_flow_batches() {
+  flow_batches_refused.store(true, std::memory_order_relaxed);
+}
+
+const char* flow_batch_isa_name() {
+  if (!flow_batches_pay()) return "none";
+  return chosen().width == 8 ? "avx512" : "avx2";
 }
 
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count) {

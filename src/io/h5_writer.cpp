@@ -1361,6 +1361,8 @@ void write_result_header(File& file, const ResultHeader& header) {
   root.set_attribute("format", "subslip");
   root.set_attribute("format_version", kFormatVersion);
   root.set_attribute("program_version", SUBSLIP_VERSION);
+  root.set_attribute("build", SUBSLIP_BUILD);
+  for (const auto& [name, text] : header.computed_with) root.set_attribute(name, text);
   root.set_attribute("scene_kind", header.scene_kind);
   root.set_attribute("scene_file", header.scene_file);
   root.set_attribute("title", header.title);

@@ -93,6 +93,8 @@ struct CrystalSinkOptions {
   // (`restart`), and commits after every output step (a pace by each rank's clock would differ).
   std::optional<h5::MpiAccess> mpi;
   int ranks = 1;
+  // Root attributes of a new file that say how its results were computed (ResultHeader).
+  std::vector<std::pair<std::string, std::string>> computed_with;
 };
 
 // The groups and files a crystal run writes into, laid out or reopened by CrystalResultSink.

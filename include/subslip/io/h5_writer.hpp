@@ -405,9 +405,13 @@ struct ResultHeader {
   std::string scene_text;  // the YAML text, verbatim
   std::string title;
   std::vector<std::pair<std::string, std::string>> units;  // ("stress", "MPa"), ...
+  // Further root attributes (name, text) that say how the results were computed, e.g. the
+  // crystal solver's SIMD kernels.
+  std::vector<std::pair<std::string, std::string>> computed_with;
 };
 
-// Root attributes format = "subslip", format_version, program_version, scene_kind,
+// Root attributes format = "subslip", format_version, program_version, build (SUBSLIP_BUILD:
+// "portable" or "native"), the header's computed_with, scene_kind,
 // scene_file, title, created (ISO-8601 UTC), run_id (new_run_id), completed = 0, finished = 0,
 // layout_complete = 0, write_error (reserved, empty: see mark_write_failed); dataset
 // /scene; group /units with one string attribute per unit. Flushes.
