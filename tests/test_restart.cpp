@@ -16,12 +16,14 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "child_process.hpp"
 #include "grain_recorder.hpp"
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -568,6 +570,40 @@ TEST(Restart, RefusesWhatItCannotContinue) {
   h5::File::open_write(dir / "old.h5").root().set_attribute("program_version", "0.0.1");
   expect_refused(dir, {"run", "--restart", "old.h5"},
                  "old.h5: program_version: cannot restart: written by subslip 0.0.1");
+  // A file begun by code that rounds differently (another build, or the system-by-system flow
+  // points against SIMD batches) is continued, with a warning that the result is not bit for bit
+  // an uninterrupted run's.
+  const std::string other_build = std::string(SUBSLIP_BUILD) == "native" ? "portable" : "native";
+  const std::string other_kernels =
+      std::string(crystal::detail::flow_batch_isa_name()) == "none" ? "avx2" : "none";
+  for (const auto& [name, value] : {std::pair<std::string, std::string>{"build", other_build},
+                                    {"simd_kernels", other_kernels}}) {
+    SCOPED_TRACE(name);
+    fs::remove(dir / "elsewhere.h5");
+    fs::copy_file(dir / "cut.h5", dir / "elsewhere.h5");
+    {
+      const h5::File file = h5::File::open_write(dir / "elsewhere.h5");
+      ASSERT_TRUE(file.root().has_attribute(name));
+      file.root().set_attribute(name, value);
+    }
+    EXPECT_EQ(run_subslip(dir, {"run", "--restart", "elsewhere.h5"}, dir / "run.log"), 0);
+    EXPECT_NE(log_of(dir).find("warning: elsewhere.h5 was begun with build "), std::string::npos)
+        << log_of(dir);
+    EXPECT_NE(log_of(dir).find(value), std::string::npos) << log_of(dir);
+    EXPECT_NE(log_of(dir).find("not bit for bit"), std::string::npos) << log_of(dir);
+  }
+  // The same kernels class (AVX2 for AVX-512 or back) warns of nothing: the same bits.
+  if (std::string(crystal::detail::flow_batch_isa_name()) != "none") {
+    fs::remove(dir / "elsewhere.h5");
+    fs::copy_file(dir / "cut.h5", dir / "elsewhere.h5");
+    h5::File::open_write(dir / "elsewhere.h5")
+        .root()
+        .set_attribute("simd_kernels", std::string(crystal::detail::flow_batch_isa_name()) == "avx2"
+                                           ? "avx512"
+                                           : "avx2");
+    EXPECT_EQ(run_subslip(dir, {"run", "--restart", "elsewhere.h5"}, dir / "run.log"), 0);
+    EXPECT_EQ(log_of(dir).find("warning"), std::string::npos) << log_of(dir);
+  }
   // The same scene file is accepted; the case is recomputed (from its start: a finished case
   // keeps no checkpoint) into the same values.
   EXPECT_EQ(restart(dir, "cut.h5"), 0) << log_of(dir);

@@ -781,6 +781,11 @@ int run_scene(const RunArgs& a, const parallel::Team& team) {
         },
         exit_code_of);
     if (!restart) restart.emplace();
+    if (team.is_root()) {
+      const std::string rounding = io::restart_rounding_warning(
+          a.restart, *restart, SUBSLIP_BUILD, crystal::detail::flow_batch_isa_name());
+      if (!rounding.empty()) print_warnings(a, {rounding});
+    }
     for (std::string* text : {&restart->scene_kind, &restart->scene_file, &restart->scene_text})
       team.broadcast(*text, 0);
   } else if (!given) {
@@ -820,7 +825,8 @@ void add_run_command(CLI::App& app, RunArgs& a) {
   run->add_option("--restart", a.restart,
                   "Continue the killed run that wrote FILE (scene read from its /scene): "
                   "completed cases are kept, an interrupted crystal case continues from its last "
-                  "checkpoint; the result equals an uninterrupted run bit for bit");
+                  "checkpoint; the result equals an uninterrupted run bit for bit (a warning says "
+                  "where this build or its SIMD kernels round differently from the file's)");
   run->add_option("--checkpoint-every", a.checkpoint_every,
                   "Crystal runs: write a checkpoint every N increments (0: never); default: "
                   "output.checkpoint_every of the scene, else about once a minute")

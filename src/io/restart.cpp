@@ -60,6 +60,8 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
   if (!root.has("progress") || !root.has("cases") || !root.has("scene"))
     refuse(file, "progress", "the file has no /progress, /cases or /scene (it was never started)");
   RestartInfo info;
+  if (root.has_attribute("build")) info.build = root.attribute_string("build");
+  if (root.has_attribute("simd_kernels")) info.simd_kernels = root.attribute_string("simd_kernels");
   info.scene_kind = string_attribute(root, file, "scene_kind");
   info.scene_file = string_attribute(root, file, "scene_file");
   info.scene_text = root.open_dataset("scene").read_string();
@@ -100,6 +102,22 @@ void check_restart_cases(const std::filesystem::path& file, const RestartInfo& i
            "the scene in /scene no longer gives the cases the run started with (files it reads "
            "changed?)");
   }
+}
+
+std::string restart_rounding_warning(const std::filesystem::path& file, const RestartInfo& info,
+                                     const std::string& build, const std::string& simd_kernels) {
+  const bool other_build = !info.build.empty() && info.build != build;
+  const bool other_kernels =
+      !info.simd_kernels.empty() && (info.simd_kernels == "none") != (simd_kernels == "none");
+  if (!other_build && !other_kernels) return "";
+  const auto described = [](const std::string& b, const std::string& k) {
+    return "build " + b + (k.empty() ? "" : ", SIMD kernels " + k);
+  };
+  return file.string() + " was begun with " + described(info.build, info.simd_kernels) +
+         "; this run continues with " +
+         described(build, info.simd_kernels.empty() ? "" : simd_kernels) +
+         ", which round differently: the result agrees with an uninterrupted run to the "
+         "solvers' tolerances, not bit for bit";
 }
 
 }  // namespace subslip::io

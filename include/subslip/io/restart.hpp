@@ -16,7 +16,17 @@ struct RestartInfo {
   std::string scene_text;  // /scene, verbatim
   std::vector<std::string> case_names;
   std::filesystem::path restart_file;  // where its checkpoints are (io/result_file.hpp)
+  // How the interrupted run computed (root attributes build and simd_kernels; empty where the
+  // file does not say).
+  std::string build, simd_kernels;
 };
+
+// A warning when this run would continue FILE with code that rounds differently from the code
+// that started it (another build, or the system-by-system flow points against SIMD batches;
+// the AVX2 and AVX-512 batches give the same bits): the continued run then agrees with an
+// uninterrupted one to the solvers' tolerances, not bit for bit. Empty otherwise.
+std::string restart_rounding_warning(const std::filesystem::path& file, const RestartInfo& info,
+                                     const std::string& build, const std::string& simd_kernels);
 
 // Reads FILE and checks that it is a working result file of this program version (not
 // finished: a run killed, or stopped by a failed write) that has the /progress table, and
