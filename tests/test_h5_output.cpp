@@ -335,7 +335,7 @@ TEST(H5Writer, CommittedRowsSurviveACrashWithoutFlush) {
   ASSERT_GE(child, 0);
   if (child == 0) {
     h5::File file = h5::File::create(path, false);
-    h5::write_result_header(file, {"contact", "crash.yaml", "scene: contact\n", "crash", {}});
+    h5::write_result_header(file, {"contact", "crash.yaml", "scene: contact\n", "crash", {}, {}});
     h5::CaseProgress progress = h5::CaseProgress::create(file.root(), 1);
     h5::Series s = file.root().create_series({"x", 0, h5::Type::float64, "1", "x", 16, 64, 32});
     file.flush();  // the layout; from here on no flush at all

@@ -159,6 +159,7 @@ TEST(PostSummary, ContactNamesCasesUnitsAndDatasets) {
   EXPECT_TRUE(
       contains(s, "format:      subslip, format_version " + std::to_string(h5::kFormatVersion)))
       << s;
+  EXPECT_TRUE(contains(s, "computed:    " + std::string(SUBSLIP_BUILD) + " build\n")) << s;
   EXPECT_TRUE(contains(s, "scene kind:  contact")) << s;
   EXPECT_TRUE(contains(s, "title:       post test: figure 11a law")) << s;
   EXPECT_TRUE(contains(s, "completed:   yes")) << s;
@@ -203,8 +204,8 @@ namespace {
 fs::path write_interrupted_run(const fs::path& dir) {
   const fs::path path = dir / "partial.h5";
   h5::File file = h5::File::create(path, false);
-  h5::write_result_header(file,
-                          {"contact", "x.yaml", "scene: contact\n", "partial", {{"time", "min"}}});
+  h5::write_result_header(
+      file, {"contact", "x.yaml", "scene: contact\n", "partial", {{"time", "min"}}, {}});
   const h5::Group cases = file.root().create_group("cases");
   cases.set_attribute("names", std::vector<std::string>{"a", "b"});
   {

@@ -277,6 +277,13 @@ void print_file_header(std::ostream& out, const ResultFile& r) {
   print_hanging(
       out, "format:      ",
       "subslip, format_version " + version + ", written by subslip " + text("program_version"));
+  if (root.has_attribute("build")) {
+    // How it was computed (results of builds or kernels that round differently differ by
+    // round-off).
+    std::string how = text("build") + " build";
+    if (root.has_attribute("simd_kernels")) how += ", SIMD kernels " + text("simd_kernels");
+    print_hanging(out, "computed:    ", how);
+  }
   print_hanging(out,
                 "scene kind:  ", text("scene_kind") + " (scene file " + text("scene_file") + ")");
   print_hanging(out, "title:       ", text("title"));
