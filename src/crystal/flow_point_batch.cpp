@@ -68,8 +68,10 @@ int flow_batch_width() {
   return chosen().width;
 }
 
+namespace {
 // Set before any phase is assembled (refuse_flow_batches), read by every later assembly.
 std::atomic<bool> flow_batches_refused{false};
+}  // namespace
 
 bool flow_batches_pay() {
   return !flow_batches_refused.load(std::memory_order_relaxed) && chosen().width >= 4;
