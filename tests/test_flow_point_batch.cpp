@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -185,68 +184,39 @@ TEST(FlowPointBatch, SubloadingStartsAgreeWithTheLaw) {
                           (crystal::kMaxSlipSystems + 1) / 2);
 }
 
-// The wide kernels (AVX2, 4 lanes, and AVX-512, 8 lanes, both with FMA) compute every lane by the
-// same operations in the same order, so they give the same bits: a run does not depend on which of
-// the two a machine has (a cluster whose nodes differ, say). The build's own kernel (SSE2 in the
-// portable build: no FMA) is not part of this promise; it rounds differently.
-TEST(FlowPointBatch, TheWideInstructionSetsGiveTheSameBits) {
-  if (!crystal::detail::flow_batch_isa_available(FlowBatchIsa::avx2) ||
-      !crystal::detail::flow_batch_isa_available(FlowBatchIsa::avx512))
-    GTEST_SKIP() << "this machine lacks AVX2 or AVX-512";
-  const law::LawParameters p = testing::crystal_law(1.0, 3.0, 10.0, 0.5, 20.0, 1.0, 8.0, 1.8);
-  const law::SubloadingFrictionLaw law(p);
-  std::mt19937_64 rng(13);
-  int compared = 0;
-  auto same = [](const crystal::detail::FlowBatchArray& x, const crystal::detail::FlowBatchArray& y,
-                 int count) {
-    return std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(count)) == 0;
+// A limit on the batches (what the MPI ranks of a run agree on: the least level among them)
+// holds for every phase assembled afterwards, and results say which kernels ran. In child
+// processes: a limit holds for the rest of the process.
+TEST(FlowPointBatch, ALimitOnTheBatchesHoldsForEveryLaterPhase) {
+  using crystal::detail::flow_batch_isa_name;
+  using crystal::detail::flow_batch_level;
+  using crystal::detail::flow_batch_width;
+  using crystal::detail::flow_batches_pay;
+  using crystal::detail::limit_flow_batches;
+  const auto batched = [] {
+    return crystal::build_phase<12>(testing::copper_phase(20.0)).phase.batched_flow_points;
   };
-  for (int count = 1; count <= crystal::kMaxSlipSystems; ++count) {
-    const FlowBatchInput in = random_systems(law, count, 0.4, rng);
-    FlowBatchOutput narrow, wide;
-    crystal::detail::batched_flow_points(p, 0.1, 0.4, count, in, narrow, FlowBatchIsa::avx2);
-    crystal::detail::batched_flow_points(p, 0.1, 0.4, count, in, wide, FlowBatchIsa::avx512);
-    SCOPED_TRACE(::testing::Message() << count << " systems");
-    EXPECT_TRUE(same(narrow.g, wide.g, count));
-    EXPECT_TRUE(same(narrow.g_slip, wide.g_slip, count));
-    EXPECT_TRUE(same(narrow.g_r, wide.g_r, count));
-    EXPECT_TRUE(same(narrow.r, wide.r, count));
-    EXPECT_TRUE(same(narrow.mu, wide.mu, count));
-    EXPECT_TRUE(same(narrow.mu_slope, wide.mu_slope, count));
-    EXPECT_TRUE(same(narrow.r_s, wide.r_s, count));
-    EXPECT_TRUE(same(narrow.newton_w, wide.newton_w, count));
-    EXPECT_TRUE(same(narrow.newton_d, wide.newton_d, count));
-    EXPECT_TRUE(same(narrow.newton_l, wide.newton_l, count));
-    crystal::detail::SubloadingStartBatch a, b;
-    for (int s = 0; s < count; ++s) a.r0[static_cast<size_t>(s)] = in.r0[static_cast<size_t>(s)];
-    b = a;
-    crystal::detail::batched_subloading_starts(200.0, count, a, FlowBatchIsa::avx2);
-    crystal::detail::batched_subloading_starts(200.0, count, b, FlowBatchIsa::avx512);
-    EXPECT_TRUE(same(a.cos0, b.cos0, count));
-    EXPECT_TRUE(same(a.one_minus_cos0, b.one_minus_cos0, count));
-    EXPECT_TRUE(same(a.rate0, b.rate0, count));
-    ++compared;
-  }
-  EXPECT_EQ(compared, crystal::kMaxSlipSystems);
-}
-
-// Refused batches (what the MPI ranks of a run agree on when one of them lacks AVX2) leave every
-// phase assembled afterwards on the system-by-system path, and results say so. In a child
-// process: the refusal holds for the rest of the process.
-TEST(FlowPointBatch, RefusedBatchesLeaveTheSystemBySystemPath) {
   EXPECT_EXIT(
       {
-        crystal::detail::refuse_flow_batches();
-        const bool none = !crystal::detail::flow_batches_pay() &&
-                          std::string(crystal::detail::flow_batch_isa_name()) == "none";
-        const bool batched =
-            crystal::build_phase<12>(testing::copper_phase(20.0)).phase.batched_flow_points;
-        std::exit(none && !batched ? 0 : 1);
+        limit_flow_batches(0);
+        const bool none = !flow_batches_pay() && flow_batch_level() == 0 &&
+                          std::string(flow_batch_isa_name()) == "none";
+        std::exit(none && !batched() ? 0 : 1);
       },
       ::testing::ExitedWithCode(0), "");
-  // Unrefused (this process), the same phase takes the batches wherever they pay.
-  EXPECT_EQ(crystal::build_phase<12>(testing::copper_phase(20.0)).phase.batched_flow_points,
-            crystal::detail::flow_batches_pay());
+  if (crystal::detail::flow_batch_isa_available(FlowBatchIsa::avx512)) {
+    EXPECT_EXIT(
+        {
+          limit_flow_batches(1);
+          const bool avx2 = flow_batch_level() == 1 && flow_batch_width() == 4 &&
+                            std::string(flow_batch_isa_name()) == "avx2";
+          std::exit(avx2 && batched() ? 0 : 1);
+        },
+        ::testing::ExitedWithCode(0), "");
+  }
+  // Unlimited (this process): the widest level the machine has, wherever batches pay.
+  EXPECT_EQ(batched(), flow_batches_pay());
+  EXPECT_EQ(flow_batch_level(), !flow_batches_pay() ? 0 : flow_batch_width() >= 8 ? 2 : 1);
 }
 
 // The solver's batches are the widest this machine runs.

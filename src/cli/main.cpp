@@ -928,14 +928,13 @@ int stop_on(const std::exception& e, const parallel::Team& team) {
   return code;  // (not reached)
 }
 
-// Every rank takes the same grain kernels, so that a run's results do not depend on how its
-// grains are spread over machines whose instruction sets differ: the AVX2 and AVX-512 batches
-// give the same bits, the system-by-system path of a machine without AVX2 does not, so where
-// one rank lacks the batches none takes them.
+// Every rank takes the same grain kernels (the widest every rank has), so that a run's results
+// do not depend on how its grains are spread over machines whose instruction sets differ:
+// results of different kernels differ by round-off.
 void agree_on_flow_batches(const parallel::Team& team) {
-  std::array<std::int64_t, 1> batched{crystal::detail::flow_batches_pay() ? 1 : 0};
-  team.min(batched);
-  if (batched[0] == 0) crystal::detail::refuse_flow_batches();
+  std::array<std::int64_t, 1> level{crystal::detail::flow_batch_level()};
+  team.min(level);
+  crystal::detail::limit_flow_batches(static_cast<int>(level[0]));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "subslip/crystal/flow_point_batch.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 
 #include "flow_point_batch_kernels.hpp"
@@ -39,9 +40,23 @@ FlowBatchIsa widest_available() {
   return FlowBatchIsa::build;
 }
 
+// The widest level of batches the run allows (limit_flow_batches): 2 every set, 1 up to AVX2,
+// 0 none.
+std::atomic<int> allowed_level{2};
+
+// The instruction set the solver takes: the widest this machine runs, within the allowed level.
+FlowBatchIsa chosen_isa() {
+  static const FlowBatchIsa widest = widest_available();
+  if (widest == FlowBatchIsa::avx512 && allowed_level.load(std::memory_order_relaxed) < 2)
+    return FlowBatchIsa::avx2;
+  return widest;
+}
+
 const IsaKernels& chosen() {
-  static const IsaKernels kernels = kernels_of(widest_available());
-  return kernels;
+  static const std::array<IsaKernels, 3> kernels{kernels_of(FlowBatchIsa::build),
+                                                 kernels_of(FlowBatchIsa::avx2),
+                                                 kernels_of(FlowBatchIsa::avx512)};
+  return kernels[static_cast<size_t>(chosen_isa())];
 }
 
 }  // namespace
@@ -68,22 +83,29 @@ int flow_batch_width() {
   return chosen().width;
 }
 
-namespace {
-// Set before any phase is assembled (refuse_flow_batches), read by every later assembly.
-std::atomic<bool> flow_batches_refused{false};
-}  // namespace
-
 bool flow_batches_pay() {
-  return !flow_batches_refused.load(std::memory_order_relaxed) && chosen().width >= 4;
+  return allowed_level.load(std::memory_order_relaxed) > 0 && chosen().width >= 4;
 }
 
-void refuse_flow_batches() {
-  flow_batches_refused.store(true, std::memory_order_relaxed);
+int flow_batch_level() {
+  if (!flow_batches_pay()) return 0;
+  return chosen().width >= 8 ? 2 : 1;
+}
+
+void limit_flow_batches(int level) {
+  allowed_level.store(std::clamp(level, 0, 2), std::memory_order_relaxed);
 }
 
 const char* flow_batch_isa_name() {
   if (!flow_batches_pay()) return "none";
-  return chosen().width == 8 ? "avx512" : "avx2";
+  switch (chosen_isa()) {
+    case FlowBatchIsa::avx512:
+      return "avx512";
+    case FlowBatchIsa::avx2:
+      return "avx2";
+    default:
+      return "native";  // a native build's own set, on a machine without AVX2
+  }
 }
 
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count) {

@@ -107,8 +107,7 @@ void check_restart_cases(const std::filesystem::path& file, const RestartInfo& i
 std::string restart_rounding_warning(const std::filesystem::path& file, const RestartInfo& info,
                                      const std::string& build, const std::string& simd_kernels) {
   const bool other_build = !info.build.empty() && info.build != build;
-  const bool other_kernels =
-      !info.simd_kernels.empty() && (info.simd_kernels == "none") != (simd_kernels == "none");
+  const bool other_kernels = !info.simd_kernels.empty() && info.simd_kernels != simd_kernels;
   if (!other_build && !other_kernels) return "";
   const auto described = [](const std::string& b, const std::string& k) {
     return "build " + b + (k.empty() ? "" : ", SIMD kernels " + k);

@@ -58,12 +58,15 @@ int flow_batch_width();
 // without AVX2) the batched transcendentals measured slower than glibc's scalar ones (which
 // select FMA code at run time): the solver then evaluates system by system.
 bool flow_batches_pay();
-// From here on every phase takes the system-by-system path (flow_batches_pay() is false): what
-// the MPI ranks of one run do when one of them lacks AVX2, so that all compute alike.
-void refuse_flow_batches();
-// The chosen kernels' instruction set as results record it: "avx512" or "avx2" (the two give
-// the same bits), or "none" where batches do not pay (the system-by-system path, which rounds
-// differently).
+// The level of the batches the solver takes: 0 none (system by system), 1 four doubles (AVX2),
+// 2 eight (AVX-512).
+int flow_batch_level();
+// From here on the solver takes batches of at most this level (phases assembled later follow
+// it): what the MPI ranks of one run agree on, the least level among them, so that every rank
+// computes with the same kernels (results of different kernels differ by round-off).
+void limit_flow_batches(int level);
+// The chosen kernels' instruction set as results record it: "avx512", "avx2", or "none" where
+// batches do not pay (the system-by-system path).
 const char* flow_batch_isa_name();
 // Whether the first `count` systems share one law whose flow points have the batched closed form.
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count);

@@ -22,9 +22,9 @@ struct RestartInfo {
 };
 
 // A warning when this run would continue FILE with code that rounds differently from the code
-// that started it (another build, or the system-by-system flow points against SIMD batches;
-// the AVX2 and AVX-512 batches give the same bits): the continued run then agrees with an
-// uninterrupted one to the solvers' tolerances, not bit for bit. Empty otherwise.
+// that started it (another build, or other SIMD kernels of the grain solver): the continued run
+// then agrees with an uninterrupted one to the solvers' tolerances, not bit for bit. Empty
+// otherwise.
 std::string restart_rounding_warning(const std::filesystem::path& file, const RestartInfo& info,
                                      const std::string& build, const std::string& simd_kernels);
 
