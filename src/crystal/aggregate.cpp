@@ -46,6 +46,10 @@ Mat3 assemble_velocity_gradient(const Mat3& prescribed, const std::vector<FreeCo
   return l;
 }
 
+Mat3 symmetric_part(const Mat3& l) {
+  return 0.5 * (l + l.transpose());
+}
+
 // d(Mandel strain increment)/du_k per unit dt.
 Vec6 strain_direction(const FreeComponent& c) {
   Vec6 e = Vec6::Zero();
@@ -208,12 +212,13 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   }
 
   // The segment's stress ramp start and free components of L: from the checkpoint, or from the
-  // state the segment starts in (the free components start from the previous step's values).
+  // state the segment starts in (the free components from the elastic response to the new
+  // loading: elastic_free_start).
   // A stress component the previous segment prescribed ramps from that prescribed value, not
   // from the stress reached (which differs by up to the tolerance): errors do not carry over
   // from segment to segment.
-  void start_segment(const std::vector<FreeComponent>& fc, const LoadSegment* previous,
-                     const AggregateCheckpoint* resume) {
+  void start_segment(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                     const LoadSegment* previous, const AggregateCheckpoint* resume) {
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
@@ -226,12 +231,49 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
           if (previous->free(i, j)) cursor_.stress_start(i, j) = previous->stress_target(i, j);
-    cursor_.free = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
-    for (size_t k = 0; k < fc.size(); ++k)
-      cursor_.free(static_cast<int>(k)) = macro_.velocity_gradient(fc[k].i, fc[k].j);
+    cursor_.free = elastic_free_start(seg, fc, cursor_.stress_start);
     // The loading has just changed: no trend carries over from the last segment.
     cursor_.free_trend = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
     cursor_.free_from_step = false;
+  }
+
+  // Where a segment's mixed-control iteration starts: the free components of L for which the
+  // grains' averaged elastic stiffness, in the sample frame, takes the free stresses from the
+  // segment's start along their ramp with the new prescribed components. The loading has just
+  // changed, and a change of loading begins elastically (an unloading, a reversal, a hold), so
+  // this is the start next to the solution the path continues along; the last segment's free
+  // components are not (a hold after loading started from the loading's lateral flow lands,
+  // at a yield vertex, on a far branch of the step's equations with a lateral flow of 1e-2 /s
+  // at constant stress: docs/internals.md, "Mixed control").
+  Eigen::VectorXd elastic_free_start(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                                     const Mat3& stress_start) const {
+    const int k = static_cast<int>(fc.size());
+    std::array<parallel::ExactSum, 36> sum;
+    for (size_t g = 0; g < committed_.size(); ++g) {
+      const Mat6 c =
+          weights_[g] * stiffness_in_sample_frame(phase_.stiffness, committed_[g].orientation);
+      for (int i = 0; i < 36; ++i) sum[static_cast<size_t>(i)].add(c.data()[i]);
+    }
+    team_.sum(sum);
+    Mat6 stiffness;
+    for (int i = 0; i < 36; ++i) stiffness.data()[i] = sum[static_cast<size_t>(i)].value();
+    const Eigen::VectorXd none = Eigen::VectorXd::Zero(k);
+    const Vec6 prescribed_rate =
+        stiffness * mandel_from_symmetric(symmetric_part(
+                        assemble_velocity_gradient(seg.velocity_gradient, fc, none)));
+    Eigen::MatrixXd jac(k, k);
+    Eigen::VectorXd rhs(k);
+    for (int a = 0; a < k; ++a) {
+      const FreeComponent& c = fc[static_cast<size_t>(a)];
+      const double ramp =
+          seg.duration > 0.0 ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
+                             : 0.0;
+      rhs(a) = ramp - component(prescribed_rate, c.i, c.j);
+      for (int b = 0; b < k; ++b)
+        jac(a, b) = component(stiffness * strain_direction(fc[static_cast<size_t>(b)]), c.i, c.j);
+    }
+    const Eigen::VectorXd u = jac.partialPivLu().solve(rhs);
+    return u.allFinite() ? u : none;
   }
 
   // A step failed: the free components do not change smoothly over it (a change of the grains'
@@ -271,7 +313,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       return;
     }
     const auto fc = free_components(seg.free);
-    start_segment(fc, previous, resume);
+    start_segment(seg, fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     const auto dts = increment_lengths(seg.duration, seg.increments, seg.growth);
@@ -309,7 +351,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
                             const MacroObserver& observe, const RunControl& control,
                             const AggregateCheckpoint* resume) {
     const auto fc = free_components(seg.free);
-    start_segment(fc, previous, resume);
+    start_segment(seg, fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
     if (resume != nullptr && resume->position.segment_time >= seg.duration) return;
