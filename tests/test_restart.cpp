@@ -215,7 +215,7 @@ TEST(Restart, RestoreRefusesAnotherAggregate) {
   const auto a = crystal::build_taylor_aggregate(c.phase, c.orientations);
   a->run(c.segments, c.options, [](const crystal::MacroState&, const crystal::GrainFields&) {});
   crystal::AggregateCheckpoint saved = a->checkpoint();
-  EXPECT_EQ(saved.values_per_grain, 15 + 5 * 12);
+  EXPECT_EQ(saved.values_per_grain, 15 + 6 * 12);
   EXPECT_EQ(saved.grains.size(), 3u * static_cast<std::size_t>(saved.values_per_grain));
   const CrystalScene other = scene_of(crystal_scene(4, 4));
   const auto b = crystal::build_taylor_aggregate(other.cases[0].phase, other.cases[0].orientations);

@@ -79,8 +79,8 @@ TEST(RunSize, CrystalEstimateCountsEveryRowOfEveryGrain) {
 TEST(RunSize, CheckpointsAreCounted) {
   const YamlDocument d = YamlDocument::from_string(crystal_text(100, "20"), "s.yaml");
   const RunSize size = estimate_crystal_run(parse_crystal_scene(d), 5);
-  // two slots of 100 grains x (15 + 5 x 12) values
-  EXPECT_EQ(size.checkpoint_bytes, 2.0 * 8.0 * 100.0 * 75.0);
+  // two slots of 100 grains x (15 + 6 x 12) values
+  EXPECT_EQ(size.checkpoint_bytes, 2.0 * 8.0 * 100.0 * 87.0);
   EXPECT_GT(size.result_bytes, size.checkpoint_bytes);
 }
 

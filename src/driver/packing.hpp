@@ -53,6 +53,7 @@ class Packed {
     put_integer(c.position.increment);
     put(c.position.segment_time);
     put(c.position.next_step);
+    put(c.trend_step);
     put(c.macro);
     put(c.segment_start_stress);
     put_integer(c.free_velocity_gradient.size());
@@ -106,6 +107,7 @@ class Unpacked {
     c.position.increment = integer();
     c.position.segment_time = real();
     c.position.next_step = real();
+    c.trend_step = real();
     get(c.macro);
     get(c.segment_start_stress);
     const auto free_count = integer();

@@ -19,7 +19,8 @@ constexpr int kMaxFree = 9;  // free components of L
 
 // The macro numbers of a slot's `values`, in order; a name per number (matrices row-major).
 std::vector<std::string> value_names() {
-  std::vector<std::string> names = {"time", "segment_time", "next_step", "wall_seconds"};
+  std::vector<std::string> names = {"time", "segment_time", "next_step", "wall_seconds",
+                                    "trend_step"};
   auto matrix = [&](const std::string& what) {
     for (int i = 1; i <= 3; ++i)
       for (int j = 1; j <= 3; ++j) names.push_back(what + "_" + std::to_string(10 * i + j));
@@ -68,7 +69,7 @@ Mat3 take(const double*& p) {
 std::vector<double> pack_values(const crystal::AggregateCheckpoint& c,
                                 const crystal::MacroState& last) {
   std::vector<double> v = {c.macro.time, c.position.segment_time, c.position.next_step,
-                           c.stats.wall_seconds};
+                           c.stats.wall_seconds, c.trend_step};
   put(v, c.macro.velocity_gradient);
   put(v, c.macro.deformation_gradient);
   put(v, c.macro.strain);
@@ -116,6 +117,7 @@ StoredCheckpoint unpack(const std::vector<double>& values, const std::vector<lon
   c.position.segment_time = *p++;
   c.position.next_step = *p++;
   c.stats.wall_seconds = *p++;
+  c.trend_step = *p++;
   c.macro.velocity_gradient = take(p);
   c.macro.deformation_gradient = take(p);
   c.macro.strain = take(p);
@@ -178,7 +180,7 @@ void CheckpointStore::create(const h5::Group& parent, std::size_t capacity) {
     slot.create_fixed("grains", grain_shape, h5::Type::float64,
                       "per grain (grain_count x values_per_grain, row-major): stress (lattice "
                       "frame, Mandel) 6, orientation g (row-major) 9, then mu, r_s, slip, slip "
-                      "rate, slip-rate trend (N each); the rest unused")
+                      "rate, slip-rate trend (1/s^2), its change (1/s^3) (N each); the rest unused")
         .set_attribute("stress_scaling",
                        "Mandel: 11 22 33 sqrt(2)*23 sqrt(2)*13 sqrt(2)*12 (lattice frame)");
     const std::size_t value_shape[1] = {names.size()};

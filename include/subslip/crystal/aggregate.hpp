@@ -134,9 +134,9 @@ constexpr int state_values_per_grain(int slip_count) {
 }
 
 // Values per grain in a checkpoint (see AggregateCheckpoint): the state, then its slip-rate
-// trend (N), from which the next step's Newton iteration starts.
+// trend and the trend's change (N each), from which the next step's Newton iteration starts.
 constexpr int checkpoint_values_per_grain(int slip_count) {
-  return state_values_per_grain(slip_count) + slip_count;
+  return state_values_per_grain(slip_count) + 2 * slip_count;
 }
 
 // Everything a run carries from one increment to the next: continuing from a checkpoint gives
@@ -147,11 +147,12 @@ struct AggregateCheckpoint {
   Mat3 segment_start_stress = Mat3::Zero();      // where the segment's stress ramp starts
   Eigen::VectorXd free_velocity_gradient;        // mixed control: the free components of L
   Eigen::VectorXd free_velocity_gradient_trend;  // their change per unit time over the last step
-  AggregateStats stats;                          // counters so far; wall_seconds over all sessions
-  int values_per_grain = 0;                      // checkpoint_values_per_grain(N)
+  double trend_step = 0.0;   // the step the grains' slip-rate trend was taken over (0: none yet)
+  AggregateStats stats;      // counters so far; wall_seconds over all sessions
+  int values_per_grain = 0;  // checkpoint_values_per_grain(N)
   // Per grain: Cauchy stress (lattice frame, Mandel) 6, orientation g row-major 9, then mu,
-  // r_s, slip, slip rate and slip-rate trend (the rate's change per unit time over the last
-  // step), N each.
+  // r_s, slip, slip rate, slip-rate trend (the rate's change per unit time over the last
+  // step) and the trend's change per unit time since the step before, N each.
   std::vector<double> grains;
 };
 
