@@ -77,7 +77,10 @@ Eigen::VectorXd least_change_step(const Eigen::MatrixXd& jac, const Eigen::Vecto
   double lambda = 0.0;
   const double s_max = s.size() > 0 ? s(0) : 0.0;
   if (s_max > 0.0 && left(0.0) < allowed && allowed < c.norm()) {
-    // left() rises monotonically from left(0) to |r|: bisection on log lambda.
+    // left() rises monotonically from left(0) to |r|: bisection on log lambda. The bracket
+    // s_max^2 e^-+80 holds every lambda that matters in double precision (above it left() is |r|
+    // to 1e-35, below it the Newton step to the same), and 100 halvings of its 160 narrow it to
+    // 1e-28, below the rounding of lambda: no iteration count decides the result.
     double lo = std::log(s_max * s_max) - 80.0, hi = std::log(s_max * s_max) + 80.0;
     for (int k = 0; k < 100; ++k) {
       const double mid = 0.5 * (lo + hi);
@@ -107,6 +110,14 @@ Vec6 strain_direction(const FreeComponent& c) {
 double component(const Vec6& v, int i, int j) {
   const int m = kMandelIndex[i][j];
   return i == j ? v(m) : v(m) / kSqrt2;
+}
+
+// The free components' entries of a stress (or of its change) in Mandel form, in fc's order: a
+// column of the free stresses' Jacobian.
+Eigen::VectorXd free_entries(const Vec6& v, const std::vector<FreeComponent>& fc) {
+  Eigen::VectorXd out(static_cast<int>(fc.size()));
+  for (size_t a = 0; a < fc.size(); ++a) out(static_cast<int>(a)) = component(v, fc[a].i, fc[a].j);
+  return out;
 }
 
 Mat3 log_strain(const Mat3& f) {
@@ -313,9 +324,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
           seg.duration > 0.0 ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
                              : 0.0;
       rhs(a) = ramp - component(prescribed_rate, c.i, c.j);
-      for (int b = 0; b < k; ++b)
-        jac(a, b) = component(stiffness * strain_direction(fc[static_cast<size_t>(b)]), c.i, c.j);
     }
+    for (int b = 0; b < k; ++b)
+      jac.col(b) = free_entries(stiffness * strain_direction(fc[static_cast<size_t>(b)]), fc);
     const Eigen::VectorXd u = jac.partialPivLu().solve(rhs);
     return u.allFinite() ? u : none;
   }
@@ -762,8 +773,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     // The tangents are taken along the free components' strain directions (tangent_directions_);
     // the change of L since the last solve lies in their span, with these coefficients (the
     // directions have disjoint Mandel components).
-    const Vec6 strain_rate_change =
-        mandel_from_symmetric(0.5 * ((l - warm_l_) + (l - warm_l_).transpose()));
+    const Vec6 strain_rate_change = mandel_from_symmetric(symmetric_part(l - warm_l_));
     const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1> direction_change =
         (tangent_directions_.transpose() * strain_rate_change)
             .cwiseQuotient(tangent_directions_.colwise().squaredNorm().transpose());
@@ -973,8 +983,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         const Mat3 w = 0.5 * (e - e.transpose());
         dsigma += mandel_from_symmetric(w * sigma - sigma * w) * dt;
       }
-      for (int a = 0; a < k; ++a)
-        jac(a, b) = component(dsigma, fc[static_cast<size_t>(a)].i, fc[static_cast<size_t>(a)].j);
+      jac.col(b) = free_entries(dsigma, fc);
     }
     return jac;
   }
@@ -1113,7 +1122,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
           jacobian, it.residual.value, 0.5 * std::max(tolerance, resolution.round_off));
       const double previous_size = it.residual.size;
       if (!delta.allFinite()) {
-        why = "mixed control: singular Jacobian of the free stresses";
+        why = "mixed control: non-finite Jacobian of the free stresses";
         return false;
       }
       const bool at_noise = it.residual.size <= resolution.grain_noise;
@@ -1187,7 +1196,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
             .lu()
             .solve((Mat3::Identity() + half) * macro_.deformation_gradient);
     if (phase_.kinematics == Kinematics::small_strain) {
-      macro_.strain += 0.5 * (l + l.transpose()) * dt;
+      macro_.strain += symmetric_part(l) * dt;
     } else {
       macro_.strain = log_strain(macro_.deformation_gradient);
     }
