@@ -494,18 +494,29 @@ TEST(CrystalTangent, SlipTangentMatchesCentralDifferences) {
 // systems are held (their hardening below the elastic coupling), after 40 % (800 steps) they are
 // saturated (r_s within 1e-10 of 1). The response is only piecewise smooth there (the active
 // faces change with the strain increment), so the check takes the better of the two one-sided
-// differences per column (tangent_check): a central difference once straddled such a change at
-// 800 steps after a change of one ulp in a start (relative error 0.996 against 6.8e-8).
+// differences per column (tangent_check). At the saturated vertex the sample stress is moreover
+// not a function of the loading to the resolution of a difference: the split of slip among the
+// yielding systems is not determined (the Taylor ambiguity; the lattice stress is), and it turns
+// the lattice through the plastic spin. Measured (2026-11-28, after a change of rounding in
+// rotation_exp): at h = 1e-6 the one-sided error is 1.0e-7, at 1e-7, 1e-8 and 1e-10 it is O(1)
+// (the slips jump, their own difference is off by 100 %), at 1e-9 and 1e-11 it is 6e-10 and
+// 8e-12, while the lattice stress's difference does not change with h. So the check takes the
+// best of three step sizes: a wrong linearisation misses at every one of them.
 TEST(CrystalTangent, VertexStepMatchesCentralDifferences) {
   law::LawParameters p = crystal_law(1.0, 1.0, 0.0, 0.0, 300.0, 0.05);
   p.overstress.form = law::OverstressForm::rate_independent;
   for (int steps : {20, 800}) {
-    const TangentCheck c = tangent_check(Kinematics::finite_rotation, 1e-8, p, steps);
-    measured() << "vertex step after " << steps << " steps: tangent vs FD rel err " << c.rel_error
-               << " (central), " << c.rel_error_one_sided << " (one-sided, the better side)"
-               << ", slip tangent " << c.rel_error_slip << ", active " << c.active << "\n";
-    EXPECT_GE(c.active, 3);
-    EXPECT_LT(c.rel_error_one_sided, 1e-6);
+    double best = std::numeric_limits<double>::infinity();
+    for (double h : {1e-8, 1e-7, 1e-6}) {
+      const TangentCheck c = tangent_check(Kinematics::finite_rotation, h, p, steps);
+      measured() << "vertex step after " << steps << " steps, h = " << h
+                 << ": tangent vs FD rel err " << c.rel_error << " (central), "
+                 << c.rel_error_one_sided << " (one-sided, the better side)"
+                 << ", slip tangent " << c.rel_error_slip << ", active " << c.active << "\n";
+      EXPECT_GE(c.active, 3);
+      best = std::min(best, c.rel_error_one_sided);
+    }
+    EXPECT_LT(best, 1e-6) << "after " << steps << " steps";
   }
 }
 

@@ -21,7 +21,6 @@
 // translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel.
 #pragma once
 
-#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
 #include <array>
@@ -531,13 +530,15 @@ class StressSolver {
     // a matrix right-hand side, whose set-up costs more than the solve at this size.
     d_sigma.resize(6, cols);
     for (int col = 0; col < cols; ++col) d_sigma.col(col) = c.solve_s(Vec6(e.col(col)));
-    d_dgamma.noalias() = c.k.transpose() * d_sigma;
+    MatKC eta;
     if (latent_rank_ > 0) {
-      const MatKC eta = c.solve_m(MatKC(c.gk * d_sigma));
+      eta = c.solve_m(MatKC(c.gk * d_sigma));
       d_sigma.noalias() -= c.z * eta;
-      d_dgamma.noalias() = c.k.transpose() * d_sigma;
-      d_dgamma.noalias() += c.lf * eta;
     }
+    d_dgamma.resize(n_, cols);
+    for (int col = 0; col < cols; ++col)
+      d_dgamma.col(col) = k_transpose_times(p, c, Vec6(d_sigma.col(col)));
+    if (latent_rank_ > 0) d_dgamma.noalias() += c.lf * eta;
   }
 
  private:
@@ -706,12 +707,14 @@ class StressSolver {
   // delta = w + K^T ds + lf eta solves ds = -C P delta and eta = g delta, that is
   //   S ds = -P (w + lf eta),  (I - g lf) eta - g K^T ds = g w,   S = C^-1 + P K^T.
   // Without plane pressure S = C^-1 + P diag(d) P^T is symmetric positive definite (d > 0:
-  // each flow rule's slip grows with its shear), so it is factored by Cholesky; the latent
+  // each flow rule's slip grows with its shear), so it is factored as L D L^T; the latent
   // unknowns eta (latent_rank of them) are eliminated through
   //   Z = S^-1 P lf,  M = I - g lf + g K^T Z,  eta = M^-1 g (w - K^T S^-1 P w).
   struct Condensed {
+    // K, formed only with plane pressure: without it K = P diag(d) is applied as such (k_times,
+    // k_transpose_times), which saves forming a 6 x n matrix per Newton step.
     Eigen::Matrix<double, 6, N, 0, 6, T::MaxN> k;
-    Eigen::LLT<Mat6> llt;
+    SymmetricFactor6 ldlt;
     Eigen::PartialPivLU<Mat6> lu;
     bool symmetric = true;
     // Latent coupling only:
@@ -722,11 +725,8 @@ class StressSolver {
     Eigen::PartialPivLU<MatK> m;
     double m_scalar = 1.0;  // M when latent_rank == 1
 
-    template <typename Rhs>
-    auto solve_s(const Rhs& rhs) const {
-      using Result =
-          Eigen::Matrix<double, 6, Rhs::ColsAtCompileTime, 0, 6, Rhs::MaxColsAtCompileTime>;
-      return symmetric ? Result(llt.solve(rhs)) : Result(lu.solve(rhs));
+    Vec6 solve_s(const Vec6& rhs) const {
+      return symmetric ? ldlt.solve(rhs) : Vec6(lu.solve(rhs));
     }
     template <typename Rhs>
     auto solve_m(const Rhs& rhs) const {
@@ -737,23 +737,32 @@ class StressSolver {
       return rhs.rows() == 1 ? Result(rhs / m_scalar) : Result(m.solve(rhs));
     }
   };
+  // K x and K^T y: without plane pressure K = P diag(d), applied without forming it.
+  Vec6 k_times(const SlipPoint& p, const Condensed& c, const VecN& x) const {
+    return c.symmetric ? Vec6(ph_.schmid * p.d.cwiseProduct(x)) : Vec6(c.k * x);
+  }
+  VecN k_transpose_times(const SlipPoint& p, const Condensed& c, const Vec6& y) const {
+    return c.symmetric ? VecN(p.d.cwiseProduct(ph_.schmid.transpose() * y))
+                       : VecN(c.k.transpose() * y);
+  }
+
   Condensed condense(const SlipPoint& p) const {
     Condensed c;
-    c.k.noalias() = ph_.schmid * p.d.asDiagonal();
     Mat6 s = ph_.compliance;
     if (ph_.pressure_sensitive) {
+      c.k.noalias() = ph_.schmid * p.d.asDiagonal();
       c.k.noalias() -= ph_.plane_normal_dyad * p.e.asDiagonal();
       c.symmetric = false;
       s.noalias() += ph_.schmid.lazyProduct(c.k.transpose());
       c.lu.compute(s);
     } else {
-      // Symmetric: its lower triangle (which the Cholesky factorisation reads) as one product
+      // Symmetric: its lower triangle (which the L D L^T factorisation reads) as one product
       // of the phase's 21 x n dyads with d.
       Eigen::Matrix<double, 21, 1> lower = Eigen::Matrix<double, 21, 1>::Zero();
       for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
       for (int j = 0, k = 0; j < 6; ++j)
         for (int i = j; i < 6; ++i) s(i, j) += lower(k++);
-      c.llt.compute(s);
+      c.ldlt.compute(s);
     }
     if (latent_rank_ > 0) {
       // The products are of at most (latent rank) x 12 x 6: evaluated coefficient-wise
@@ -770,7 +779,7 @@ class StressSolver {
       // not a coefficient-wise loop over dynamic sizes.
       c.gk.resize(latent_rank_, 6);
       for (int j = 0; j < latent_rank_; ++j)
-        c.gk.row(j) = (c.k * VecN(c.g.row(j).transpose())).transpose();
+        c.gk.row(j) = k_times(p, c, VecN(c.g.row(j).transpose())).transpose();
       c.z.resize(6, latent_rank_);
       for (int j = 0; j < latent_rank_; ++j)
         c.z.col(j) = c.solve_s(Vec6(ph_.schmid.lazyProduct(c.lf.col(j))));
@@ -804,7 +813,11 @@ class StressSolver {
     const double scale = latent_scale_;
     MatD a = MatD::Zero(dim, dim);
     a.topLeftCorner(6, 6) = scale * ph_.compliance;
-    a.topLeftCorner(6, 6).noalias() += scale * ph_.schmid * c.k.transpose();
+    if (c.symmetric)
+      a.topLeftCorner(6, 6).noalias() +=
+          scale * ph_.schmid * p.d.asDiagonal() * ph_.schmid.transpose();
+    else
+      a.topLeftCorner(6, 6).noalias() += scale * ph_.schmid * c.k.transpose();
     if (k > 0) {
       a.block(0, 6, 6, k).noalias() = scale * ph_.schmid * c.lf;
       a.block(6, 0, k, 6) = -c.gk;
@@ -827,8 +840,7 @@ class StressSolver {
   VecN saturated_slips(const SlipPoint& p, const Condensed& c, const MatDQ& x, int col,
                        const VecN& w) const {
     const int k = latent_rank_;
-    VecN delta = w;
-    delta.noalias() += c.k.transpose() * x.block(0, col, 6, 1);
+    VecN delta = w + k_transpose_times(p, c, Vec6(x.block(0, col, 6, 1)));
     if (k > 0) delta.noalias() += c.lf * x.block(6, col, k, 1);
     for (int a = 0, j = 6 + k; a < n_; ++a)
       if (p.saturated(a)) delta(a) = x(j++, col) / latent_scale_;
@@ -856,8 +868,7 @@ class StressSolver {
       eta = c.solve_m(rhs);
       d_sigma.noalias() -= c.z.lazyProduct(eta);
     }
-    delta = p.w;
-    delta.noalias() += c.k.transpose() * d_sigma;
+    delta = p.w + k_transpose_times(p, c, d_sigma);
     if (latent_rank_ > 0) delta.noalias() += c.lf.lazyProduct(eta);
     return delta.allFinite();
   }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 
 #include "subslip/crystal/crystal_kernel.hpp"
 #include "subslip/crystal/rotation.hpp"
@@ -16,6 +17,53 @@ inline Vec3 axial(const Mat3& w) {
 inline double sign_of(double v) {
   return v >= 0.0 ? 1.0 : -1.0;
 }
+
+// S = L D L^T of a symmetric positive definite 6 x 6 (its lower triangle is read), L unit lower
+// triangular: the implicit step's condensed Newton matrix, factored once or twice per grain
+// step. Written out because at this size the factorisation is a chain of dependent operations:
+// Eigen's LLT<Mat6> takes six square roots and six divisions on that chain (about 4 % of a
+// grain step's time, 2026-11-28), this one six divisions and no root. No pivoting: a positive
+// definite matrix needs none (its pivots are the positive D).
+class SymmetricFactor6 {
+ public:
+  // False where a pivot is not positive and finite (S not positive definite, or not finite).
+  bool compute(const Mat6& s) {
+    bool ok = true;
+    for (int j = 0; j < 6; ++j) {
+      double ld[6];  // L(j, k) D(k)
+      double pivot = s(j, j);
+      for (int k = 0; k < j; ++k) {
+        ld[k] = l_(j, k) * d_(k);
+        pivot -= l_(j, k) * ld[k];
+      }
+      // A pivot that is not positive: every solve is NaN (as Eigen's LLT, whose root of it is),
+      // which the callers' finiteness checks reject.
+      const bool positive = pivot > 0.0 && std::isfinite(pivot);
+      ok = ok && positive;
+      d_(j) = pivot;
+      inverse_d_(j) = positive ? 1.0 / pivot : std::numeric_limits<double>::quiet_NaN();
+      for (int i = j + 1; i < 6; ++i) {
+        double v = s(i, j);
+        for (int k = 0; k < j; ++k) v -= l_(i, k) * ld[k];
+        l_(i, j) = v * inverse_d_(j);
+      }
+    }
+    return ok;
+  }
+  Vec6 solve(const Vec6& b) const {
+    Vec6 x = b;
+    for (int i = 1; i < 6; ++i)
+      for (int k = 0; k < i; ++k) x(i) -= l_(i, k) * x(k);
+    x = x.cwiseProduct(inverse_d_);
+    for (int i = 4; i >= 0; --i)
+      for (int k = i + 1; k < 6; ++k) x(i) -= l_(k, i) * x(k);
+    return x;
+  }
+
+ private:
+  Mat6 l_;
+  Vec6 d_, inverse_d_;
+};
 
 // Velocity gradient split and expressed in the lattice frame of orientation g.
 struct LatticeKinematics {
