@@ -71,10 +71,15 @@ struct LatticeKinematics {
   Vec3 spin;         // axial vector of W_lat
 };
 
+// The axial vector of W in the lattice frame of orientation g.
+inline Vec3 lattice_spin(const Mat3& g, const Mat3& L) {
+  const Mat3 w = 0.5 * (L - L.transpose());
+  return axial(g * w * g.transpose());
+}
+
 inline LatticeKinematics lattice_kinematics(const Mat3& g, const Mat3& L) {
   const Mat3 d = 0.5 * (L + L.transpose());
-  const Mat3 w = 0.5 * (L - L.transpose());
-  return {mandel_from_symmetric(g * d * g.transpose()), axial(g * w * g.transpose())};
+  return {mandel_from_symmetric(g * d * g.transpose()), lattice_spin(g, L)};
 }
 
 // The kinematics of a step. The lattice turns with the total spin W and back with the plastic
@@ -95,7 +100,7 @@ inline StepKinematics step_kinematics(const Mat3& g0, const Mat3& L, double dt,
     const LatticeKinematics k = lattice_kinematics(g0, L);
     return {k.strain_rate * dt, k.spin, g0, g0};
   }
-  const Vec3 w = lattice_kinematics(g0, L).spin;
+  const Vec3 w = lattice_spin(g0, L);
   const Mat3 g_mid = rotation_exp(-0.5 * dt * w) * g0;
   const LatticeKinematics k = lattice_kinematics(g_mid, L);
   return {k.strain_rate * dt, w, g_mid, rotation_exp(-dt * w) * g0};
