@@ -26,9 +26,7 @@ inline double sign_of(double v) {
 // definite matrix needs none (its pivots are the positive D).
 class SymmetricFactor6 {
  public:
-  // False where a pivot is not positive and finite (S not positive definite, or not finite).
-  bool compute(const Mat6& s) {
-    bool ok = true;
+  void compute(const Mat6& s) {
     for (int j = 0; j < 6; ++j) {
       double ld[6];  // L(j, k) D(k)
       double pivot = s(j, j);
@@ -39,7 +37,6 @@ class SymmetricFactor6 {
       // A pivot that is not positive: every solve is NaN (as Eigen's LLT, whose root of it is),
       // which the callers' finiteness checks reject.
       const bool positive = pivot > 0.0 && std::isfinite(pivot);
-      ok = ok && positive;
       d_(j) = pivot;
       inverse_d_(j) = positive ? 1.0 / pivot : std::numeric_limits<double>::quiet_NaN();
       for (int i = j + 1; i < 6; ++i) {
@@ -48,7 +45,6 @@ class SymmetricFactor6 {
         l_(i, j) = v * inverse_d_(j);
       }
     }
-    return ok;
   }
   Vec6 solve(const Vec6& b) const {
     Vec6 x = b;
