@@ -2,6 +2,7 @@
 #include "vertex_grain_step.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -125,6 +126,83 @@ bool solve_qp(const Mat6& g_inverse, const Vec6& g, int faces, const NormalOf& n
   }
 }
 
+// The pseudo-inverse of the Gram matrix N N^T of face normals (6 x 6, positive semidefinite):
+// its eigenvalues below kDependentNormal times the largest count as zero (the squared sine of a
+// normal's angle with the span of the others, the rule of solve_qp). N^T (N N^T)^+ t is the
+// least-norm solution of N v = t.
+template <class Normals>
+Mat6 gram_pseudo_inverse(const Normals& normals) {
+  const Eigen::SelfAdjointEigenSolver<Mat6> eigen(normals * normals.transpose());
+  const Vec6& value = eigen.eigenvalues();  // ascending
+  Vec6 inverse = Vec6::Zero();
+  for (int i = 0; i < 6; ++i)
+    if (value(i) > kDependentNormal * value(5)) inverse(i) = 1.0 / value(i);
+  return eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
+}
+
+// The least-norm nonnegative solution of N v = t (N: 6 x m, the normals of the faces whose slips
+// the flow rules leave undetermined), from a feasible v (N v = t, v >= 0): the primal active-set
+// method for the strictly convex program min 1/2 |v|^2 subject to N v = t, v >= 0 (Nocedal and
+// Wright, Numerical Optimization, 2nd ed., 16.5). On the free faces F (v_f > 0) the least |v_F|
+// with N_F v_F = t is x = N_F^T lambda, lambda = (N_F N_F^T)^+ t (t lies in the range of N_F
+// because v does); v moves towards x
+// as far as it stays >= 0, and a face reaching 0 leaves F. Where x is reached (lambda the
+// multiplier of N v = t), a face f outside F with n_f . lambda > 0 would lower |v|
+// by slipping: the largest such enters. Each step of positive length lowers |v|, so a free set
+// repeats only through steps of length zero; `max_changes` bounds those (rounding). The solution
+// is unique (strictly convex objective) and a Lipschitz function of t: the projection of the
+// origin on the polyhedron {v >= 0, N v = t}. Returns false where the bound is exhausted (v is
+// then a feasible point, not the least-norm one).
+template <int MaxActive>
+bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normals, const Vec6& t,
+                            typename ActiveTypes<MaxActive>::VecX& v) {
+  using Mat6X = typename ActiveTypes<MaxActive>::Mat6X;
+  using VecX = typename ActiveTypes<MaxActive>::VecX;
+  const int m = static_cast<int>(normals.cols());
+  std::array<bool, MaxActive> free{};
+  for (int f = 0; f < m; ++f) free[static_cast<size_t>(f)] = v(f) > 0.0;
+  const int max_changes = 4 * m + 4;
+  for (int changes = 0; changes < max_changes; ++changes) {
+    std::array<int, MaxActive> index{};
+    int k = 0;
+    for (int f = 0; f < m; ++f)
+      if (free[static_cast<size_t>(f)]) index[static_cast<size_t>(k++)] = f;
+    Mat6X free_normals(6, k);
+    for (int i = 0; i < k; ++i) free_normals.col(i) = normals.col(index[static_cast<size_t>(i)]);
+    // lambda: the multiplier of N v = t, with x = N_F^T lambda.
+    const Vec6 lambda = k > 0 ? Vec6(gram_pseudo_inverse(free_normals) * t) : Vec6::Zero();
+    const VecX x = free_normals.transpose() * lambda;
+    // The step towards x, as far as every free slip stays >= 0.
+    double alpha = 1.0;
+    int blocking = -1;
+    for (int i = 0; i < k; ++i) {
+      const double vi = v(index[static_cast<size_t>(i)]);
+      if (x(i) < 0.0 && vi / (vi - x(i)) < alpha) alpha = vi / (vi - x(i)), blocking = i;
+    }
+    for (int i = 0; i < k; ++i) {
+      double& vi = v(index[static_cast<size_t>(i)]);
+      vi = blocking < 0 ? x(i) : vi + alpha * (x(i) - vi);
+    }
+    if (blocking >= 0) {
+      const int f = index[static_cast<size_t>(blocking)];
+      v(f) = 0.0, free[static_cast<size_t>(f)] = false;
+      continue;
+    }
+    // x reached: the face outside F that would lower |v| most, if any.
+    int entering = -1;
+    double best = 0.0;
+    for (int f = 0; f < m; ++f) {
+      if (free[static_cast<size_t>(f)]) continue;
+      const double gain = normals.col(f).dot(lambda);
+      if (gain > std::sqrt(kDependentNormal) * normals.col(f).norm() * lambda.norm() && gain > best)
+        best = gain, entering = f;
+    }
+    if (entering < 0) return true;
+    free[static_cast<size_t>(entering)] = true;
+  }
+  return false;
+}
+
 // The step's stress as the minimiser of
 //   Phi(sigma) = 1/2 (sigma - sigma_trial) : C^-1 : (sigma - sigma_trial) + sum_a Psi_a(tau_a)
 // over the faces s_a P_a : sigma <= mu_a tau0_a r_s,a(ds_a) of the held systems (s_a: the sign of
@@ -183,7 +261,10 @@ class VertexSolver {
     sigma = s0_.stress;
     for (;;) {
       if (!minimise(sigma, qp, iterations, max_iterations)) return false;
-      if (relinearise(qp) <= 0.25 * tolerance_) return true;
+      if (relinearise(qp) <= 0.25 * tolerance_) {
+        split_saturated(sigma, qp);
+        return true;
+      }
     }
   }
 
@@ -198,6 +279,16 @@ class VertexSolver {
     for (int j = 0; j < qp.count; ++j) {
       const int f = qp.face[static_cast<size_t>(j)];
       dgamma(system_of(f)) = sign_of_face(f) * qp.multiplier[static_cast<size_t>(j)];
+    }
+    if (split_count_ > 0) {
+      for (int j = 0; j < qp.count; ++j) {
+        const int f = qp.face[static_cast<size_t>(j)];
+        if (saturated_[static_cast<size_t>(f)]) dgamma(system_of(f)) = 0.0;
+      }
+      for (int i = 0; i < split_count_; ++i) {
+        const int f = split_face_[static_cast<size_t>(i)];
+        dgamma(system_of(f)) = sign_of_face(f) * split_slip_[static_cast<size_t>(i)];
+      }
     }
     return dgamma;
   }
@@ -239,6 +330,8 @@ class VertexSolver {
       const int f = qp.face[static_cast<size_t>(j)];
       out.row(system_of(f)) = sign_of_face(f) * du.row(j);
     }
+    if constexpr (T::MaxN > 1)
+      if (split_count_ > 0) split_sensitivities(qp, du, out);
     return out;
   }
 
@@ -348,6 +441,87 @@ class VertexSolver {
     }
   }
 
+  // The split of slip among saturated faces. A held face is saturated where its hardening times
+  // the step's held slip (|u|, a bound on how far any split moves one face's slip) is below half
+  // the flow tolerance: no split of that slip changes its flow rule by as much as the tolerance
+  // leaves after convergence, so the flow rules do not determine it (at r_s -> 1 the hardening
+  // vanishes in double precision; at a vertex of more saturated faces than independent normals
+  // the dual active-set method returns one basis of them, chosen by the order of its steps, which
+  // jumps between neighbouring loadings). The stress determines their joint share of the
+  // stationarity, t = sum over the saturated active faces u_f n_f; it is redistributed as the
+  // least-norm nonnegative slips over every saturated face at its limit within half the
+  // tolerance (least_norm_nonnegative): unique, and continuous in the loading. The end state's
+  // check of every flow rule verifies the bound.
+  void split_saturated(const Vec6& sigma, const Qp& qp) {
+    split_count_ = 0;
+    if constexpr (T::MaxN == 1) return;  // one face: the stress determines its slip
+    double held_slip = 0.0;
+    for (int j = 0; j < qp.count; ++j)
+      held_slip += qp.multiplier[static_cast<size_t>(j)] * qp.multiplier[static_cast<size_t>(j)];
+    held_slip = std::sqrt(held_slip);
+    for (int f = 0; f < held_count_; ++f) {
+      const int a = system_of(f);
+      saturated_[static_cast<size_t>(f)] = hardening_(a) * held_slip <= 0.5 * tolerance_ * crss_(a);
+    }
+    Mat6X normals(6, held_count_);
+    typename ActiveTypes<T::MaxN>::VecX v(held_count_);
+    Vec6 t = Vec6::Zero();
+    int m = 0;
+    for (int j = 0; j < qp.count; ++j) {
+      const int f = qp.face[static_cast<size_t>(j)];
+      if (!saturated_[static_cast<size_t>(f)]) continue;
+      split_face_[static_cast<size_t>(m)] = f;
+      normals.col(m) = face_normal(f);
+      v(m++) = qp.multiplier[static_cast<size_t>(j)];
+      t += qp.multiplier[static_cast<size_t>(j)] * face_normal(f);
+    }
+    if (m == 0) return;
+    for (int f = 0; f < held_count_; ++f) {
+      const int a = system_of(f);
+      const bool listed =
+          std::find(split_face_.begin(), split_face_.begin() + m, f) != split_face_.begin() + m;
+      if (listed || !saturated_[static_cast<size_t>(f)] ||
+          face_normal(f).dot(sigma) - limit_(a) < -0.5 * tolerance_ * crss_(a))
+        continue;
+      split_face_[static_cast<size_t>(m)] = f;
+      normals.col(m) = face_normal(f);
+      v(m++) = 0.0;
+    }
+    normals.conservativeResize(6, m);
+    v.conservativeResize(m);
+    if (!least_norm_nonnegative<T::MaxN>(normals, t, v)) return;  // the dual method's split stands
+    for (int i = 0; i < m; ++i) split_slip_[static_cast<size_t>(i)] = v(i);
+    split_count_ = m;
+  }
+
+  // The split's slip sensitivities: where the set of saturated faces that slip (P) does not
+  // change, their slips are N_P^T (N_P N_P^T)^+ t, and t's sensitivity is the saturated active
+  // faces' share of N du (the stress and the other faces' slips determine it, whatever the basis).
+  void split_sensitivities(const Qp& qp, const MatXX& du, typename T::MatN6& out) const {
+    Mat6 dt = Mat6::Zero();
+    for (int j = 0; j < qp.count; ++j) {
+      const int f = qp.face[static_cast<size_t>(j)];
+      if (!saturated_[static_cast<size_t>(f)]) continue;
+      dt.noalias() += face_normal(f) * du.row(j);
+      out.row(system_of(f)).setZero();
+    }
+    Mat6X slipping(6, split_count_);
+    std::array<int, T::MaxN> face{};
+    int k = 0;
+    for (int i = 0; i < split_count_; ++i) {
+      if (!(split_slip_[static_cast<size_t>(i)] > 0.0)) continue;
+      face[static_cast<size_t>(k)] = split_face_[static_cast<size_t>(i)];
+      slipping.col(k++) = face_normal(split_face_[static_cast<size_t>(i)]);
+    }
+    if (k == 0) return;
+    slipping.conservativeResize(6, k);
+    const Mat6 dlambda = gram_pseudo_inverse(slipping) * dt;
+    for (int i = 0; i < k; ++i) {
+      const int f = face[static_cast<size_t>(i)];
+      out.row(system_of(f)) = sign_of_face(f) * (slipping.col(i).transpose() * dlambda);
+    }
+  }
+
   // Each held system's limit and hardening at the slip the last solve gave it; returns the
   // largest error of the linearisation there (traction-ratio units).
   double relinearise(const Qp& qp) {
@@ -378,6 +552,12 @@ class VertexSolver {
   std::array<bool, T::MaxN> held_{};        // per system
   std::array<int, T::MaxN> held_system_{};  // the held systems, in order: face k is the k-th
   int held_count_ = 0;
+  // The saturated faces' split (split_saturated): per face whether it is saturated; the faces
+  // of the split and their least-norm slips.
+  std::array<bool, T::MaxN> saturated_{};
+  std::array<int, T::MaxN> split_face_{};
+  std::array<double, T::MaxN> split_slip_{};
+  int split_count_ = 0;
 };
 
 }  // namespace

@@ -6,6 +6,8 @@
 // does not: near saturation (r_s -> 1) a system's hardening vanishes in double precision, the
 // slip of a vertex with more active systems than independent Schmid tensors is not determined,
 // and only complementarity with the stress (not a flow-rule slope) decides which systems slip.
+// Where the slip among saturated systems is left open, the step takes its least-norm split
+// ("The least-norm split at a saturated vertex"), a function of the loading.
 // Internal to src/crystal/.
 #pragma once
 
