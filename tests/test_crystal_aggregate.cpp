@@ -212,12 +212,19 @@ TEST(CrystalTaylor, RandomFccTaylorFactor) {
 // of 1 on every slipping system), so M(0.2) is 3.067 within 3 %; the texture of tension (grains
 // turning towards <111> and <100>) raises M with strain, and no fcc orientation has M above
 // 3.674 (<111>) in axisymmetric tension.
-TEST(CrystalTaylor, RateIndependentTaylorAggregateToStrainOne) {
-  const double tau0 = 10.0, mu = 1.6;
-  law::LawParameters p = crystal_law(mu, mu, 0.0, 0.0, 200.0, 1e-3);
+constexpr double kPlasticTau0 = 10.0, kPlasticMu = 1.6;
+
+// `grains` random FCC grains (seed 3) of the rate-independent law with kappa = 0: CRSS mu tau0.
+std::unique_ptr<Aggregate> perfectly_plastic_fcc_aggregate(int grains) {
+  law::LawParameters p = crystal_law(kPlasticMu, kPlasticMu, 0.0, 0.0, 200.0, 1e-3);
   p.overstress.form = law::OverstressForm::rate_independent;
-  auto agg = build_taylor_aggregate(fcc_description(p, tau0, Kinematics::finite_rotation),
-                                    random_orientations(200, 3));
+  return build_taylor_aggregate(fcc_description(p, kPlasticTau0, Kinematics::finite_rotation),
+                                random_orientations(grains, 3));
+}
+
+TEST(CrystalTaylor, RateIndependentTaylorAggregateToStrainOne) {
+  const double tau0 = kPlasticTau0, mu = kPlasticMu;
+  auto agg = perfectly_plastic_fcc_aggregate(200);
   LoadSegment tension;
   tension.velocity_gradient.diagonal() << 1e-3, -0.5e-3, -0.5e-3;
   tension.duration = 1000.0;
@@ -249,11 +256,8 @@ TEST(CrystalTaylor, RateIndependentTaylorAggregateToStrainOne) {
 // within the prescribed run's bounds. (20 grains keep it to seconds; docs/grain_step.md measures
 // 200 grains to a strain of 1: 86 s with the least-norm split, half of the run in 14 min without.)
 TEST(CrystalTaylor, RateIndependentTaylorAggregateUnderMixedControl) {
-  const double tau0 = 10.0, mu = 1.6;
-  law::LawParameters p = crystal_law(mu, mu, 0.0, 0.0, 200.0, 1e-3);
-  p.overstress.form = law::OverstressForm::rate_independent;
-  auto agg = build_taylor_aggregate(fcc_description(p, tau0, Kinematics::finite_rotation),
-                                    random_orientations(20, 3));
+  const double tau0 = kPlasticTau0, mu = kPlasticMu;
+  auto agg = perfectly_plastic_fcc_aggregate(20);
   LoadSegment tension;
   tension.velocity_gradient(0, 0) = 1e-3;
   tension.free(1, 1) = tension.free(2, 2) = true;
