@@ -3,6 +3,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -140,19 +141,131 @@ Mat6 gram_pseudo_inverse(const Normals& normals) {
   return eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
 }
 
+// min |E u - f| over u >= 0 (E: rows x n): Lawson and Hanson's NNLS (Solving Least Squares
+// Problems, 1974, ch. 23). Columns enter the passive set P by the largest w_j = e_j . (f - E u)
+// (the angle rule of the active-set method below); on P the unconstrained least-squares point z
+// is approached as far as u stays >= 0, and a column reaching 0 leaves P. Each step of positive
+// length lowers |E u - f|, and a column that enters with w_j > 0 gets z_j > 0 in exact arithmetic
+// (their Lemma 23.17): where rounding says otherwise it stays out until u moves (their remedy).
+// Returns false where `max_changes` is exhausted (rounding).
+template <int MaxRows, int MaxCols>
+bool nonnegative_least_squares(
+    const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxRows, MaxCols>& e,
+    const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxRows, 1>& f,
+    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxCols, 1>& u) {
+  using MatE = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxRows, MaxCols>;
+  using VecR = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxRows, 1>;
+  using VecC = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxCols, 1>;
+  const int n = static_cast<int>(e.cols());
+  u.setZero(n);
+  std::array<bool, MaxCols> passive{}, barred{};
+  const int max_changes = 3 * n + 3;
+  for (int changes = 0; changes < max_changes;) {
+    const VecR residual = f - e * u;
+    int entering = -1;
+    double best = 0.0;
+    for (int j = 0; j < n; ++j) {
+      if (passive[static_cast<size_t>(j)] || barred[static_cast<size_t>(j)]) continue;
+      const double w = e.col(j).dot(residual);
+      if (w > std::sqrt(kDependentNormal) * e.col(j).norm() * residual.norm() && w > best)
+        best = w, entering = j;
+    }
+    if (entering < 0) return true;
+    passive[static_cast<size_t>(entering)] = true;
+    for (bool first = true;; first = false) {
+      if (++changes >= max_changes) return false;
+      std::array<int, MaxCols> index{};
+      int k = 0;
+      for (int j = 0; j < n; ++j)
+        if (passive[static_cast<size_t>(j)]) index[static_cast<size_t>(k++)] = j;
+      MatE columns(e.rows(), k);
+      for (int i = 0; i < k; ++i) columns.col(i) = e.col(index[static_cast<size_t>(i)]);
+      const VecC z = Eigen::ColPivHouseholderQR<MatE>(columns).solve(f);
+      double alpha = 1.0;
+      int blocking = -1;
+      bool rejected = false;  // the entering column without a positive z_j
+      for (int i = 0; i < k; ++i) {
+        const int j = index[static_cast<size_t>(i)];
+        rejected = rejected || (first && j == entering && !(z(i) > 0.0));
+        if (z(i) <= 0.0 && u(j) / (u(j) - z(i)) < alpha) alpha = u(j) / (u(j) - z(i)), blocking = i;
+      }
+      if (rejected) {
+        passive[static_cast<size_t>(entering)] = false,
+        barred[static_cast<size_t>(entering)] = true;
+        break;
+      }
+      for (int i = 0; i < k; ++i) {
+        const int j = index[static_cast<size_t>(i)];
+        u(j) = blocking < 0 ? z(i) : u(j) + alpha * (z(i) - u(j));
+      }
+      barred.fill(false);
+      if (blocking < 0) break;
+      for (int i = 0; i < k; ++i) {
+        const int j = index[static_cast<size_t>(i)];
+        if (i == blocking || !(u(j) > 0.0)) u(j) = 0.0, passive[static_cast<size_t>(j)] = false;
+      }
+    }
+  }
+  return false;
+}
+
+// The least-norm nonnegative solution of N v = t as a least-distance program (Lawson and Hanson,
+// ch. 23): min |v| subject to G v >= h, G = [N; -N; I], h = [t; -t; 0] (t scaled to unit
+// length), through NNLS on E = [G^T; h^T] and f = e_(m+1): with r = E u - f, v = -r_(1..m) /
+// r_(m+1). Unlike the primal active-set method below it needs no multiplier of N v = t, which is
+// not unique where the free faces span less than all of them. Returns false where NNLS does.
+template <int MaxActive>
+bool least_distance_split(const typename ActiveTypes<MaxActive>::Mat6X& normals, const Vec6& t,
+                          typename ActiveTypes<MaxActive>::VecX& v) {
+  constexpr int kRows = MaxActive + 1, kCols = MaxActive + 12;
+  using MatE = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kRows, kCols>;
+  using VecR = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kRows, 1>;
+  using VecC = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kCols, 1>;
+  const int m = static_cast<int>(normals.cols());
+  const double length = t.norm();
+  if (!(length > 0.0)) {
+    v.setZero(m);
+    return true;
+  }
+  const Vec6 unit = t / length;
+  MatE e = MatE::Zero(m + 1, m + 12);
+  e.topLeftCorner(m, 6) = normals.transpose();
+  e.block(0, 6, m, 6) = -normals.transpose();
+  e.block(0, 12, m, m).setIdentity();
+  e.block(m, 0, 1, 6) = unit.transpose();
+  e.block(m, 6, 1, 6) = -unit.transpose();
+  VecR f = VecR::Zero(m + 1);
+  f(m) = 1.0;
+  VecC u;
+  if (!nonnegative_least_squares<kRows, kCols>(e, f, u)) return false;
+  const VecR r = e * u - f;
+  if (!(r(m) < 0.0)) return false;  // no feasible v (which the feasible start rules out)
+  // v_j = r_j / abs(r_(m+1)). A face that does not slip at the optimum gets r_j = 0 up to the
+  // rounding of its sum (Higham's bound gamma_n sum |E_ji u_i|); below that it is 0 exactly, so
+  // that the slipping set (which the split's sensitivities use) holds the slipping faces alone.
+  const double gamma = (m + 13) * kEps / (1.0 - (m + 13) * kEps);
+  for (int j = 0; j < m; ++j) {
+    const double rounding = gamma * e.row(j).cwiseAbs().dot(u.cwiseAbs());
+    v(j) = r(j) > rounding ? -r(j) / r(m) * length : 0.0;
+  }
+  return true;
+}
+
 // The least-norm nonnegative solution of N v = t (N: 6 x m, the normals of the faces whose slips
 // the flow rules leave undetermined), from a feasible v (N v = t, v >= 0): the primal active-set
 // method for the strictly convex program min 1/2 |v|^2 subject to N v = t, v >= 0 (Nocedal and
 // Wright, Numerical Optimization, 2nd ed., 16.5). On the free faces F (v_f > 0) the least |v_F|
 // with N_F v_F = t is x = N_F^T lambda, lambda = (N_F N_F^T)^+ t (t lies in the range of N_F
-// because v does); v moves towards x
-// as far as it stays >= 0, and a face reaching 0 leaves F. Where x is reached (lambda the
-// multiplier of N v = t), a face f outside F with n_f . lambda > 0 would lower |v|
-// by slipping: the largest such enters. Each step of positive length lowers |v|, so a free set
-// repeats only through steps of length zero; `max_changes` bounds those (rounding). The solution
-// is unique (strictly convex objective) and a Lipschitz function of t: the projection of the
-// origin on the polyhedron {v >= 0, N v = t}. Returns false where the bound is exhausted (v is
-// then a feasible point, not the least-norm one).
+// because v does); v moves towards x as far as it stays >= 0, and a face reaching 0 leaves F.
+// Where x is reached, a face f outside F with n_f . lambda > 0 would lower |v| by slipping, if its
+// normal lies in the span of N_F: the largest such enters. Where no face has n_f . lambda > 0,
+// lambda is a multiplier of the optimality conditions and v is the solution (unique: strictly
+// convex objective; a Lipschitz function of t, the projection of the origin on the polyhedron
+// {v >= 0, N v = t}). A face whose normal lies outside that span gets no slip by entering (its
+// entry is blocked before v moves: it is barred until v moves, the remedy of Lawson and Hanson's
+// NNLS): there lambda is one of many multipliers, faces may lower |v| only together, and the
+// least-distance program decides (least_distance_split), as it does if `max_changes` runs out.
+// Returns false only where that fails too (v is then a feasible point, not the least-norm one).
 template <int MaxActive>
 bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normals, const Vec6& t,
                             typename ActiveTypes<MaxActive>::VecX& v) {
@@ -161,6 +274,9 @@ bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normal
   const int m = static_cast<int>(normals.cols());
   std::array<bool, MaxActive> free{};
   for (int f = 0; f < m; ++f) free[static_cast<size_t>(f)] = v(f) > 0.0;
+  // Faces whose entry did not move v (below): kept out until v moves.
+  std::array<bool, MaxActive> barred{};
+  int entered = -1;
   const int max_changes = 4 * m + 4;
   for (int changes = 0; changes < max_changes; ++changes) {
     std::array<int, MaxActive> index{};
@@ -179,28 +295,45 @@ bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normal
       const double vi = v(index[static_cast<size_t>(i)]);
       if (x(i) < 0.0 && vi / (vi - x(i)) < alpha) alpha = vi / (vi - x(i)), blocking = i;
     }
+    bool moved = false;
     for (int i = 0; i < k; ++i) {
       double& vi = v(index[static_cast<size_t>(i)]);
-      vi = blocking < 0 ? x(i) : vi + alpha * (x(i) - vi);
+      const double next = blocking < 0 ? x(i) : vi + alpha * (x(i) - vi);
+      moved = moved || next != vi;
+      vi = next;
     }
+    // A face whose entry is blocked before v moves: its gain n_f . lambda > 0 was rounding of
+    // lambda (in exact arithmetic the enlarged set's least-norm point gives an entering face
+    // positive slip). Entering it again from the same v and lambda would repeat the same two
+    // changes, so it stays out until v moves (the remedy of Lawson and Hanson's NNLS), and the
+    // next face by gain is tried.
+    if (moved) barred.fill(false);
     if (blocking >= 0) {
       const int f = index[static_cast<size_t>(blocking)];
       v(f) = 0.0, free[static_cast<size_t>(f)] = false;
+      if (!moved && f == entered) barred[static_cast<size_t>(f)] = true;
+      entered = -1;
       continue;
     }
     // x reached: the face outside F that would lower |v| most, if any.
     int entering = -1;
     double best = 0.0;
     for (int f = 0; f < m; ++f) {
-      if (free[static_cast<size_t>(f)]) continue;
+      if (free[static_cast<size_t>(f)] || barred[static_cast<size_t>(f)]) continue;
       const double gain = normals.col(f).dot(lambda);
       if (gain > std::sqrt(kDependentNormal) * normals.col(f).norm() * lambda.norm() && gain > best)
         best = gain, entering = f;
     }
-    if (entering < 0) return true;
+    // No face lowers |v| by itself. Where none is barred, lambda certifies v (n_f . lambda <= 0
+    // outside F); a barred face's normal lies outside the span of N_F, where lambda is one of
+    // many multipliers and faces may lower |v| only together: the least-distance program decides.
+    if (entering < 0)
+      return std::none_of(barred.begin(), barred.begin() + m, [](bool b) { return b; }) ||
+             least_distance_split<MaxActive>(normals, t, v);
     free[static_cast<size_t>(entering)] = true;
+    entered = entering;
   }
-  return false;
+  return least_distance_split<MaxActive>(normals, t, v);
 }
 
 // The step's stress as the minimiser of
