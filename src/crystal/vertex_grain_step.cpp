@@ -141,6 +141,24 @@ Mat6 gram_pseudo_inverse(const Normals& normals) {
   return eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
 }
 
+// The column j of c, outside `in_set` and not `barred`, with the largest gain c_j . y, where
+// that exceeds the angle rule (the sine of the angle between c_j and the plane normal to y above
+// sqrt(kDependentNormal), the dependence rule of solve_qp, so that a gain of rounding does not
+// enter); -1 where none does.
+template <class Columns, class Vector, size_t Max>
+int largest_gain(const Columns& c, const Vector& y, const std::array<bool, Max>& in_set,
+                 const std::array<bool, Max>& barred) {
+  int largest = -1;
+  double best = 0.0;
+  for (int j = 0; j < static_cast<int>(c.cols()); ++j) {
+    if (in_set[static_cast<size_t>(j)] || barred[static_cast<size_t>(j)]) continue;
+    const double gain = c.col(j).dot(y);
+    if (gain > std::sqrt(kDependentNormal) * c.col(j).norm() * y.norm() && gain > best)
+      best = gain, largest = j;
+  }
+  return largest;
+}
+
 // min |E u - f| over u >= 0 (E: rows x n): Lawson and Hanson's NNLS (Solving Least Squares
 // Problems, 1974, ch. 23). Columns enter the passive set P by the largest w_j = e_j . (f - E u)
 // (the angle rule of the active-set method below); on P the unconstrained least-squares point z
@@ -161,15 +179,7 @@ bool nonnegative_least_squares(
   std::array<bool, MaxCols> passive{}, barred{};
   const int max_changes = 3 * n + 3;
   for (int changes = 0; changes < max_changes;) {
-    const VecR residual = f - e * u;
-    int entering = -1;
-    double best = 0.0;
-    for (int j = 0; j < n; ++j) {
-      if (passive[static_cast<size_t>(j)] || barred[static_cast<size_t>(j)]) continue;
-      const double w = e.col(j).dot(residual);
-      if (w > std::sqrt(kDependentNormal) * e.col(j).norm() * residual.norm() && w > best)
-        best = w, entering = j;
-    }
+    const int entering = largest_gain(e, VecR(f - e * u), passive, barred);
     if (entering < 0) return true;
     passive[static_cast<size_t>(entering)] = true;
     for (bool first = true;; first = false) {
@@ -316,14 +326,7 @@ bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normal
       continue;
     }
     // x reached: the face outside F that would lower |v| most, if any.
-    int entering = -1;
-    double best = 0.0;
-    for (int f = 0; f < m; ++f) {
-      if (free[static_cast<size_t>(f)] || barred[static_cast<size_t>(f)]) continue;
-      const double gain = normals.col(f).dot(lambda);
-      if (gain > std::sqrt(kDependentNormal) * normals.col(f).norm() * lambda.norm() && gain > best)
-        best = gain, entering = f;
-    }
+    const int entering = largest_gain(normals, lambda, free, barred);
     // No face lowers |v| by itself. Where none is barred, lambda certifies v (n_f . lambda <= 0
     // outside F); a barred face's normal lies outside the span of N_F, where lambda is one of
     // many multipliers and faces may lower |v| only together: the least-distance program decides.
