@@ -312,11 +312,12 @@ bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normal
       moved = moved || next != vi;
       vi = next;
     }
-    // A face whose entry is blocked before v moves: its gain n_f . lambda > 0 was rounding of
-    // lambda (in exact arithmetic the enlarged set's least-norm point gives an entering face
-    // positive slip). Entering it again from the same v and lambda would repeat the same two
-    // changes, so it stays out until v moves (the remedy of Lawson and Hanson's NNLS), and the
-    // next face by gain is tried.
+    // A face whose entry is blocked before v moves: its normal lies outside the span of N_F (in
+    // exact arithmetic a face inside it enters with positive slip; one outside cannot slip alone,
+    // its x_f is 0 and rounding makes it negative), so its gain says nothing about lowering |v|.
+    // Entering it again from the same v and lambda would repeat the same two changes, so it stays
+    // out until v moves (the remedy of Lawson and Hanson's NNLS), the next face by gain is tried,
+    // and the end test below hands a remaining barred face to the least-distance program.
     if (moved) barred.fill(false);
     if (blocking >= 0) {
       const int f = index[static_cast<size_t>(blocking)];
