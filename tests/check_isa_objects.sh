@@ -1,13 +1,15 @@
 #!/bin/sh
-# The objects compiled for AVX2 and AVX-512 (src/crystal/flow_point_batch_avx*.cpp) must define
-# no code that another object could take instead of its own: every global or weak symbol they
+# The objects compiled for AVX2 and AVX-512 (src/crystal/flow_point_batch_avx*.cpp, and the grain
+# steps of src/crystal/grain_step_isa.hpp, each set linked into one object) must define no code that another object could take instead of its own: every global or weak symbol they
 # define names its instruction set (the two kernels' own functions, and templates instantiated
 # with xsimd's architecture types). An inline function of a header compiled there with wide
 # instructions, such as std::array's operator[], would be one definition among identical ones,
 # and the linker's pick could put AVX-512 code on a path that runs on machines without it.
-# Usage: check_isa_objects.sh "obj1;obj2" (CMake's $<TARGET_OBJECTS:...>).
+# Usage: check_isa_objects.sh "obj1;obj2" ENTRY_REGEX (CMake's $<TARGET_OBJECTS:...> or a list;
+# ENTRY_REGEX: what each object's global functions must include, e.g. its kernels' names).
 set -eu
 objects=$(printf '%s' "$1" | tr ';' ' ')
+entry=$2
 status=0
 count=0
 for o in $objects; do
@@ -20,7 +22,7 @@ for o in $objects; do
     echo "$stray"
     status=1
   fi
-  nm -C --defined-only "$o" | grep -q -E ' T .*(flow_points|subloading_starts)_avx' ||
+  nm -C --defined-only "$o" | grep -q -E " [TW] .*($entry)" ||
     { echo "$o: no kernel defined"; status=1; }
 done
 [ "$count" -eq 2 ] || { echo "expected 2 objects, got $count"; status=1; }

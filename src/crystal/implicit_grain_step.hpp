@@ -18,7 +18,9 @@
 // development but are not reached through that choice (docs/grain_step.md).
 //
 // Internal to src/crystal/: the template is instantiated once per slip count, each in its own
-// translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel.
+// translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel;
+// a portable build compiles those of 12, 24 and 48 systems for AVX2 and AVX-512 too
+// (grain_step_isa.hpp).
 #pragma once
 
 #include <Eigen/LU>
@@ -28,6 +30,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "grain_step_isa.hpp"
 #include "kernel_detail.hpp"
 #include "semismooth_grain_step.hpp"
 #include "subslip/crystal/flow_point_batch.hpp"
@@ -1203,11 +1206,13 @@ bool resistance_grows_with_slip(const Phase<N>& ph, const GrainState<N>& s0) {
   return true;
 }
 
+// The grain step (implicit_grain_step, below), compiled for the instruction set of the
+// translation unit that instantiates it.
 template <int N>
-GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
-                                    double dt, const GrainStepOptions& opt, GrainState<N>& s1,
-                                    Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
-                                    SlipTangent<N>* slip_tangent) {
+GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                 double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                 Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
+                                 SlipTangent<N>* slip_tangent) {
   using Solver = StressSolver<N>;
   using VecN = typename SlipTypes<N>::VecN;
   using Iterate = typename Solver::Iterate;
@@ -1275,8 +1280,11 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   s1.slip = s0.slip + dgamma;
   s1.rate = dgamma / dt;
   s1.mu = point.mu;
-  const VecN fn1 = normal_traction(ph, s1.stress);
-  const VecN r1 = loading_ratio_of(ph, s1.stress, s1.mu, fn1);
+  const VecN fn1 = normal_traction(ph, s1.stress);  // tau0 exactly: no plane pressure here
+  // r through the kernel's own definition (crystal_kernel.cpp), not inline: whatever instruction
+  // set this step is compiled for (grain_step_isa.hpp), every later reading of the state then
+  // finds r_s <= r to the bit.
+  const VecN r1 = loading_ratio(ph, s1);
   // (3.12): r_s follows r down where no slip occurs.
   s1.r_s = point.r_s.cwiseMin(r1);
   s1.orientation = orientation_after_plastic_spin(ph, kin.spun_orientation, dgamma);
@@ -1296,5 +1304,42 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   rep.ok = true;
   return rep;
 }
+
+#ifdef SUBSLIP_GRAIN_STEP_ISA
+// This translation unit compiled for AVX2 or AVX-512 (grain_step_isa.hpp): the step under its
+// own name, isa_avx2:: or isa_avx512::implicit_grain_step<N>.
+namespace SUBSLIP_GRAIN_STEP_ISA {
+template <int N>
+GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                    Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
+                                    SlipTangent<N>* slip_tangent) {
+  return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+}
+}  // namespace SUBSLIP_GRAIN_STEP_ISA
+#else
+// The step of the build's own instruction set, or, for the slip counts compiled for wider ones
+// too, the widest the machine runs and the run allows (the flow batches' level: one choice for
+// both, which MPI ranks agree on).
+template <int N>
+GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                    double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                    Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
+                                    SlipTangent<N>* slip_tangent) {
+  if constexpr (has_isa_grain_steps(N)) {
+    switch (detail::flow_batch_level()) {
+      case 2:
+        return isa_avx512::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
+                                               slip_tangent);
+      case 1:
+        return isa_avx2::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
+                                             slip_tangent);
+      default:
+        break;
+    }
+  }
+  return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+}
+#endif
 
 }  // namespace subslip::crystal

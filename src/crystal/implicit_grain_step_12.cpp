@@ -1,12 +1,19 @@
 // The implicit grain step for 12 slip systems (one translation unit per slip count, see
 // implicit_grain_step.hpp).
+// Compiled for AVX2 and AVX-512 too, each under a name of its own (grain_step_isa.hpp).
 #include "implicit_grain_step.hpp"
 
 namespace subslip::crystal {
 
+#ifdef SUBSLIP_GRAIN_STEP_ISA
+namespace SUBSLIP_GRAIN_STEP_ISA {
+#endif
 template GrainStepReport implicit_grain_step<12>(const Phase<12>&, const GrainState<12>&,
                                                  const Mat3&, double, const GrainStepOptions&,
                                                  GrainState<12>&, Tangent*,
                                                  const SlipTypes<12>::VecN*, SlipTangent<12>*);
+#ifdef SUBSLIP_GRAIN_STEP_ISA
+}  // namespace SUBSLIP_GRAIN_STEP_ISA
+#endif
 
 }  // namespace subslip::crystal
