@@ -1326,6 +1326,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
                                     Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
                                     SlipTangent<N>* slip_tangent) {
+#if SUBSLIP_GRAIN_STEP_ISAS  // (the wide steps are declared only in builds that have them)
   if constexpr (has_isa_grain_steps(N)) {
     switch (detail::flow_batch_level()) {
       case 2:
@@ -1338,6 +1339,7 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
         break;
     }
   }
+#endif
   return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
 }
 #endif
