@@ -1,10 +1,12 @@
 #!/bin/sh
 # The objects compiled for AVX2 and AVX-512 (src/crystal/flow_point_batch_avx*.cpp, and the grain
 # steps of src/crystal/grain_step_isa.hpp, each set linked into one object) must define no code
-# that another object could take instead of its own: every global or weak symbol they define names its instruction set (the two kernels' own functions, and templates instantiated
-# with xsimd's architecture types). An inline function of a header compiled there with wide
-# instructions, such as std::array's operator[], would be one definition among identical ones,
-# and the linker's pick could put AVX-512 code on a path that runs on machines without it.
+# that another object could take instead of its own: every global or weak symbol they define
+# names its instruction set (the kernels' own functions, templates instantiated with xsimd's
+# architecture types, the grain steps' isa_avx2:: and isa_avx512:: entry points). An inline
+# function of a header compiled there with wide instructions, such as std::array's operator[],
+# would be one definition among identical ones, and the linker's pick could put AVX-512 code on a
+# path that runs on machines without it.
 # Usage: check_isa_objects.sh "obj1;obj2" ENTRY_REGEX (CMake's $<TARGET_OBJECTS:...> or a list;
 # ENTRY_REGEX: what each object's global functions must include, e.g. its kernels' names).
 set -eu
