@@ -3,8 +3,7 @@
 // cores); a run killed (SIGKILL to the job) or stopped by a signal under 2 ranks continues
 // under 3 and equals the uninterrupted run; a grain that fails on rank 1 stops every rank with one
 // message naming it; a sweep's cases (crystal or contact) distributed over ranks give the serial
-// sweep. Built only with MPI.
-#ifdef SUBSLIP_MPIEXEC
+// sweep. Built only with MPI, into subslip_mpi_tests, whose tests run alone (tests/CMakeLists.txt).
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -469,4 +468,3 @@ integrator: {method: forward_euler, max_cutbacks: 0}
   fs::remove_all(dir);
 }
 
-#endif  // SUBSLIP_MPIEXEC
