@@ -334,6 +334,9 @@ TEST(CrystalCli, RunsTheDefaultSceneIntoATempFile) {
   EXPECT_NE(version.out.find(std::string("batches: ") + crystal::detail::flow_batch_isa_name()),
             std::string::npos)
       << version.out;
+  EXPECT_NE(version.out.find(std::string("48 systems: ") + crystal::detail::grain_step_isa_name()),
+            std::string::npos)
+      << version.out;
   // The finished result: its rows only, no checkpoint (the restart file is gone), small.
   EXPECT_EQ(file.root().attribute_int("finished"), 1);
   EXPECT_FALSE(file.root().has("checkpoint"));

@@ -946,9 +946,11 @@ int main(int argc, char** argv) {
   agree_on_flow_batches(team);
   CLI::App app{"subslip: subloading-overstress friction on contacts and crystal slip systems"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string(SUBSLIP_VERSION) + " (" + SUBSLIP_BUILD +
-                                        " build; crystal flow points in SIMD batches: " +
-                                        crystal::detail::flow_batch_isa_name() + ")");
+  app.set_version_flag(
+      "--version",
+      std::string(SUBSLIP_VERSION) + " (" + SUBSLIP_BUILD +
+          " build; crystal flow points in SIMD batches: " + crystal::detail::flow_batch_isa_name() +
+          "; grain step of 12, 24 and 48 systems: " + crystal::detail::grain_step_isa_name() + ")");
   RunArgs run_args;
   add_run_command(app, run_args);
   OrientationArgs orientation_args;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <string_view>
 
 #include "flow_point_batch_kernels.hpp"
 
@@ -94,6 +95,21 @@ int flow_batch_level() {
 
 void limit_flow_batches(int level) {
   allowed_level.store(std::clamp(level, 0, 2), std::memory_order_relaxed);
+}
+
+const char* grain_step_isa_name() {
+#if SUBSLIP_GRAIN_STEP_ISAS
+  switch (flow_batch_level()) {  // (the dispatch of implicit_grain_step.hpp)
+    case 2:
+      return "avx512";
+    case 1:
+      return "avx2";
+    default:
+      return "baseline";
+  }
+#else
+  return std::string_view(SUBSLIP_BUILD) == "native" ? "native" : "baseline";
+#endif
 }
 
 const char* flow_batch_isa_name() {
