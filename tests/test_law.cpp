@@ -566,6 +566,44 @@ TEST(LawExactUpdates, CotSlipIntegralAccurateAtSmallRatio) {
   }
 }
 
+// Regressions (were bugs) at small ratios, where slips of 1e-40 and below occur in implicit
+// iterates on their way to zero:
+// * for the reciprocal U the closed form (-ln(1 - r) - r)/u cancels (relative error ~2 eps / r:
+//   4e-4 at r = 1e-12, no digit below r = 1e-16): expected the series (r^2/2 + r^3/3 + r^4/4)/u,
+//   whose next term is below rounding at these r;
+// * for neg_log, libstdc++'s Ei beyond |x| = 50 kept only the first term of its asymptotic series,
+//   so H(r) = -Ei(ln r)/u was off by 1/L (L = ln(1/r)) and its slope was not 1/U: expected
+//   dH/dr = 1/U(r) by central differences (error ~1e-8 relative with a step of 1e-4 r), on both
+//   sides of r = e^-50 and far below, and H increasing across e^-50.
+// The update from 0 by H(r) gives r back to rounding, down to the smallest ratios (Newton in r
+// bisected towards them: ~log2(1/r) evaluations of Ei).
+TEST(LawExactUpdates, SlipIntegralAndUpdateAccurateAtTinyRatios) {
+  const double u = 80.0;
+  const SubloadingFrictionLaw reciprocal(
+      paper_law(OverstressForm::exponential, SubloadingFunction::reciprocal));
+  const SubloadingFrictionLaw neg_log(
+      paper_law(OverstressForm::exponential, SubloadingFunction::neg_log));
+  for (double r : {1e-6, 1e-9, 1e-20, 1e-100, 1e-300}) {
+    const double series = (0.5 * r * r + r * r * r / 3.0 + r * r * r * r / 4.0) / u;
+    if (series > std::numeric_limits<double>::min()) {
+      EXPECT_NEAR(reciprocal.subloading_slip_integral(r), series, 1e-14 * series) << "r=" << r;
+      EXPECT_NEAR(reciprocal.subloading_ratio_after(0.0, series).value, r, 1e-14 * r) << "r=" << r;
+    }
+  }
+  for (double r : {1e-9, 1e-20, std::exp(-49.9), std::exp(-50.1), 1e-100, 1e-300}) {
+    const double h = 1e-4 * r;
+    const double slope =
+        (neg_log.subloading_slip_integral(r + h) - neg_log.subloading_slip_integral(r - h)) /
+        (2.0 * h);
+    const double inverse_u = 1.0 / (-u * std::log(r));
+    EXPECT_NEAR(slope, inverse_u, 1e-7 * inverse_u) << "r=" << r;
+    const double H = neg_log.subloading_slip_integral(r);
+    EXPECT_NEAR(neg_log.subloading_ratio_after(0.0, H).value, r, 1e-14 * r) << "r=" << r;
+  }
+  EXPECT_LT(neg_log.subloading_slip_integral(std::exp(-50.0) * (1.0 - 1e-9)),
+            neg_log.subloading_slip_integral(std::exp(-50.0) * (1.0 + 1e-9)));
+}
+
 namespace {
 
 // RK4 of the mu evolution (3.4) at constant slip rate sdot = slip/dt, over the step.
