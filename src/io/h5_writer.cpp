@@ -903,8 +903,12 @@ void Series::reserve(std::size_t rows) {
   const std::size_t chunks =
       (extent + chunk_rows_ - 1) / chunk_rows_ - (capacity_ + chunk_rows_ - 1) / chunk_rows_;
   const std::size_t value_bytes = type_ == Type::float64 ? sizeof(double) : sizeof(int);
+  // Whole rows: the chunks hold every grain, also where this rank writes a block of them (rank
+  // 0 claims for all; its block alone, 19 of 37 grains under 2 ranks, let HDF5 run out of space
+  // inside the growth on one rank while another waited in it for good).
+  const std::size_t row_values = product(row_shape_);
   claim_file_space(
-      dataset_.id(), chunks * chunk_rows_ * width_ * value_bytes + kGrowthMetadataBytes,
+      dataset_.id(), chunks * chunk_rows_ * row_values * value_bytes + kGrowthMetadataBytes,
       "grow dataset " + object_path(dataset_.id()) + " to " + std::to_string(extent) + " rows");
   set_extent(extent);
   // The new extent (and its chunks) must be in the file before rows that use it are counted.
