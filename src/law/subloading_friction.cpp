@@ -147,6 +147,25 @@ double SubloadingFrictionLaw::subloading_slip_integral(double r) const {
   return 0.0;
 }
 
+namespace {
+
+// u H(1/2), the slip integral to the middle ratio times u: the same for every law of one U, so
+// computed once (the inverse below asks for it at every call).
+double middle_slip_integral(SubloadingFunction f) {
+  static const double neg_log = -std::expint(-std::log(2.0));  // E1(ln 2) = -Ei(-ln 2)
+  switch (f) {
+    case SubloadingFunction::cot:
+      return std::log(2.0) / kPi;  // -(2/pi) ln cos(pi/4)
+    case SubloadingFunction::neg_log:
+      return neg_log;
+    case SubloadingFunction::reciprocal:
+      return std::log(2.0) - 0.5;  // -ln(1 - 1/2) - 1/2
+  }
+  return 0.0;
+}
+
+}  // namespace
+
 double SubloadingFrictionLaw::subloading_inverse_integral(double h) const {
   if (h <= 0.0) return 0.0;
   // H(r) is increasing and convex on [0, 1); it rises from zero like a power of r (r^2 / (2u)
@@ -157,7 +176,7 @@ double SubloadingFrictionLaw::subloading_inverse_integral(double h) const {
   // Newton takes a few steps: t = ln r with ln H below the middle ratio, w = ln(1 / (1 - r))
   // above it.
   constexpr double kMiddle = 0.5;
-  const double h_middle = subloading_slip_integral(kMiddle);
+  const double h_middle = middle_slip_integral(p_.subloading.function) / p_.subloading.u_tilde;
   if (h >= h_middle) {
     auto eval = [&](double w) {
       const double one_minus_r = std::exp(-w);
