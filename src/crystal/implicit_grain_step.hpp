@@ -1089,15 +1089,20 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
   solver.evaluate(predicted, y, it);
   if (!(std::sqrt(2.0 * it.merit) <= solver.residual_tolerance())) {
     for (const Vec6* start : {&trial, &s0.stress}) {
+      if (*start == predicted) continue;  // (no slip in the last step: the trial itself)
       VecY y_start = y;
       solver.set_open_planes(*start, previous_slip, y_start);
       solver.evaluate(*start, y_start, trial_point);
       if (trial_point.merit < it.merit) std::swap(it, trial_point);
     }
   }
-  // The plane roles of the chosen start, with the extra unknowns consistent with its slips.
-  solver.set_open_planes(it.sigma, it.dgamma, it.y);
-  solver.evaluate(it.sigma, it.y, it);
+  // The plane roles of the chosen start, with the extra unknowns consistent with its slips
+  // (without plane pressure or a latent matrix there are none, and the start stands as
+  // evaluated).
+  if (ph.pressure_sensitive || solver.extras() > 0) {
+    solver.set_open_planes(it.sigma, it.dgamma, it.y);
+    solver.evaluate(it.sigma, it.y, it);
+  }
   if (!std::isfinite(it.merit)) {
     rep.why = "no admissible start (r >= r_hat or slip plane open)";
     rep.system = it.bad_system;
