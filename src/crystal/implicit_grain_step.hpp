@@ -1099,7 +1099,7 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
   // The plane roles of the chosen start, with the extra unknowns consistent with its slips
   // (without plane pressure or a latent matrix there are none, and the start stands as
   // evaluated).
-  if (ph.pressure_sensitive || solver.extras() > 0) {
+  if (solver.extras() > 0) {
     solver.set_open_planes(it.sigma, it.dgamma, it.y);
     solver.evaluate(it.sigma, it.y, it);
   }
