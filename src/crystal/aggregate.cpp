@@ -146,6 +146,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     warm_.resize(n);
     trend_.assign(n, VecN::Zero(phase_.slip_count));
     trend_change_.assign(n, VecN::Zero(phase_.slip_count));
+    solved_.trend.assign(n, VecN::Zero(phase_.slip_count));
+    solved_.trend_change.assign(n, VecN::Zero(phase_.slip_count));
     extrapolation_errors_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
     std::array<parallel::ExactSum, 1> total;
@@ -456,6 +458,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       u = u_try;
       if (extrapolated) {
         std::swap(committed_, trial_);
+        solved_.valid = false;
         macro_ = extrapolated_macro_;
       } else {
         commit(seg, fc, u, h);
@@ -582,6 +585,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
   // estimates in extrapolation_errors_, the restoring reports in reports_.
   void combine_solutions(int order) {
+    solved_.valid = false;  // trial_ is no longer the last solve's
     const auto k = static_cast<size_t>(order);
     const long n = static_cast<long>(committed_.size());
 #pragma omp parallel for schedule(static) if (n > 1)
@@ -779,44 +783,86 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
             .cwiseQuotient(tangent_directions_.colwise().squaredNorm().transpose());
     GrainStepOptions grain_options = opt.grain;
     grain_options.tangent_directions = tangent_directions_;
-#pragma omp parallel for schedule(static) if (n > 1)
-    for (long g = 0; g < n; ++g) {
-      const auto gi = static_cast<size_t>(g);
-      Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
-      if (!implicit) {
-        reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
-        if (t) *t = (*t * tangent_directions_).eval();
-        continue;
+    solved_.valid = false;
+    std::array<parallel::ExactSum, 6> stress_sum;
+#pragma omp parallel if (n > 1)
+    {
+      std::array<parallel::ExactSum, 6> part;
+#pragma omp for schedule(static) nowait
+      for (long g = 0; g < n; ++g) {
+        const auto gi = static_cast<size_t>(g);
+        Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
+        if (implicit) {
+          solve_implicit_grain(gi, l, dt, grain_options, t, warm, carried, slip_tangent,
+                               direction_change);
+        } else {
+          reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
+          if (t) *t = (*t * tangent_directions_).eval();
+        }
+        if (reports_[gi].ok) note_solved_grain(gi, dt, part);
       }
-      GrainStepReport& rep = reports_[gi];
-      SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
-      VecN start;
-      if (carried) {
-        start = warm_[gi];
-        start.noalias() += slip_tangents_[gi] * direction_change;
-      } else if (!warm) {
-        start = continued_rates(gi, dt);
-      }
-      // (A start other than the committed rates gets a second try from them.)
-      const bool own_start = carried || !warm;
-      const bool other_start = warm || start != committed_[gi].rate;
-      rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
-                                own_start ? &start : &warm_[gi], st);
-      if (!rep.ok && other_start) {
-        const int spent = rep.iterations;
-        rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
-                                  nullptr, st);
-        rep.iterations += spent;
-      }
-      if (rep.ok) warm_[gi] = trial_[gi].rate;
+#pragma omp critical(subslip_solved_stress)
+      for (size_t i = 0; i < 6; ++i) stress_sum[i].merge(part[i]);
     }
+    team_.sum(stress_sum);
     stats_.grain_solves += static_cast<long>(total_);
     const bool ok = every_grain_ok(why);
+    if (ok) {
+      for (int i = 0; i < 6; ++i)
+        solved_.average_stress(i) = stress_sum[static_cast<size_t>(i)].value();
+      solved_.dt = dt;
+      solved_.trend_step = trend_step_;
+      solved_.valid = true;
+    }
     // The slip tangents belong to this step (its dt and start state): a cold solve starts a
     // step, and a failed solve leaves warm_ at mixed Ls.
     slip_tangents_current_ = ok && (slip_tangent || (warm && slip_tangents_current_));
     warm_l_ = l;
     return ok;
+  }
+
+  // Grain gi's implicit step (solve_grains): from its own start (continued rates, or the warm
+  // rates carried by its slip tangent), then, should that fail, from its committed rates.
+  void solve_implicit_grain(
+      size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options, Tangent* t,
+      bool warm, bool carried, bool slip_tangent,
+      const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>& direction_change) {
+    GrainStepReport& rep = reports_[gi];
+    SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
+    VecN start;
+    if (carried) {
+      start = warm_[gi];
+      start.noalias() += slip_tangents_[gi] * direction_change;
+    } else if (!warm) {
+      start = continued_rates(gi, dt);
+    }
+    // (A start other than the committed rates gets a second try from them.)
+    const bool own_start = carried || !warm;
+    const bool other_start = warm || start != committed_[gi].rate;
+    rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
+                              own_start ? &start : &warm_[gi], st);
+    if (!rep.ok && other_start) {
+      const int spent = rep.iterations;
+      rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
+                                nullptr, st);
+      rep.iterations += spent;
+    }
+    if (rep.ok) warm_[gi] = trial_[gi].rate;
+  }
+
+  // What commit() needs of grain gi's solved step, taken while its states are in cache: its
+  // slip-rate trend and the trend's change (as commit() would compute them, for a step of dt
+  // after one of trend_step_), and its weighted stress added to the thread's part of the
+  // average (exact sums: the same bits in any order).
+  void note_solved_grain(size_t gi, double dt, std::array<parallel::ExactSum, 6>& part) {
+    trend_after_step(gi, dt, solved_.trend[gi], solved_.trend_change[gi]);
+    const Vec6 s = weights_[gi] * trial_[gi].sample_stress();
+    for (int i = 0; i < 6; ++i) part[static_cast<size_t>(i)].add(s(i));
+  }
+
+  // The average stress of trial_: the last solve's (solve_grains) where trial_ is still its.
+  Vec6 trial_average_stress() const {
+    return solved_.valid ? solved_.average_stress : average_stress(trial_);
   }
 
   // Grain g's change of slip rates per unit time over the step being committed, the trend its
@@ -831,6 +877,18 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     for (int a = 0; a < phase_.slip_count; ++a)
       if (before(a) == 0.0) trend(a) = 0.0;
     return trend;
+  }
+
+  // Grain g's trend after the step being committed (rate_trend), and its change per unit time
+  // between the midpoints of the last step (trend_step_; zero where there was none) and this one.
+  // `trend` may be trend_[g] itself: it is read before it is written.
+  void trend_after_step(size_t g, double dt, VecN& trend, VecN& change) const {
+    const VecN next = rate_trend(g, dt);
+    if (trend_step_ > 0.0)
+      change = (next - trend_[g]) / (0.5 * (dt + trend_step_));
+    else
+      change.setZero();
+    trend = next;
   }
 
   // Grain g's committed slip rates continued over dt along the parabola through the rates of
@@ -918,7 +976,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   MixedResidual free_stress_residual(const std::vector<FreeComponent>& fc,
                                      const Mat3& target) const {
-    const Vec6 sigma = average_stress(trial_);
+    const Vec6 sigma = trial_average_stress();
     MixedResidual r;
     r.value.resize(static_cast<int>(fc.size()));
     for (size_t a = 0; a < fc.size(); ++a) {
@@ -973,7 +1031,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     team_.sum(std::span(sum).first(static_cast<size_t>(6 * k)));
     Tangent mean_tangent(6, k);
     for (int i = 0; i < 6 * k; ++i) mean_tangent.data()[i] = sum[static_cast<size_t>(i)].value();
-    const Mat3 sigma = symmetric_from_mandel(average_stress(trial_));
+    const Mat3 sigma = symmetric_from_mandel(trial_average_stress());
     Eigen::MatrixXd jac(k, k);
     for (int b = 0; b < k; ++b) {
       const FreeComponent& c = fc[static_cast<size_t>(b)];
@@ -1173,18 +1231,23 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
 
   void commit(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
               const Eigen::VectorXd& u, double dt) {
-    const long n = static_cast<long>(committed_.size());
+    // The last solve's grain loop took the trends and the average stress (note_solved_grain)
+    // where trial_ is its and the step and the last one's length are those it took them for.
+    const bool noted = solved_.valid && solved_.dt == dt && solved_.trend_step == trend_step_;
+    solved_.valid = false;
+    if (noted) {
+      std::swap(trend_, solved_.trend);
+      std::swap(trend_change_, solved_.trend_change);
+    } else {
+      const long n = static_cast<long>(committed_.size());
 #pragma omp parallel for schedule(static) if (n > 1)
-    for (long g = 0; g < n; ++g) {
-      const auto gi = static_cast<size_t>(g);
-      const VecN trend = rate_trend(gi, dt);
-      if (trend_step_ > 0.0)
-        trend_change_[gi] = (trend - trend_[gi]) / (0.5 * (dt + trend_step_));
-      else
-        trend_change_[gi].setZero();
-      trend_[gi] = trend;
+      for (long g = 0; g < n; ++g) {
+        const auto gi = static_cast<size_t>(g);
+        trend_after_step(gi, dt, trend_[gi], trend_change_[gi]);
+      }
     }
     trend_step_ = dt;
+    const Vec6 trial_stress = noted ? solved_.average_stress : average_stress(trial_);
     std::swap(committed_, trial_);
     stats_.grain_steps += static_cast<long>(total_);
     const Mat3 l = fc.empty() ? seg.velocity_gradient
@@ -1200,7 +1263,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     } else {
       macro_.strain = log_strain(macro_.deformation_gradient);
     }
-    macro_.stress = symmetric_from_mandel(average_stress(committed_));
+    macro_.stress = symmetric_from_mandel(trial_stress);
     macro_.velocity_gradient = l;
     macro_.time += dt;
   }
@@ -1263,6 +1326,15 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   std::vector<VecN> trend_;
   std::vector<VecN> trend_change_;
   double trend_step_ = 0.0;
+  // What commit() takes from the grain loop of the last solve (note_solved_grain): each grain's
+  // trend and trend change over the step dt solved after one of trend_step, and the average
+  // stress of trial_. Valid while trial_ and committed_ are that solve's.
+  struct SolvedStep {
+    std::vector<VecN> trend, trend_change;
+    Vec6 average_stress = Vec6::Zero();
+    double dt = 0.0, trend_step = 0.0;
+    bool valid = false;
+  } solved_;
   std::vector<VecN> warm_;      // slip rates of each grain's last successful solve (solve_grains)
   Mat3 warm_l_ = Mat3::Zero();  // the L of that solve
   // The strain directions of the free components the tangents are taken along (set for each
