@@ -13,9 +13,12 @@
 // (implicit_grain_step, below); other laws, and steps it does not resolve, go to the semismooth
 // step (semismooth_grain_step.cpp). Phases with a latent matrix start with Newton on the slips
 // (StressSolver::slip_newton), which carries the latent coupling in its condensed system, and
-// go to the semismooth step where that does not converge. The stress-space solve's branches for
-// latent drives, open planes and saturated rate-independent systems are kept from its
-// development but are not reached through that choice (docs/grain_step.md).
+// go to the semismooth step where that does not converge; only a step that starts from no slip
+// at all (the virgin step) goes to the stress-space solve with its latent drives instead.
+// Newton on the slips takes over from the stress-space solve at its first iterate from which it
+// converges. The stress-space solve's branches for open planes and saturated rate-independent
+// systems are kept from its development but are not reached through that choice
+// (docs/grain_step.md).
 //
 // Internal to src/crystal/: the template is instantiated once per slip count, each in its own
 // translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel;
@@ -973,10 +976,12 @@ class StressSolver {
     }
     const double p = exponent_[static_cast<size_t>(a)];
     // A first guess where none is warm: the slip that would relax this system's own excess
-    // shear through its elastic stiffness.
-    double z = guess > 0.0
-                   ? guess
-                   : std::pow((abs_tau - start.r0 * mu_idle.value * fn) / stiffness_(a), 1.0 / p);
+    // shear through its elastic stiffness. The excess is not positive where r exceeds r_s0 only
+    // by rounding (a system idle at the start stress, r_s0 = r there: r computed as a quotient,
+    // the excess as a difference); the guess is then zero slip, where G(0) is at its rounding
+    // (not the root of a negative number, a NaN that no bracket recovers from).
+    const double excess = std::max(abs_tau - start.r0 * mu_idle.value * fn, 0.0);
+    double z = guess > 0.0 ? guess : std::pow(excess / stiffness_(a), 1.0 / p);
     double lo = 0.0, hi = kInf;  // G(lo) > 0 > G(hi)
     const double z_bound = std::pow(kSlipBound, 1.0 / p);
     double previous_abs_g = kInf;
@@ -1070,11 +1075,13 @@ using namespace implicit_detail;
 // The stress-space solve (see the file comment and docs/grain_step.md): Newton on sigma (and
 // the extra unknowns) with each system's slip from its own flow rule, globalised by a line
 // search on the convex potential. Returns whether it converged; `it` is its last iterate.
-template <int N>
+// `local(it)` is offered every iterate the line search accepts: where it returns true (it has
+// solved the step from there, see solve_grain_step), the solve ends there, successfully.
+template <int N, class Local>
 bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const GrainState<N>& s0,
                         const Vec6& trial, const typename SlipTypes<N>::VecN& previous_slip,
                         const GrainStepOptions& opt, typename StressSolver<N>::Iterate& it,
-                        GrainStepReport& rep) {
+                        GrainStepReport& rep, Local&& local) {
   using VecY = typename StressSolver<N>::VecY;
   const int n = ph.slip_count;
   Vec6 predicted = trial;
@@ -1186,6 +1193,7 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
     }
     std::swap(it, trial_point);
     solver.remember(it);
+    if (local(it)) return true;
   }
   if (!converged) {
     rep.why = "stress iteration did not converge";
@@ -1237,8 +1245,13 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
   // R(sigma) = C grad Phi with Phi strictly convex, and a latent coupling leaves R no potential.
   if (ph.pressure_sensitive || !resistance_grows_with_slip(ph, s0))
     return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
-  const bool stress_space = !ph.has_latent;
   const int n = ph.slip_count;
+  const VecN previous_slip = (start_rate != nullptr ? *start_rate : s0.rate) * dt;
+  // With a latent matrix the stress-space solve (with its latent-drive unknowns, Newton on
+  // 1/2 |R|^2) takes the steps that start from no slip at all (the virgin step, an elastic
+  // unloading), where Newton on the slips cannot start (dr_s/d slip is infinite at r_s = 0)
+  // and the semismooth step would start from a Jacobi sweep of scalar roots.
+  const bool stress_space = !ph.has_latent || (previous_slip.array() == 0.0).all();
   GrainStepReport rep;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
   const Vec6 trial = s0.stress + ph.stiffness * kin.strain_increment;
@@ -1257,25 +1270,37 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
   // Most steps of a loading path: Newton on the slips from the last step's slip rate continued
   // converges from there. Where it does not (the first step, a change of the active set, a
   // large step), the stress-space solve, then Newton on the slips from its result.
-  const VecN previous_slip = (start_rate != nullptr ? *start_rate : s0.rate) * dt;
   typename Solver::SlipPoint point;
   rep.iterations = 0;
   if (!(solver.slip_newton(previous_slip, VecN::Zero(n), point, rep.iterations, false) &&
         point.converged)) {
     Iterate it;
+    // Newton on the slips takes over from the stress iteration at the first iterate from which
+    // it converges (its own test: every full step halves the largest flow-rule residual, else
+    // it stops at once): each of its evaluations is one batch of flow points, where each of the
+    // stress iteration's is a scalar root per system.
+    bool handed_over = false;
+    auto hand_over = [&](const Iterate& at) {
+      handed_over = solver.can_refine() &&
+                    solver.slip_newton(solver.corrected_slips(at), VecN::Zero(n), point,
+                                       rep.iterations, false) &&
+                    point.converged;
+      return handed_over;
+    };
     // Near ideal plasticity (r -> r_hat with the hardening spent) the slip response to the
     // stress is unbounded in double precision and the stress iteration can stall; the
     // semismooth iteration on the slips, which is well posed there, takes the step.
-    if (!stress_space || !stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep))
+    if (!stress_space ||
+        !stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep, hand_over))
       return semismooth();
     // The stress iterate fixes each slip only to |dG/d ds|^-1 times G's rounding, coarse where
     // the law is nearly rate-independent; a step ending there would make the grain's response
     // jump between neighbouring loadings. So the slips are resolved from it, or the semismooth
     // iteration resolves them.
-    if (!(solver.can_refine() &&
-          solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point, rep.iterations,
-                             true) &&
-          point.converged))
+    if (!handed_over && !(solver.can_refine() &&
+                          solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point,
+                                             rep.iterations, true) &&
+                          point.converged))
       return semismooth();
   }
 
