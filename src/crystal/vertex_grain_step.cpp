@@ -20,21 +20,20 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The active faces of a quadratic subproblem: at most one per held system (the side of its start
 // shear). With hardening (h > 0) more faces than the six stress components can be
-// active: the slips are then fixed by the hardening, not by the stress alone.
-template <int MaxActive>
-struct ActiveTypes {
-  using Mat6X = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, MaxActive>;
-  using MatXX = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxActive, MaxActive>;
-  using VecX = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxActive, 1>;
-};
+// active: the slips are then fixed by the hardening, not by the stress alone. One capacity for
+// every slip count: the algorithms below are compiled once, not once per size of grain step (at
+// seven sizes they were the longest compilation of the project).
+constexpr int kMaxFaces = kMaxSlipSystems;
+using Mat6F = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxFaces>;
+using MatFF = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFaces, kMaxFaces>;
+using VecF = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxFaces, 1>;
 
 // The solution of one quadratic subproblem: the step x and the active faces with their
 // multipliers (the slip magnitudes of their systems).
-template <int MaxActive>
 struct QpSolution {
   Vec6 x;
-  std::array<int, MaxActive> face{};
-  std::array<double, MaxActive> multiplier{};
+  std::array<int, kMaxFaces> face{};
+  std::array<double, kMaxFaces> multiplier{};
   int count = 0;
 };
 
@@ -55,12 +54,9 @@ constexpr double kDependentNormal = 64.0 * kEps;
 // after a face left. Violations up to `slack(f)` count as met. Returns false where rounding made
 // it exceed its bound on changes, or where the faces admit no point (which the stress zero rules
 // out, but rounding could fake).
-template <int MaxActive, class NormalOf, class VecF>
-bool solve_qp(const Mat6& g_inverse, const Vec6& g, int faces, const NormalOf& normal,
-              const VecF& b, const VecF& h, const VecF& slack, QpSolution<MaxActive>& out) {
-  using Mat6X = typename ActiveTypes<MaxActive>::Mat6X;
-  using MatXX = typename ActiveTypes<MaxActive>::MatXX;
-  using VecX = typename ActiveTypes<MaxActive>::VecX;
+bool solve_qp(const Mat6& g_inverse, const Vec6& g, const Mat6F& normals, const VecF& b,
+              const VecF& h, const VecF& slack, QpSolution& out) {
+  const int faces = static_cast<int>(normals.cols());
   out.x = -g_inverse * g;
   out.count = 0;
   const int max_changes = 8 * faces + 8;
@@ -73,30 +69,30 @@ bool solve_qp(const Mat6& g_inverse, const Vec6& g, int faces, const NormalOf& n
     int p = -1;
     double worst = 0.0;
     for (int f = 0; f < faces; ++f) {
-      const double violation = normal(f).dot(out.x) - b(f);
+      const double violation = normals.col(f).dot(out.x) - b(f);
       if (violation > slack(f) && violation > worst && !is_active(f)) worst = violation, p = f;
     }
     if (p < 0) return true;
-    const Vec6 np = normal(p);
+    const Vec6 np = normals.col(p);
     double up = 0.0;
     for (;;) {
       if (++changes > max_changes) return false;
       const int q = out.count;
       const Vec6 w = g_inverse * np;
       Vec6 hn = w;  // H n_p: n_p's part outside the span of the active normals (metric G^-1)
-      VecX r(q);    // how the active multipliers change per unit of u_p
+      VecF r(q);    // how the active multipliers change per unit of u_p
       if (q > 0) {
-        Mat6X active(6, q);
-        MatXX gram(q, q);
-        for (int j = 0; j < q; ++j) active.col(j) = normal(out.face[static_cast<size_t>(j)]);
-        const Mat6X g_active = g_inverse * active;
+        Mat6F active(6, q);
+        MatFF gram(q, q);
+        for (int j = 0; j < q; ++j) active.col(j) = normals.col(out.face[static_cast<size_t>(j)]);
+        const Mat6F g_active = g_inverse * active;
         gram.noalias() = active.transpose() * g_active;
         for (int j = 0; j < q; ++j) gram(j, j) += h(out.face[static_cast<size_t>(j)]);
         r = gram.ldlt().solve(active.transpose() * w);
         hn.noalias() -= g_active * r;
       }
       const double denom = np.dot(hn) + h(p);
-      const bool dependent = q == MaxActive || !(denom > kDependentNormal * (np.dot(w) + h(p)));
+      const bool dependent = q == kMaxFaces || !(denom > kDependentNormal * (np.dot(w) + h(p)));
       // The step that meets face p; a violation that earlier steps turned negative in rounding
       // is met where p stands (a step back would undo them and cycle).
       const double full =
@@ -224,10 +220,8 @@ bool nonnegative_least_squares(
 // length), through NNLS on E = [G^T; h^T] and f = e_(m+1): with r = E u - f, v = -r_(1..m) /
 // r_(m+1). Unlike the primal active-set method below it needs no multiplier of N v = t, which is
 // not unique where the free faces span less than all of them. Returns false where NNLS does.
-template <int MaxActive>
-bool least_distance_split(const typename ActiveTypes<MaxActive>::Mat6X& normals, const Vec6& t,
-                          typename ActiveTypes<MaxActive>::VecX& v) {
-  constexpr int kRows = MaxActive + 1, kCols = MaxActive + 12;
+bool least_distance_split(const Mat6F& normals, const Vec6& t, VecF& v) {
+  constexpr int kRows = kMaxFaces + 1, kCols = kMaxFaces + 12;
   using MatE = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kRows, kCols>;
   using VecR = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kRows, 1>;
   using VecC = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kCols, 1>;
@@ -276,28 +270,24 @@ bool least_distance_split(const typename ActiveTypes<MaxActive>::Mat6X& normals,
 // NNLS): there lambda is one of many multipliers, faces may lower |v| only together, and the
 // least-distance program decides (least_distance_split), as it does if `max_changes` runs out.
 // Returns false only where that fails too (v is then a feasible point, not the least-norm one).
-template <int MaxActive>
-bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normals, const Vec6& t,
-                            typename ActiveTypes<MaxActive>::VecX& v) {
-  using Mat6X = typename ActiveTypes<MaxActive>::Mat6X;
-  using VecX = typename ActiveTypes<MaxActive>::VecX;
+bool least_norm_nonnegative(const Mat6F& normals, const Vec6& t, VecF& v) {
   const int m = static_cast<int>(normals.cols());
-  std::array<bool, MaxActive> free{};
+  std::array<bool, kMaxFaces> free{};
   for (int f = 0; f < m; ++f) free[static_cast<size_t>(f)] = v(f) > 0.0;
   // Faces whose entry did not move v (below): kept out until v moves.
-  std::array<bool, MaxActive> barred{};
+  std::array<bool, kMaxFaces> barred{};
   int entered = -1;
   const int max_changes = 4 * m + 4;
   for (int changes = 0; changes < max_changes; ++changes) {
-    std::array<int, MaxActive> index{};
+    std::array<int, kMaxFaces> index{};
     int k = 0;
     for (int f = 0; f < m; ++f)
       if (free[static_cast<size_t>(f)]) index[static_cast<size_t>(k++)] = f;
-    Mat6X free_normals(6, k);
+    Mat6F free_normals(6, k);
     for (int i = 0; i < k; ++i) free_normals.col(i) = normals.col(index[static_cast<size_t>(i)]);
     // lambda: the multiplier of N v = t, with x = N_F^T lambda.
     const Vec6 lambda = k > 0 ? Vec6(gram_pseudo_inverse(free_normals) * t) : Vec6::Zero();
-    const VecX x = free_normals.transpose() * lambda;
+    const VecF x = free_normals.transpose() * lambda;
     // The step towards x, as far as every free slip stays >= 0.
     double alpha = 1.0;
     int blocking = -1;
@@ -333,11 +323,11 @@ bool least_norm_nonnegative(const typename ActiveTypes<MaxActive>::Mat6X& normal
     // many multipliers and faces may lower |v| only together: the least-distance program decides.
     if (entering < 0)
       return std::none_of(barred.begin(), barred.begin() + m, [](bool b) { return b; }) ||
-             least_distance_split<MaxActive>(normals, t, v);
+             least_distance_split(normals, t, v);
     free[static_cast<size_t>(entering)] = true;
     entered = entering;
   }
-  return least_distance_split<MaxActive>(normals, t, v);
+  return least_distance_split(normals, t, v);
 }
 
 // The step's stress as the minimiser of
@@ -359,10 +349,7 @@ class VertexSolver {
  public:
   using T = SlipTypes<N>;
   using VecN = typename T::VecN;
-  using VecF = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * T::MaxN, 1>;
-  using Qp = QpSolution<T::MaxN>;
-  using Mat6X = typename ActiveTypes<T::MaxN>::Mat6X;
-  using MatXX = typename ActiveTypes<T::MaxN>::MatXX;
+  using Qp = QpSolution;
 
   VertexSolver(const Phase<N>& ph, const GrainState<N>& s0, const Vec6& trial, double dt,
                double tolerance)
@@ -382,6 +369,9 @@ class VertexSolver {
       held_[static_cast<size_t>(a)] = hardening_(a) < ph.interaction(a, a);
       if (held_[static_cast<size_t>(a)]) held_system_[static_cast<size_t>(held_count_++)] = a;
     }
+    face_normals_.resize(6, held_count_);
+    for (int f = 0; f < held_count_; ++f)
+      face_normals_.col(f) = sign_of_face(f) * ph.schmid.col(system_of(f));
   }
 
   int held_count() const { return held_count_; }
@@ -440,13 +430,13 @@ class VertexSolver {
     evaluate(sigma, gradient, &hessian);
     const Mat6 g_inverse = hessian.llt().solve(Mat6::Identity());
     Mat6 dsigma = g_inverse;
-    MatXX du;
+    MatFF du;
     if (qp.count > 0) {
-      Mat6X active(6, qp.count);
-      MatXX gram(qp.count, qp.count);
+      Mat6F active(6, qp.count);
+      MatFF gram(qp.count, qp.count);
       for (int j = 0; j < qp.count; ++j)
         active.col(j) = face_normal(qp.face[static_cast<size_t>(j)]);
-      const Mat6X g_active = g_inverse * active;
+      const Mat6F g_active = g_inverse * active;
       gram.noalias() = active.transpose() * g_active;
       // The held faces' hardening at the end: solve() returns after relinearise() at the
       // final slips.
@@ -477,7 +467,7 @@ class VertexSolver {
   // subloading ratio restarts from 0 there (3.12), where the hardening is large.
   int system_of(int face) const { return held_system_[static_cast<size_t>(face)]; }
   double sign_of_face(int face) const { return start_sign_(system_of(face)); }
-  Vec6 face_normal(int face) const { return sign_of_face(face) * ph_.schmid.col(system_of(face)); }
+  Vec6 face_normal(int face) const { return face_normals_.col(face); }
   bool resolves(int a, double sign) const {
     return sign != start_sign_(a) || !held_[static_cast<size_t>(a)];
   }
@@ -529,7 +519,6 @@ class VertexSolver {
   bool minimise(Vec6& sigma, Qp& qp, int& iterations, int max_iterations) const {
     const int faces = held_count_;
     VecF b(faces), h(faces), slack(faces);
-    auto normal = [&](int f) { return face_normal(f); };
     double last_step = kInf;
     for (;;) {
       if (++iterations > max_iterations) return false;
@@ -543,7 +532,7 @@ class VertexSolver {
         b(f) = limit_(a) - hardening_(a) * linearised_at_(a) - face_normal(f).dot(sigma);
         slack(f) = 0.25 * tolerance_ * crss_(a);
       }
-      if (!solve_qp(g_inverse, gradient, faces, normal, b, h, slack, qp)) return false;
+      if (!solve_qp(g_inverse, gradient, face_normals_, b, h, slack, qp)) return false;
       const VecN step_shear = ph_.schmid.transpose() * qp.x;
       const double step = step_shear.cwiseAbs().cwiseQuotient(crss_).maxCoeff();
       // Newton's steps shrink quadratically until they reach the rounding of the stationarity
@@ -600,8 +589,8 @@ class VertexSolver {
       const int a = system_of(f);
       saturated_[static_cast<size_t>(f)] = hardening_(a) * held_slip <= 0.5 * tolerance_ * crss_(a);
     }
-    Mat6X normals(6, held_count_);
-    typename ActiveTypes<T::MaxN>::VecX v(held_count_);
+    Mat6F normals(6, held_count_);
+    VecF v(held_count_);
     Vec6 t = Vec6::Zero();
     int m = 0;
     for (int j = 0; j < qp.count; ++j) {
@@ -626,7 +615,7 @@ class VertexSolver {
     }
     normals.conservativeResize(6, m);
     v.conservativeResize(m);
-    if (!least_norm_nonnegative<T::MaxN>(normals, t, v)) return;  // the dual method's split stands
+    if (!least_norm_nonnegative(normals, t, v)) return;  // the dual method's split stands
     for (int i = 0; i < m; ++i) split_slip_[static_cast<size_t>(i)] = v(i);
     split_count_ = m;
   }
@@ -634,7 +623,7 @@ class VertexSolver {
   // The split's slip sensitivities: where the set of saturated faces that slip (P) does not
   // change, their slips are N_P^T (N_P N_P^T)^+ t, and t's sensitivity is the saturated active
   // faces' share of N du (the stress and the other faces' slips determine it, whatever the basis).
-  void split_sensitivities(const Qp& qp, const MatXX& du, typename T::MatN6& out) const {
+  void split_sensitivities(const Qp& qp, const MatFF& du, typename T::MatN6& out) const {
     Mat6 dt = Mat6::Zero();
     for (int j = 0; j < qp.count; ++j) {
       const int f = qp.face[static_cast<size_t>(j)];
@@ -642,7 +631,7 @@ class VertexSolver {
       dt.noalias() += face_normal(f) * du.row(j);
       out.row(system_of(f)).setZero();
     }
-    Mat6X slipping(6, split_count_);
+    Mat6F slipping(6, split_count_);
     std::array<int, T::MaxN> face{};
     int k = 0;
     for (int i = 0; i < split_count_; ++i) {
@@ -689,6 +678,7 @@ class VertexSolver {
   std::array<bool, T::MaxN> held_{};        // per system
   std::array<int, T::MaxN> held_system_{};  // the held systems, in order: face k is the k-th
   int held_count_ = 0;
+  Mat6F face_normals_;  // face k's column: sign_of_face(k) P_a (a = system_of(k))
   // The saturated faces' split (split_saturated): per face whether it is saturated; the faces
   // of the split and their least-norm slips.
   std::array<bool, T::MaxN> saturated_{};
