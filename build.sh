@@ -3,7 +3,7 @@
 #   ./build.sh run  [SCENE.yaml]  builds the Release program (build/) and runs a scene (default:
 #                                 inputs/default.yaml, the main job) into results/<scene>.h5;
 #   ./build.sh test [--quick]     builds the GoogleTest suite with AddressSanitizer + UBSan
-#                                 (build-asan/, optimised: -O2 -g) and runs it (ctest), then runs
+#                                 (build-asan/, optimised: -O2 -g1) and runs it (ctest), then runs
 #                                 each fuzz target for FUZZ_SECONDS (default 30) on its seed
 #                                 corpus (build-fuzz/, clang + libFuzzer). CI runs this command.
 #                                 --quick: the suite of the Release build (build/) only.

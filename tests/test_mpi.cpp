@@ -84,8 +84,8 @@ void launcher_environment() {
   // clears it. glibc's malloc hands the freed buffer back at the next write, already mapped;
   // AddressSanitizer's maps every allocation that large afresh, so each write faulted 8192 pages
   // in: 4 ranks on 2 cores took 40-55 s for the adaptive scene below instead of 1.5 s (Release),
-  // most of it in the kernel. 1 MB holds every file of these tests in one aggregation cycle, as
-  // 32 MB does; the transfer and the file are the same.
+  // most of it in the kernel. Every write of these tests (one row of one dataset, at most 48 kB)
+  // fits 1 MB in one aggregation cycle, as it fits 32 MB; the transfer and the file are the same.
   ::setenv("OMPI_MCA_io_ompio_bytes_per_agg", "1048576", 1);
 }
 
