@@ -567,11 +567,9 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
     auto held = [&](int a) { return solver.needs_scalar_start(it, a); };
     const VecN full = -solve_newton_system<N>(j, it.rows, it.open.any());
     bool accepted = false;
-    VecN step = full;
     for (const Pin pin : {Pin::at_zero, Pin::crossing}) {
       const NewtonStep<N> newton = newton_step(j, it, full, pin, held);
       if (pin == Pin::crossing && !newton.pins_slipping_system) break;
-      step = newton.step;
       if (!newton.step.allFinite()) continue;
       if ((accepted = line_search(newton.step))) break;
     }
