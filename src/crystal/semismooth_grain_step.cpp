@@ -20,8 +20,9 @@ template <int N>
 struct Iterate {
   using T = SlipTypes<N>;
   // x are the unknowns z_a = sign(g_a) |g_a|^(1/p_a), g_a the signed slip increment (p_a = 1
-  // unless the power overstress is used); slip = |g|, dslip_dx = d|g|/d|z|.
-  typename T::VecN x, slip, dslip_dx, direction, effective, tau, fn, mu, d_mu, rs, d_rs, r, rows;
+  // unless the power overstress is used); slip = |g|, dgamma = g, dslip_dx = d|g|/d|z|.
+  typename T::VecN x, slip, dgamma, dslip_dx, direction, effective, tau, fn, mu, d_mu, rs, d_rs, r,
+      rows;
   typename T::VecN g_value, g_dr, g_drs, g_dslip;
   // The same system at zero slip of its own, every other slip as it is: its loading ratio in
   // the positive direction r0 (with mu0 and fn0 there), and the value B of its residual at zero.
@@ -114,8 +115,9 @@ class ImplicitSolver {
       const double p = start(a, 1.0).exponent;
       it.dslip_dx(a) = p == 1.0 ? 1.0 : p * std::pow(std::abs(x(a)), p - 1.0);
     }
-    VecN dgamma(n_);
-    for (int a = 0; a < n_; ++a) dgamma(a) = x(a) < 0.0 ? -it.slip(a) : it.slip(a);
+    it.dgamma.resize(n_);
+    for (int a = 0; a < n_; ++a) it.dgamma(a) = x(a) < 0.0 ? -it.slip(a) : it.slip(a);
+    const VecN& dgamma = it.dgamma;
     it.tau = tau_trial_ - ph_.interaction * dgamma;
     it.fn = ph_.pressure_sensitive ? VecN(fn_trial_ + ph_.normal_interaction * dgamma) : ph_.tau0;
     it.effective = ph_.has_latent ? VecN(ph_.latent * it.slip) : it.slip;
@@ -300,8 +302,7 @@ class ImplicitSolver {
     const double d = it.direction(a);
     const double fn = it.fn0(a);
     // Shear on a (signed along d) and effective slip with a's own slip taken out.
-    const double own_dgamma = it.x(a) < 0.0 ? -it.slip(a) : it.slip(a);
-    const double tau_free = d * (it.tau(a) + stiffness * own_dgamma);
+    const double tau_free = d * (it.tau(a) + stiffness * it.dgamma(a));
     const double own_effective = (ph_.has_latent ? ph_.latent(a, a) : 1.0) * it.slip(a);
     const double effective_other = std::max(it.effective(a) - own_effective, 0.0);
     if (!(tau_free > 0.0)) return 0.0;
@@ -582,8 +583,7 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
     return rep;
   }
 
-  VecN dgamma(n);
-  for (int a = 0; a < n; ++a) dgamma(a) = it.x(a) < 0.0 ? -it.slip(a) : it.slip(a);
+  const VecN& dgamma = it.dgamma;
   s1.stress = stress_trial - ph.c_schmid * dgamma;
   s1.mu = it.mu;
   s1.slip = s0.slip + dgamma;
