@@ -291,20 +291,17 @@ TEST(CrystalTaylor, RateIndependentTaylorAggregateUnderMixedControl) {
 //    order, so 1 and 2 threads must give bitwise-identical macro and per-grain fields.
 // ---------------------------------------------------------------------------------------------
 
-TEST(CrystalThreads, OneAndTwoThreadsAreBitwiseIdentical) {
-  auto d = fcc_description(crystal_law(1.0, 1.5, 2.0, 0.0, 300.0, 0.05), 20.0,
-                           Kinematics::finite_rotation);
-  d.latent.kind = LatentHardening::Kind::coplanar;
-  d.latent.coplanar = 1.0;
-  d.latent.non_coplanar = 1.4;
-  const auto grains = random_orientations(64, 8);
+// Runs the segments with 1 and 2 threads and expects every output bitwise the same.
+void expect_thread_count_independent(const PhaseDescription& d,
+                                     const std::vector<Orientation>& grains,
+                                     const std::vector<LoadSegment>& segments) {
   const int saved = omp_get_max_threads();
   std::vector<Snapshot> runs[2];
   for (int t : {1, 2}) {
     omp_set_num_threads(t);
     auto agg = build_taylor_aggregate(d, grains);
     Recorder rec;
-    agg->run({uniaxial(1e-3, 0.03, 15)}, AggregateOptions{}, rec.observer());
+    agg->run(segments, AggregateOptions{}, rec.observer());
     runs[t - 1] = std::move(rec.snaps);
   }
   omp_set_num_threads(saved);
@@ -328,6 +325,32 @@ TEST(CrystalThreads, OneAndTwoThreadsAreBitwiseIdentical) {
     EXPECT_TRUE(same(a.ratio, b.ratio)) << k;
     EXPECT_TRUE(same(a.r_s, b.r_s)) << k;
   }
+}
+
+TEST(CrystalThreads, OneAndTwoThreadsAreBitwiseIdentical) {
+  auto d = fcc_description(crystal_law(1.0, 1.5, 2.0, 0.0, 300.0, 0.05), 20.0,
+                           Kinematics::finite_rotation);
+  d.latent.kind = LatentHardening::Kind::coplanar;
+  d.latent.coplanar = 1.0;
+  d.latent.non_coplanar = 1.4;
+  expect_thread_count_independent(d, random_orientations(64, 8), {uniaxial(1e-3, 0.03, 15)});
+}
+
+// The same through the semismooth grain step (a softening law), with strain steps of 5e-3 from
+// r_s = 0 whose elastic trials lie far beyond r_hat, so that iterates leave the admissible set
+// and are moved back. Each grain's step must depend on its own inputs only: an inadmissible
+// iterate once left the values of the systems after the first offending one unset, and the
+// sweeps that move it back read them (what the stack held, so the result depended on which
+// grains a thread had solved before).
+TEST(CrystalThreads, SemismoothStepsFromInadmissibleTrialsAreBitwiseIdentical) {
+  auto p = crystal_law(1.0, 0.5, 10.0, 0.0, 200.0, 1e-3, 16.0, 1.6);
+  p.subloading.function = law::SubloadingFunction::neg_log;
+  auto d = fcc_description(p, 10.0, Kinematics::finite_rotation);
+  d.latent.kind = LatentHardening::Kind::coplanar;
+  d.latent.coplanar = 0.0;
+  d.latent.non_coplanar = 1.4;
+  expect_thread_count_independent(d, random_orientations(16, 9),
+                                  {uniaxial(1e-3, 0.05, 10), uniaxial(-1e-3, 0.1, 20)});
 }
 
 // ---------------------------------------------------------------------------------------------

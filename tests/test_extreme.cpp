@@ -644,7 +644,12 @@ double cube_axis_compliance(const cr::Mat6& c) {
 // 5.7e-5 MPa s). Newton's exact step on the free components moved L along that mode by 2.5e-8 /s
 // to remove a residual part of 5e-12 MPa, and the hold failed at every cutback ("not reduced
 // along the Newton update"); the least change that meets the tolerance keeps the symmetry to
-// round-off and runs to the end.
+// round-off and runs to the end. Round-off here is what one ulp of the stresses does along that
+// mode: at |sigma| ~ 2 MPa, 4.4e-16 MPa / 5.7e-5 MPa s = 7.8e-12 /s, about 1e-11 of the largest
+// |L| (1 /s in the reversal), which the bound allows (and 2500 times below the exact step's
+// 2.5e-8). (It was 1e-12, below one ulp's worth: met while the semismooth step read unset values
+// after an inadmissible system, which made its rounding at the reversal's first step whatever
+// the stack held; since those are set, the slow-tension run ends at 2.7e-12.)
 TEST(ExtremeCrystal, FccSchmidCubeKeepsItsFourfoldSymmetryWhenRefined) {
   const SingleThread one;
   const auto scene = io::load_crystal_scene(kExtremeDir / "crystal_fcc_schmid_stiff.yaml");
@@ -663,7 +668,7 @@ TEST(ExtremeCrystal, FccSchmidCubeKeepsItsFourfoldSymmetryWhenRefined) {
         asymmetry = std::max(
             asymmetry, std::abs(s.macro.velocity_gradient(0, 0) - s.macro.velocity_gradient(1, 1)));
       }
-      EXPECT_LE(asymmetry, 1e-12 * largest);
+      EXPECT_LE(asymmetry, 1e-11 * largest);
     }
   }
   EXPECT_EQ(runs, 6);

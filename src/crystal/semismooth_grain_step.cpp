@@ -109,7 +109,7 @@ class ImplicitSolver {
     for (VecN* v : {&it.slip, &it.dslip_dx, &it.direction, &it.mu, &it.d_mu, &it.rs, &it.d_rs,
                     &it.r, &it.g_value, &it.g_dr, &it.g_drs, &it.g_dslip, &it.rows, &it.r0, &it.mu0,
                     &it.d_mu0, &it.fn0, &it.at_zero})
-      v->resize(n_);  // every entry is set below (an inadmissible iterate's are not read)
+      v->resize(n_);  // every entry is set below, an inadmissible system's too
     for (int a = 0; a < n_; ++a) {
       it.slip(a) = slip_of(a, x(a));
       const double p = start(a, 1.0).exponent;
@@ -124,51 +124,61 @@ class ImplicitSolver {
     it.open.setConstant(n_, false);
     it.admissible = true;
     it.bad_system = -1;
-    auto reject = [&](int a) {
-      it.admissible = false, it.bad_system = a;
-      it.merit = std::numeric_limits<double>::infinity();
-    };
+    // Every system is evaluated, also after an inadmissible one: the sweeps that move an
+    // inadmissible iterate back (make_admissible) read every system's values.
     for (int a = 0; a < n_; ++a) {
-      const auto& law = ph_.laws[static_cast<size_t>(a)];
-      const auto mu = law.friction_coefficient_after(s0_.mu(a), it.effective(a), dt_);
-      it.mu(a) = mu.value, it.d_mu(a) = mu.d_slip;
-      if (!(mu.value > 0.0) || std::isnan(it.fn(a))) return reject(a);
-      if (!(it.fn(a) > 0.0)) {
-        // An open slip plane carries no shear, like an open contact: the system slips freely
-        // until tau_a = 0. Its row is that shear in ratio units (r = 0, no flow rule),
-        // increasing in its own slip.
-        it.open(a) = true;
-        it.direction(a) = x(a) != 0.0 ? sign_of(x(a)) : sign_of(it.tau(a));
-        const auto rs =
-            law.subloading_ratio_after(start(a, it.direction(a)).subloading, it.slip(a));
-        it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
-        it.rows(a) = -it.tau(a) / (mu.value * ph_.tau0(a));
-        it.r(a) = it.g_value(a) = it.g_dr(a) = it.g_drs(a) = it.g_dslip(a) = 0.0;
-        it.r0(a) = it.at_zero(a) = 0.0;
-        it.mu0(a) = mu.value, it.d_mu0(a) = mu.d_slip, it.fn0(a) = it.fn(a);
-        continue;
-      }
-      if (!at_own_zero_slip(a, dgamma(a), it)) return reject(a);
-      const double b = it.at_zero(a);
-      // The side the residual is on: that of the slip, or at zero the side it leaves to.
-      it.direction(a) = x(a) > 0.0   ? 1.0
-                        : x(a) < 0.0 ? -1.0
-                        : b != 0.0   ? -sign_of(b)
-                                     : sign_of(it.tau(a));
-      const double d = it.direction(a);
-      const SystemStart& st = start(a, d);
-      const auto rs = law.subloading_ratio_after(st.subloading, it.slip(a));
-      it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
-      it.r(a) = d * it.tau(a) / (mu.value * it.fn(a));
-      const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
-      it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
-      if (!g.admissible) return reject(a);
-      // Phi_a = B - d (G(|g|; d) - G(0; d)), G(0; d) = d r0 - r_s(0; d) (no rate term at zero
-      // slip); exactly B at zero slip.
-      const double g_at_zero = d * it.r0(a) - st.r_s_at_zero;
-      it.rows(a) = x(a) == 0.0 ? b : b - d * (g.value - g_at_zero);
+      if (evaluate_system(a, x, it) || !it.admissible) continue;
+      it.admissible = false, it.bad_system = a;
     }
-    it.merit = 0.5 * it.rows.squaredNorm();
+    it.merit =
+        it.admissible ? 0.5 * it.rows.squaredNorm() : std::numeric_limits<double>::infinity();
+  }
+
+  // System a at the iterate x (whose slips, shears, normal tractions and effective slips are
+  // set); false where it is inadmissible there (mu <= 0, no normal traction at its own zero
+  // slip, r >= r_hat): then its residual is infinite and its other values those at zero slip.
+  bool evaluate_system(int a, const VecN& x, Iterate<N>& it) const {
+    const auto& law = ph_.laws[static_cast<size_t>(a)];
+    const auto mu = law.friction_coefficient_after(s0_.mu(a), it.effective(a), dt_);
+    it.mu(a) = it.mu0(a) = mu.value, it.d_mu(a) = it.d_mu0(a) = mu.d_slip;
+    it.fn0(a) = it.fn(a);
+    it.r(a) = it.r0(a) = it.at_zero(a) = 0.0;
+    it.g_dr(a) = it.g_drs(a) = it.g_dslip(a) = 0.0;
+    it.g_value(a) = it.rows(a) = std::numeric_limits<double>::infinity();
+    it.direction(a) = x(a) != 0.0 ? sign_of(x(a)) : sign_of(it.tau(a));
+    const auto rs_here =
+        law.subloading_ratio_after(start(a, it.direction(a)).subloading, it.slip(a));
+    it.rs(a) = rs_here.value, it.d_rs(a) = rs_here.d_slip;
+    if (!(mu.value > 0.0) || std::isnan(it.fn(a))) return false;
+    if (!(it.fn(a) > 0.0)) {
+      // An open slip plane carries no shear, like an open contact: the system slips freely
+      // until tau_a = 0. Its row is that shear in ratio units (r = 0, no flow rule),
+      // increasing in its own slip.
+      it.open(a) = true;
+      it.rows(a) = -it.tau(a) / (mu.value * ph_.tau0(a));
+      it.g_value(a) = 0.0;
+      return true;
+    }
+    if (!at_own_zero_slip(a, it.dgamma(a), it)) return false;
+    const double b = it.at_zero(a);
+    // The side the residual is on: that of the slip, or at zero the side it leaves to.
+    it.direction(a) = x(a) > 0.0   ? 1.0
+                      : x(a) < 0.0 ? -1.0
+                      : b != 0.0   ? -sign_of(b)
+                                   : sign_of(it.tau(a));
+    const double d = it.direction(a);
+    const SystemStart& st = start(a, d);
+    const auto rs = law.subloading_ratio_after(st.subloading, it.slip(a));
+    it.rs(a) = rs.value, it.d_rs(a) = rs.d_slip;
+    it.r(a) = d * it.tau(a) / (mu.value * it.fn(a));
+    const auto g = law.flow_residual(it.r(a), rs.value, it.slip(a), dt_);
+    it.g_value(a) = g.value, it.g_dr(a) = g.d_r, it.g_drs(a) = g.d_rs, it.g_dslip(a) = g.d_slip;
+    if (!g.admissible) return false;
+    // Phi_a = B - d (G(|g|; d) - G(0; d)), G(0; d) = d r0 - r_s(0; d) (no rate term at zero
+    // slip); exactly B at zero slip.
+    const double g_at_zero = d * it.r0(a) - st.r_s_at_zero;
+    it.rows(a) = x(a) == 0.0 ? b : b - d * (g.value - g_at_zero);
+    return true;
   }
 
   // System a with its own slip taken out (the others' as they are): mu0, fn0, r0 and the
