@@ -246,6 +246,19 @@ class ImplicitSolver {
     }
     j = j * it.dslip_dx.asDiagonal();  // d/dg -> d/dx
     for (int a = 0; a < n_; ++a) {
+      if (!idle(it, a)) continue;
+      // An idle system's row is Phi_a = H(g_a) - H(0) with B = 0: zero at g_a = 0 whatever the
+      // other slips, so its entries off the diagonal vanish (the two terms above are equal
+      // there and cancel only to rounding), and its Newton step, -rows_a / J_aa, is exactly
+      // zero. Its column then multiplies zero; dropping it too keeps the step of every other
+      // system that of the system without a: no rounding-level step of an idle system that
+      // pointed against its direction and had to be pinned and re-solved.
+      const double own = j(a, a);
+      j.row(a).setZero();
+      j.col(a).setZero();
+      j(a, a) = own;
+    }
+    for (int a = 0; a < n_; ++a) {
       // A system at zero slip whose side has no finite slope there in x (z = slip^(1/p) with
       // p > 1: dslip/dz = 0; r_s from 0: U(0) infinite) has no column to move it: its row is
       // the unit row, the step leaves it where it is (a scalar start moves it, see
@@ -268,6 +281,7 @@ class ImplicitSolver {
       const double d = it.direction(a);
       Eigen::Matrix<double, 1, 6> dr = d * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
       if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
+      if (idle(it, a)) continue;  // its row is zero at g_a = 0 for any strain (see jacobian)
       j.row(a) = -d * it.g_dr(a) * dr;
       if (it.at_zero(a) != 0.0) continue;
       // B = 0: the row also carries G(0; d), d r0 with r0 at zero own slip.
@@ -280,6 +294,12 @@ class ImplicitSolver {
   }
 
   const VecN& tau_trial() const { return tau_trial_; }
+
+  // No slip, and the residual at zero slip between the two directions' r_s (B = 0): the
+  // system neither slips nor is loaded to.
+  static bool idle(const Iterate<N>& it, int a) {
+    return !it.open(a) && it.x(a) == 0.0 && it.at_zero(a) == 0.0;
+  }
 
   // Newton cannot move a system off zero slip where its slope there is infinite or huge
   // (dr_s/dslip = U(r_s) from r_s = 0 or nearly 0, as after a reversal; dG/dslip with the power
