@@ -80,6 +80,7 @@ class ImplicitSolver {
       // From a small r_s, dr_s/dslip = U(r_s) is infinite (r_s = 0) or huge at zero slip.
       along.steep_start = s0.r_s(a) < kSteepStartRatio;
       against.steep_start = true;
+      mu_without_slip_[static_cast<size_t>(a)] = law.friction_coefficient_after(s0.mu(a), 0.0, dt);
     }
   }
 
@@ -188,9 +189,13 @@ class ImplicitSolver {
     it.mu0(a) = it.mu(a), it.d_mu0(a) = it.d_mu(a), it.fn0(a) = it.fn(a);
     double tau0 = it.tau(a);
     if (own_dgamma != 0.0) {
-      const double own_effective = (ph_.has_latent ? ph_.latent(a, a) : 1.0) * it.slip(a);
-      const auto mu0 = ph_.laws[static_cast<size_t>(a)].friction_coefficient_after(
-          s0_.mu(a), std::max(it.effective(a) - own_effective, 0.0), dt_);
+      // Without latent hardening a system's effective slip is its own, and taking it out leaves
+      // none: mu0 is the step's mu at zero slip, the same at every iterate.
+      const auto mu0 =
+          ph_.has_latent
+              ? ph_.laws[static_cast<size_t>(a)].friction_coefficient_after(
+                    s0_.mu(a), std::max(it.effective(a) - ph_.latent(a, a) * it.slip(a), 0.0), dt_)
+              : mu_without_slip_[static_cast<size_t>(a)];
       it.mu0(a) = mu0.value, it.d_mu0(a) = mu0.d_slip;
       tau0 += ph_.interaction(a, a) * own_dgamma;
       if (ph_.pressure_sensitive) it.fn0(a) -= ph_.normal_interaction(a, a) * own_dgamma;
@@ -467,6 +472,8 @@ class ImplicitSolver {
   int n_;
   VecN tau_trial_, fn_trial_, tau_start_;
   std::array<std::array<SystemStart, 2>, T::MaxN> starts_;  // along, against the start shear
+  // Each system's friction coefficient after the step with no effective slip.
+  std::array<law::ValueAndSlope, T::MaxN> mu_without_slip_;
 };
 
 // j^-1 rhs. Coplanar systems of an open plane have dependent rows (FCC: P_1 + P_2 + P_3 = 0):
