@@ -483,6 +483,34 @@ TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
   fs::remove_all(dir);
 }
 
+// A run stopped before its first flush can leave the grains' weights and initial orientations
+// off the disk while the case's layout is there (a 2-rank run killed early and restarted
+// serially had every one at the fill value). The restart writes them again: here a stopped
+// run's are overwritten with the fill value before it is restarted, and the finished file
+// equals the uninterrupted run's.
+TEST(Restart, RestartWritesTheGrainsWeightsAndOrientationsAgain) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml") << crystal_scene(16, 300,
+                                                     "output:\n  grains: [stress, orientation]\n"
+                                                     "  checkpoint_every: 100000\n");
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "ref.h5", "-q"}, dir / "run.log"), 0)
+      << log_of(dir);
+  // Stopped at once (after the increment in progress), with a checkpoint there.
+  const int code =
+      subslip::testing::run_and_kill_after_file(dir, {"run", "scene.yaml", "-o", "out.h5", "-q"},
+                                                dir / "run.log", dir / "out.h5", 0.0, SIGTERM);
+  ASSERT_EQ(code, 128 + SIGTERM) << log_of(dir);
+  {
+    const h5::File out = h5::File::open_write(dir / "out.h5");
+    const h5::Group grains = out.root().open_group("cases").open_group("base").open_group("grains");
+    grains.open_dataset("weight").write_rows(0, std::vector<double>(16, 0.0));
+    grains.open_dataset("initial_orientation").write_rows(0, std::vector<double>(64, 0.0));
+  }
+  ASSERT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "ref.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
 // Contact cases take milliseconds: an unfinished one is run again from its start.
 TEST(Restart, KilledContactRunRerunsUnfinishedCases) {
   const fs::path dir = scratch_dir();

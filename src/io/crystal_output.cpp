@@ -671,19 +671,29 @@ CrystalResultSink::CrystalResultSink(const CrystalScene& scene, h5::File& file,
       file_(file),
       options_(checked(options, file)),
       run_(options.restart ? reopen(file, options) : lay_out(scene, file, options)) {
-  if (options_.mpi) write_grain_blocks_statics();
+  if (options_.restart) write_grain_statics_again();
 }
 
-// The weights and initial orientations of the grains each rank holds, where the layout could
-// not write them (no process held them all: CrystalCase::orientation_block). Every rank writes
-// its block of every such case, collectively; a restart writes the same values again.
-void CrystalResultSink::write_grain_blocks_statics() {
+// The weights and initial orientations of the grains, written again whenever a file is
+// reopened. Where the layout could not write them (no process held them all:
+// CrystalCase::orientation_block) every rank writes its block of every such case,
+// collectively. Where it did, a run killed before its first flush (the first checkpoint or
+// output row) may have left them off the disk while the case's layout is there: a 2-rank run
+// killed early and restarted serially had every weight and orientation at the fill value
+// (Mpi.RunKilledUnderTwoRanksContinuesUnderOne under load, SUBSLIP_KILL_SEED=2713552083).
+// The values are the scene's, which a restart has checked is the file's.
+void CrystalResultSink::write_grain_statics_again() {
+  const bool writes_all = !options_.mpi || options_.mpi->rank == 0;
   for (const CrystalCase& c : scene_.cases) {
-    if (!c.orientation_block || c.output.grains.empty()) continue;
+    if (c.output.grains.empty()) continue;
     const h5::Group grains = run_.cases.open_group(c.name).open_group("grains");
-    grains.open_dataset("weight").write_rows(c.orientation_block->offset, normalised_weights(c));
+    const bool block = c.orientation_block.has_value();
+    const std::size_t first = block ? c.orientation_block->offset : 0;
+    const bool writes = block || writes_all;  // (under MPI every rank takes part, collectively)
+    grains.open_dataset("weight").write_rows(
+        first, writes ? normalised_weights(c) : std::vector<double>{});
     grains.open_dataset("initial_orientation")
-        .write_rows(c.orientation_block->offset, initial_quaternions(c));
+        .write_rows(first, writes ? initial_quaternions(c) : std::vector<double>{});
   }
 }
 

@@ -132,7 +132,7 @@ class CrystalResultSink final : public driver::CrystalSink {
 
  private:
   void end_case(h5::CaseState state);
-  void write_grain_blocks_statics();
+  void write_grain_statics_again();
   std::optional<parallel::Block> grains_of(std::size_t index) const;  // this process's, if a part
 
   const CrystalScene& scene_;
