@@ -107,16 +107,15 @@ class ImplicitSolver {
 
   void evaluate(const VecN& x, Iterate<N>& it) const {
     it.x = x;
-    for (VecN* v : {&it.slip, &it.dslip_dx, &it.direction, &it.mu, &it.d_mu, &it.rs, &it.d_rs,
-                    &it.r, &it.g_value, &it.g_dr, &it.g_drs, &it.g_dslip, &it.rows, &it.r0, &it.mu0,
-                    &it.d_mu0, &it.fn0, &it.at_zero})
+    for (VecN* v : {&it.slip, &it.dgamma, &it.dslip_dx, &it.direction, &it.mu, &it.d_mu, &it.rs,
+                    &it.d_rs, &it.r, &it.g_value, &it.g_dr, &it.g_drs, &it.g_dslip, &it.rows,
+                    &it.r0, &it.mu0, &it.d_mu0, &it.fn0, &it.at_zero})
       v->resize(n_);  // every entry is set below, an inadmissible system's too
     for (int a = 0; a < n_; ++a) {
       it.slip(a) = slip_of(a, x(a));
       const double p = start(a, 1.0).exponent;
       it.dslip_dx(a) = p == 1.0 ? 1.0 : p * std::pow(std::abs(x(a)), p - 1.0);
     }
-    it.dgamma.resize(n_);
     for (int a = 0; a < n_; ++a) it.dgamma(a) = x(a) < 0.0 ? -it.slip(a) : it.slip(a);
     const VecN& dgamma = it.dgamma;
     it.tau = tau_trial_ - ph_.interaction * dgamma;
@@ -182,6 +181,12 @@ class ImplicitSolver {
     return true;
   }
 
+  // System a's effective slip with its own slip taken out (the others' as they are).
+  double others_effective(int a, const Iterate<N>& it) const {
+    const double own = (ph_.has_latent ? ph_.latent(a, a) : 1.0) * it.slip(a);
+    return std::max(it.effective(a) - own, 0.0);
+  }
+
   // System a with its own slip taken out (the others' as they are): mu0, fn0, r0 and the
   // residual's value there, B = mid(H-(0), 0, H+(0)) = -(r0 - r_s+(0)) where r0 exceeds the
   // positive direction's r_s, -r0 - r_s-(0) where -r0 exceeds the negative one's, 0 in between.
@@ -191,11 +196,9 @@ class ImplicitSolver {
     if (own_dgamma != 0.0) {
       // Without latent hardening a system's effective slip is its own, and taking it out leaves
       // none: mu0 is the step's mu at zero slip, the same at every iterate.
-      const auto mu0 =
-          ph_.has_latent
-              ? ph_.laws[static_cast<size_t>(a)].friction_coefficient_after(
-                    s0_.mu(a), std::max(it.effective(a) - ph_.latent(a, a) * it.slip(a), 0.0), dt_)
-              : mu_without_slip_[static_cast<size_t>(a)];
+      const auto mu0 = ph_.has_latent ? ph_.laws[static_cast<size_t>(a)].friction_coefficient_after(
+                                            s0_.mu(a), others_effective(a, it), dt_)
+                                      : mu_without_slip_[static_cast<size_t>(a)];
       it.mu0(a) = mu0.value, it.d_mu0(a) = mu0.d_slip;
       tau0 += ph_.interaction(a, a) * own_dgamma;
       if (ph_.pressure_sensitive) it.fn0(a) -= ph_.normal_interaction(a, a) * own_dgamma;
@@ -238,7 +241,7 @@ class ImplicitSolver {
         j.row(a) = ph_.interaction.row(a) / (it.mu(a) * ph_.tau0(a));
         continue;
       }
-      if (it.at_zero(a) != 0.0) continue;
+      if (it.at_zero(a) != 0.0 || idle(it, a)) continue;  // (an idle row is dropped below)
       // B = 0: + dr0_a/dg_b for b != a.
       const double r0 = it.r0(a), mu0 = it.mu0(a), fn0 = it.fn0(a);
       for (int b = 0; b < n_; ++b) {
@@ -283,10 +286,10 @@ class ImplicitSolver {
         j.row(a) = -ph_.c_schmid.col(a).transpose() / (it.mu(a) * ph_.tau0(a));
         continue;
       }
+      if (idle(it, a)) continue;  // its row is zero at g_a = 0 for any strain (see jacobian)
       const double d = it.direction(a);
       Eigen::Matrix<double, 1, 6> dr = d * ph_.c_schmid.col(a).transpose() / (it.mu(a) * it.fn(a));
       if (ph_.pressure_sensitive) dr += it.r(a) / it.fn(a) * ph_.c_normal_dyad.col(a).transpose();
-      if (idle(it, a)) continue;  // its row is zero at g_a = 0 for any strain (see jacobian)
       j.row(a) = -d * it.g_dr(a) * dr;
       if (it.at_zero(a) != 0.0) continue;
       // B = 0: the row also carries G(0; d), d r0 with r0 at zero own slip.
@@ -338,8 +341,7 @@ class ImplicitSolver {
     const double fn = it.fn0(a);
     // Shear on a (signed along d) and effective slip with a's own slip taken out.
     const double tau_free = d * (it.tau(a) + stiffness * it.dgamma(a));
-    const double own_effective = (ph_.has_latent ? ph_.latent(a, a) : 1.0) * it.slip(a);
-    const double effective_other = std::max(it.effective(a) - own_effective, 0.0);
+    const double effective_other = others_effective(a, it);
     if (!(tau_free > 0.0)) return 0.0;
     const SystemStart& st = start(a, d);
     const double p = st.exponent;
@@ -393,18 +395,13 @@ class ImplicitSolver {
       const int bad = it.bad_system;
       if (bad >= 0 && (!(it.fn(bad) > 0.0) || !(it.fn0(bad) > 0.0) || !(it.mu(bad) > 0.0)))
         return false;
-      // The iterate's values stop at the first inadmissible system; those after it are
-      // pushed from their own loading ratio.
+      // Every system's values are set, an inadmissible one's too (evaluate_system).
       for (int a = 0; a < n_; ++a) {
-        const auto& law = ph_.laws[static_cast<size_t>(a)];
-        const auto& o = law.parameters().overstress;
+        const auto& o = ph_.laws[static_cast<size_t>(a)].parameters().overstress;
         if (o.form == law::OverstressForm::rate_independent) continue;
-        const double d = x(a) != 0.0 ? sign_of(x(a)) : sign_of(it.tau(a));
-        const double mu = law.friction_coefficient_after(s0_.mu(a), it.effective(a), dt_).value;
-        const double fn = it.fn(a);
+        const double d = it.direction(a), mu = it.mu(a), fn = it.fn(a);
         if (!(mu > 0.0) || !(fn > 0.0) || d * it.tau(a) / (mu * fn) < o.r_hat) continue;
-        const double rs = law.subloading_ratio_after(start(a, d).subloading, it.slip(a)).value;
-        const double target = 0.5 * (rs + o.r_hat);
+        const double target = 0.5 * (it.rs(a) + o.r_hat);
         const double more = (d * it.tau(a) - target * mu * fn) / ph_.interaction(a, a);
         x(a) = unknown_of(a, d, it.slip(a) + more);
       }
