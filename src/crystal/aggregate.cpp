@@ -94,6 +94,25 @@ Eigen::VectorXd least_change_step(const Eigen::MatrixXd& jac, const Eigen::Vecto
   return svd.matrixV() * along;
 }
 
+// The change of the free components of L that removes the free-stress residual r to first
+// order (Newton's change, -jac^-1 r), along the directions in which the stresses determine L:
+// where a singular value s_i of the Jacobian is so small that a change as large as L itself
+// (its largest entry) moves the stresses by no more than the tolerance, the tolerance leaves L
+// along that direction undetermined to better than its own size, and it is not changed (at a
+// yield vertex of a single crystal s_i / s_max reaches 1e-11; Newton's change along such a
+// direction is what took the lateral flow to a far branch: docs/internals.md, "Mixed control").
+Eigen::VectorXd error_correction(const Eigen::MatrixXd& jac, const Eigen::VectorXd& r,
+                                 double tolerance, const Mat3& l) {
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::VectorXd c = svd.matrixU().transpose() * r;
+  const Eigen::VectorXd& s = svd.singularValues();
+  const double size = l.cwiseAbs().maxCoeff();
+  Eigen::VectorXd along = Eigen::VectorXd::Zero(s.size());
+  for (int i = 0; i < s.size(); ++i)
+    if (s(i) * size > tolerance) along(i) = -c(i) / s(i);
+  return svd.matrixV() * along;
+}
+
 // d(Mandel strain increment)/du_k per unit dt.
 Vec6 strain_direction(const FreeComponent& c) {
   Vec6 e = Vec6::Zero();
@@ -202,7 +221,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     c.macro = macro_;
     c.segment_start_stress = cursor_.stress_start;
     c.free_velocity_gradient = cursor_.free;
-    c.free_velocity_gradient_trend = cursor_.free_trend;
+    c.free_velocity_gradient_trend = cursor_.path.trend;
+    c.free_velocity_gradient_path = cursor_.path.value;
+    c.free_strain_correction = cursor_.path.correction;
     c.trend_step = trend_step_;
     c.stats = stats_;
     c.stats.wall_seconds = wall_seconds();
@@ -245,22 +266,38 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     trend_step_ = c.trend_step;
     stats_ = c.stats;
     wall_before_ = c.stats.wall_seconds;
-    cursor_ = {c.position, c.segment_start_stress, c.free_velocity_gradient,
-               c.free_velocity_gradient_trend, c.position.increment > 0};
+    cursor_ = {c.position,
+               c.segment_start_stress,
+               c.free_velocity_gradient,
+               {c.free_velocity_gradient_trend, c.free_velocity_gradient_path,
+                c.free_strain_correction, c.position.increment > 0}};
   }
 
  private:
+  // The path of the free components of L that a step's mixed-control iteration starts from
+  // (MixedPredictor::trend, continued_free). A step accepts free stresses within the tolerance,
+  // and the state it commits carries that error into the next step, whose targets are absolute:
+  // the L that meets them differs from the path by the error's first-order correction. So the
+  // trend is taken along the path (each step's L corrected by its error and by the error it
+  // inherited: path = u + (correction - previous correction) / dt), not along the accepted L,
+  // and a step starts from the path continued plus the correction of the error it inherits.
+  // Along the accepted L the errors were continued too: with a tolerance the first solve meets,
+  // they grew as the steps went (a third-order recursion), and the free L oscillated by 2 % of
+  // its value (docs/internals.md, "Mixed control").
+  struct FreePath {
+    Eigen::VectorXd trend;       // the path's change per unit time over the last step (1/s^2)
+    Eigen::VectorXd value;       // the path at the last committed step (1/s)
+    Eigen::VectorXd correction;  // strain that removes the last step's free-stress error
+    bool from_step = false;      // whether value is a committed step's (of this segment)
+  };
+
   // What the run loops carry between increments besides the grains and macro_: kept here so that
   // checkpoint() can see it from RunControl::after_increment.
   struct Cursor {
     RunPosition position;
     Mat3 stress_start = Mat3::Zero();
     Eigen::VectorXd free;
-    // The free components' change per unit time over the segment's last committed step (zero
-    // until the segment has two): a step's mixed-control iteration starts from free continued
-    // along it (try_step).
-    Eigen::VectorXd free_trend;
-    bool free_from_step = false;  // whether `free` is a committed step's (of this segment)
+    FreePath path;
   };
 
   double wall_seconds() const {
@@ -279,8 +316,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     if (resume != nullptr) {
       cursor_.stress_start = resume->segment_start_stress;
       cursor_.free = resume->free_velocity_gradient;
-      cursor_.free_trend = resume->free_velocity_gradient_trend;
-      cursor_.free_from_step = resume->position.increment > 0;
+      cursor_.path = {resume->free_velocity_gradient_trend, resume->free_velocity_gradient_path,
+                      resume->free_strain_correction, resume->position.increment > 0};
       return;
     }
     cursor_.stress_start = macro_.stress;
@@ -289,9 +326,12 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         for (int j = 0; j < 3; ++j)
           if (previous->free(i, j)) cursor_.stress_start(i, j) = previous->stress_target(i, j);
     cursor_.free = elastic_free_start(seg, fc, cursor_.stress_start);
-    // The loading has just changed: no trend carries over from the last segment.
-    cursor_.free_trend = Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
-    cursor_.free_from_step = false;
+    // The loading has just changed: no trend carries over from the last segment, and its
+    // targets start from the last one's, not from the stresses reached.
+    cursor_.path.trend.setZero(static_cast<int>(fc.size()));
+    cursor_.path.value = cursor_.free;
+    cursor_.path.correction.setZero(static_cast<int>(fc.size()));
+    cursor_.path.from_step = false;
   }
 
   // Where a segment's mixed-control iteration starts: the free components of L for which the
@@ -337,18 +377,25 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // active sets, or an L the stresses hardly determine, as in nearly ideal plasticity, which
   // changes by jumps), so there is no trend to continue until two steps have committed again.
   void forget_free_trend() {
-    cursor_.free_trend.setZero();
-    cursor_.free_from_step = false;
+    cursor_.path.trend.setZero();
+    cursor_.path.correction.setZero();
+    cursor_.path.from_step = false;
   }
 
-  // Records a committed step of dt that took the free components from `before` to `after`: their
-  // trend is the change per unit time where `before` was a committed step's too.
-  void record_free_step(const Eigen::VectorXd& before, const Eigen::VectorXd& after, double dt) {
-    if (cursor_.free_from_step)
-      cursor_.free_trend = (after - before) / dt;
+  // Records a committed step of dt that took the free components to `after`, `correction` (a
+  // strain) from removing its free-stress error to first order: the path's trend is its change
+  // per unit time where the last value was a committed step's too (FreePath).
+  void record_free_step(const Eigen::VectorXd& after, const Eigen::VectorXd& correction,
+                        double dt) {
+    FreePath& p = cursor_.path;
+    const Eigen::VectorXd value = after + (correction - p.correction) / dt;
+    if (p.from_step)
+      p.trend = (value - p.value) / dt;
     else
-      cursor_.free_trend.setZero(after.size());
-    cursor_.free_from_step = true;
+      p.trend.setZero(after.size());
+    p.value = value;
+    p.correction = correction;
+    p.from_step = true;
   }
 
   // The prescribed stresses at `progress` (0 .. 1) through a segment: ramped linearly from the
@@ -454,7 +501,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         continue;
       }
       const bool last = clock.last();
-      record_free_step(u, u_try, h);
+      // (An extrapolated step combines several solves: no one step's error to correct.)
+      record_free_step(u_try, extrapolated ? zero_correction(fc) : step_correction_, h);
       u = u_try;
       if (extrapolated) {
         std::swap(committed_, trial_);
@@ -539,12 +587,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const Eigen::VectorXd u_start = u;
     // Every solution starts from the step's free trend; its substeps carry their own on (the
     // run loop records the accepted step's).
-    const Eigen::VectorXd trend_start = cursor_.free_trend;
-    const bool from_step_start = cursor_.free_from_step;
-    auto restore_trend = [&] {
-      cursor_.free_trend = trend_start;
-      cursor_.free_from_step = from_step_start;
-    };
+    const FreePath path_start = cursor_.path;
+    auto restore_trend = [&] { cursor_.path = path_start; };
     const double t0 = clock.time();
     const double t1 = clock.end_time();
     bool ok = true;
@@ -558,10 +602,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       for (int i = 1; i <= j && ok; ++i) {
         const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
         const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
-        const Eigen::VectorXd before = u;
         ok = try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u, opt, why);
         if (ok) {
-          record_free_step(before, u, end - t);
+          record_free_step(u, step_correction_, end - t);
           commit(seg, fc, u, end - t);
         }
         t = end;
@@ -732,9 +775,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       todo.pop_back();
       const double progress = std::min(1.0, (t_local + p.dt) / seg.duration);
       std::string why;
-      const Eigen::VectorXd before = u;
       if (try_step(seg, fc, stress_target_at(seg, stress_start, progress), p.dt, u, opt, why)) {
-        record_free_step(before, u, p.dt);
+        record_free_step(u, step_correction_, p.dt);
         commit(seg, fc, u, p.dt);
         t_local += p.dt;
         ++stats_.substeps;
@@ -1118,6 +1160,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // components before it is cut back.
   bool try_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
                 double dt, Eigen::VectorXd& u, const AggregateOptions& opt, std::string& why) {
+    step_correction_ = zero_correction(fc);
     if (fc.empty()) return solve_grains(seg.velocity_gradient, dt, false, opt, why);
     if (opt.predictor == MixedPredictor::last)
       return solve_free_components(seg, fc, target, dt, u, opt, why);
@@ -1132,12 +1175,19 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     return true;
   }
 
-  // The free components u continued along their trend over dt; one whose continued value would
-  // change sign (or start from zero) keeps its value, as the grains' continued slip rates do
+  static Eigen::VectorXd zero_correction(const std::vector<FreeComponent>& fc) {
+    return Eigen::VectorXd::Zero(static_cast<int>(fc.size()));
+  }
+
+  // The free components' path continued along its trend over dt, plus the correction of the
+  // free-stress error the step inherits (FreePath); a component whose start would change sign
+  // from u (or start from zero) keeps its value u, as the grains' continued slip rates do
   // (continued_rates): a component relaxing towards zero, as the lateral L of a hold does, over
   // steps longer than its relaxation would be carried past zero.
   Eigen::VectorXd continued_free(const Eigen::VectorXd& u, double dt) const {
-    Eigen::VectorXd start = u + cursor_.free_trend * dt;
+    const FreePath& p = cursor_.path;
+    Eigen::VectorXd start =
+        p.from_step ? Eigen::VectorXd(p.value + p.trend * dt + p.correction / dt) : u;
     for (int k = 0; k < start.size(); ++k)
       if (!(start(k) * u(k) > 0.0)) start(k) = u(k);
     return start;
@@ -1172,6 +1222,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       const StressResolution resolution = stress_resolution(it.l, dt, opt);
       if (it.residual.size <= std::max(tolerance, resolution.round_off)) {
         u = it.u;
+        step_correction_ = dt * error_correction(jacobian, it.residual.value, tolerance, it.l);
         return true;
       }
       if (iteration == opt.max_mixed_iterations || budget == 0) break;
@@ -1211,6 +1262,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         // its last trial in them).
         if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why)) return false;
         u = it.u;
+        step_correction_ = dt * error_correction(jacobian, it.residual.value, tolerance, it.l);
         return true;
       }
       // Near the tolerance the stress can be noisier than grain_noise says (measured at G/tau0
@@ -1317,6 +1369,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   const parallel::Team& team_;
   size_t offset_ = 0;  // of this rank's grains in the aggregate
   size_t total_ = 0;   // grains of the aggregate (over the team)
+  // The strain along the free components that removes the free-stress error of the last step
+  // try_step solved, to first order (zero where it solved none: FreePath).
+  Eigen::VectorXd step_correction_;
   std::vector<GrainState<N>> committed_, trial_;
   std::vector<Tangent> tangents_;
   std::vector<GrainStepReport> reports_;

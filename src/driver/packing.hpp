@@ -57,7 +57,7 @@ class Packed {
     put(c.macro);
     put(c.segment_start_stress);
     put_integer(c.free_velocity_gradient.size());
-    for (const Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend})
+    for (const Eigen::VectorXd* free : c.free_vectors())
       for (int k = 0; k < free->size(); ++k) put((*free)(k));
     put(c.stats);
     put_integer(c.values_per_grain);
@@ -111,7 +111,7 @@ class Unpacked {
     get(c.macro);
     get(c.segment_start_stress);
     const auto free_count = integer();
-    for (Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend}) {
+    for (Eigen::VectorXd* free : c.free_vectors()) {
       free->resize(free_count);
       for (int k = 0; k < free->size(); ++k) (*free)(k) = real();
     }

@@ -28,6 +28,9 @@ std::vector<std::string> value_names() {
   for (const char* m : {"L", "F", "strain", "stress", "segment_start_stress"}) matrix(m);
   for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_" + std::to_string(k));
   for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_trend_" + std::to_string(k));
+  for (int k = 1; k <= kMaxFree; ++k) names.emplace_back("free_L_path_" + std::to_string(k));
+  for (int k = 1; k <= kMaxFree; ++k)
+    names.emplace_back("free_strain_correction_" + std::to_string(k));
   // (emplace_back: GCC 12's -Warray-bounds misreads push_back of this literal at -O2.)
   names.emplace_back("last_output_time");
   for (const char* m :
@@ -75,7 +78,7 @@ std::vector<double> pack_values(const crystal::AggregateCheckpoint& c,
   put(v, c.macro.strain);
   put(v, c.macro.stress);
   put(v, c.segment_start_stress);
-  for (const Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend})
+  for (const Eigen::VectorXd* free : c.free_vectors())
     for (int k = 0; k < kMaxFree; ++k) v.push_back(k < free->size() ? (*free)(k) : std::nan(""));
   v.push_back(last.time);
   put(v, last.velocity_gradient);
@@ -123,7 +126,7 @@ StoredCheckpoint unpack(const std::vector<double>& values, const std::vector<lon
   c.macro.strain = take(p);
   c.macro.stress = take(p);
   c.segment_start_stress = take(p);
-  for (Eigen::VectorXd* free : {&c.free_velocity_gradient, &c.free_velocity_gradient_trend}) {
+  for (Eigen::VectorXd* free : c.free_vectors()) {
     free->resize(static_cast<int>(n[3]));
     for (int k = 0; k < kMaxFree; ++k, ++p) {
       if (k < n[3]) (*free)(k) = *p;

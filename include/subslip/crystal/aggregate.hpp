@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <memory>
 #include <stdexcept>
@@ -143,10 +144,15 @@ constexpr int checkpoint_values_per_grain(int slip_count) {
 // the results of the uninterrupted run bit for bit. A plain value (the I/O layer stores it).
 struct AggregateCheckpoint {
   RunPosition position;
-  MacroState macro;                              // the current state (not necessarily an output)
-  Mat3 segment_start_stress = Mat3::Zero();      // where the segment's stress ramp starts
-  Eigen::VectorXd free_velocity_gradient;        // mixed control: the free components of L
-  Eigen::VectorXd free_velocity_gradient_trend;  // their change per unit time over the last step
+  MacroState macro;                          // the current state (not necessarily an output)
+  Mat3 segment_start_stress = Mat3::Zero();  // where the segment's stress ramp starts
+  Eigen::VectorXd free_velocity_gradient;    // mixed control: the free components of L
+  // Their predictor's state (MixedPredictor::trend): the change per unit time (1/s^2) of the
+  // path they follow without the free-stress errors the steps accepted, that path at the last
+  // step (1/s), and the strain along them that removes the last step's error to first order.
+  Eigen::VectorXd free_velocity_gradient_trend;
+  Eigen::VectorXd free_velocity_gradient_path;
+  Eigen::VectorXd free_strain_correction;
   double trend_step = 0.0;   // the step the grains' slip-rate trend was taken over (0: none yet)
   AggregateStats stats;      // counters so far; wall_seconds over all sessions
   int values_per_grain = 0;  // checkpoint_values_per_grain(N)
@@ -154,6 +160,16 @@ struct AggregateCheckpoint {
   // r_s, slip, slip rate, slip-rate trend (the rate's change per unit time over the last
   // step) and the trend's change per unit time since the step before, N each.
   std::vector<double> grains;
+
+  // The mixed-control vectors, in the order they are stored (one entry per free component).
+  std::array<const Eigen::VectorXd*, 4> free_vectors() const {
+    return {&free_velocity_gradient, &free_velocity_gradient_trend, &free_velocity_gradient_path,
+            &free_strain_correction};
+  }
+  std::array<Eigen::VectorXd*, 4> free_vectors() {
+    return {&free_velocity_gradient, &free_velocity_gradient_trend, &free_velocity_gradient_path,
+            &free_strain_correction};
+  }
 };
 
 struct RunControl {
