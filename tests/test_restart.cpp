@@ -240,6 +240,8 @@ crystal::AggregateCheckpoint numbered_checkpoint(long k, std::size_t grains, int
   c.segment_start_stress.setConstant(x + 0.5);
   c.free_velocity_gradient = Eigen::VectorXd::Constant(2, x + 0.6);
   c.free_velocity_gradient_trend = Eigen::VectorXd::Constant(2, x + 0.8);
+  c.free_velocity_gradient_path = Eigen::VectorXd::Constant(2, x + 0.9);
+  c.free_strain_correction = Eigen::VectorXd::Constant(2, x + 1.1);
   c.stats.increments = k;
   c.stats.substeps = k + 1;
   c.stats.grain_steps = k + 2;
@@ -268,6 +270,8 @@ void expect_numbered(const StoredCheckpoint& s, std::size_t grains, int per_grai
   EXPECT_EQ(s.state.segment_start_stress, expected.segment_start_stress);
   EXPECT_EQ(s.state.free_velocity_gradient, expected.free_velocity_gradient);
   EXPECT_EQ(s.state.free_velocity_gradient_trend, expected.free_velocity_gradient_trend);
+  EXPECT_EQ(s.state.free_velocity_gradient_path, expected.free_velocity_gradient_path);
+  EXPECT_EQ(s.state.free_strain_correction, expected.free_strain_correction);
   EXPECT_EQ(s.state.stats.mixed_iterations, k + 7);
   EXPECT_EQ(s.state.stats.wall_seconds, x + 0.7);
   EXPECT_EQ(s.state.grains, expected.grains);
