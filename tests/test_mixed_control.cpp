@@ -98,6 +98,18 @@ double worst_free_stress(const MixedRun& r) {
   return worst;
 }
 
+// Copper (CRSS tau0 = 20 MPa, G/tau0 = 3770) in tension at 1e-3 /s for 30 s in `increments`
+// steps, the lateral stresses free at zero.
+MixedRun copper_tension(const std::vector<crystal::Orientation>& orientations, int increments,
+                        const crystal::AggregateOptions& opt) {
+  auto agg = crystal::build_taylor_aggregate(subslip::testing::copper_phase(20.0), orientations);
+  subslip::testing::GrainRecorder rec;
+  MixedRun out;
+  out.stats = agg->run({uniaxial(1e-3, 30.0, increments)}, opt, rec.observer());
+  out.snaps = std::move(rec.snaps);
+  return out;
+}
+
 }  // namespace
 
 TEST(MixedControl, StiffGrainsWithStrainStepsOf1e2ThroughALoadToHoldSwitch) {
@@ -158,18 +170,13 @@ TEST(MixedControl, TrendPredictorGivesTheSameStressesWithFewerGrainIterations) {
   constexpr double tau0 = 20.0;
   constexpr int increments = 300;
   auto solve = [&](crystal::MixedPredictor predictor) {
-    auto agg = crystal::build_taylor_aggregate(
-        subslip::testing::copper_phase(tau0),
-        {crystal::single_crystal_orientation(crystal::Vec3(-1, 2, 3), crystal::Vec3(3, 0, 1)),
-         crystal::single_crystal_orientation(crystal::Vec3(1, 1, 4), crystal::Vec3(1, -1, 0)),
-         crystal::single_crystal_orientation(crystal::Vec3(0, 1, 2), crystal::Vec3(1, 0, 0))});
     crystal::AggregateOptions opt;
     opt.predictor = predictor;
-    subslip::testing::GrainRecorder rec;
-    MixedRun out;
-    out.stats = agg->run({uniaxial(1e-3, 30.0, increments)}, opt, rec.observer());
-    out.snaps = std::move(rec.snaps);
-    return out;
+    return copper_tension(
+        {crystal::single_crystal_orientation(crystal::Vec3(-1, 2, 3), crystal::Vec3(3, 0, 1)),
+         crystal::single_crystal_orientation(crystal::Vec3(1, 1, 4), crystal::Vec3(1, -1, 0)),
+         crystal::single_crystal_orientation(crystal::Vec3(0, 1, 2), crystal::Vec3(1, 0, 0))},
+        increments, opt);
   };
   const MixedRun last = solve(crystal::MixedPredictor::last);
   const MixedRun trend = solve(crystal::MixedPredictor::trend);
@@ -206,19 +213,12 @@ TEST(MixedControl, TrendPredictorGivesTheSameStressesWithFewerGrainIterations) {
 // step, 3.2 times the tight run's grain iterations).
 TEST(MixedControl, TrendAtALooseToleranceFollowsTheTightPathInOneSweepPerStep) {
   const subslip::testing::SingleThread one;
-  constexpr double tau0 = 20.0;
   constexpr int increments = 300;
   auto solve = [&](double stress_tolerance) {
-    auto agg = crystal::build_taylor_aggregate(subslip::testing::copper_phase(tau0),
-                                               crystal::random_orientations(100, 11));
     crystal::AggregateOptions opt;
     opt.predictor = crystal::MixedPredictor::trend;
     opt.stress_tolerance = stress_tolerance;
-    subslip::testing::GrainRecorder rec;
-    MixedRun out;
-    out.stats = agg->run({uniaxial(1e-3, 30.0, increments)}, opt, rec.observer());
-    out.snaps = std::move(rec.snaps);
-    return out;
+    return copper_tension(crystal::random_orientations(100, 11), increments, opt);
   };
   constexpr double loose_tolerance = 1e-4;
   const MixedRun tight = solve(1e-10);
