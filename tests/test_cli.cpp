@@ -384,6 +384,33 @@ TEST(Cli, ProgressStaysOneLineOnAnEightyColumnTerminal) {
   fs::remove_all(dir);
 }
 
+// `subslip bench` says the mixed-control inputs it ran with and takes the stress tolerance: at one
+// the first sweep meets (1e-4 with the trend predictor) an FCC aggregate takes fewer grain solves
+// per step than at the default (1e-10); a tolerance that is not positive is refused.
+TEST(Cli, BenchTakesTheStressTolerance) {
+  const fs::path dir = scratch_dir();
+  auto bench = [&](const std::string& extra) {
+    const Outcome o = run(
+        dir, "bench --grains 50 --steps 40 --threads 1 --lattice fcc --predictor trend" + extra);
+    EXPECT_EQ(o.code, 0) << o.err;
+    // The fcc row: phase, slips, grains, threads, gsteps/s, newton, solves/step, ...
+    const auto row = o.out.find("\nfcc ");
+    std::istringstream in(row == std::string::npos ? std::string() : o.out.substr(row + 1));
+    std::string phase, slips, grains, threads, rate, newton;
+    double solves = 0.0;
+    in >> phase >> slips >> grains >> threads >> rate >> newton >> solves;
+    return std::pair{o.out, solves};
+  };
+  const auto [tight_out, tight] = bench("");
+  const auto [loose_out, loose] = bench(" --stress-tolerance 1e-4");
+  EXPECT_TRUE(contains(tight_out, "predictor trend, stress_tolerance 1e-10")) << tight_out;
+  EXPECT_TRUE(contains(loose_out, "stress_tolerance 0.0001")) << loose_out;
+  EXPECT_GT(loose, 0.0) << loose_out;
+  EXPECT_LT(loose, tight) << tight_out << loose_out;
+  EXPECT_NE(run(dir, "bench --stress-tolerance 0").code, 0);
+  fs::remove_all(dir);
+}
+
 // The tables of `subslip run` (contact and crystal, long case names cut in the middle), of
 // `subslip bench` and the summary of `subslip post` fit 80 columns, units in the headers.
 TEST(Cli, TablesFitEightyColumns) {

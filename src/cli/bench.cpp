@@ -64,14 +64,21 @@ void add_bench_command(CLI::App& app, BenchArgs& a) {
   cmd->add_option("--predictor", a.predictor,
                   "mixed control's start: last or trend (as the integrator key `predictor`)")
       ->check(CLI::IsMember({"last", "trend"}));
+  cmd->add_option("--stress-tolerance", a.stress_tolerance,
+                  "mixed control's free-stress tolerance, relative to the stress scale (as the "
+                  "integrator key `stress_tolerance`)")
+      ->check(cli::positive());
 }
 
 int run_bench(const BenchArgs& a) {
   const io::text::Table t = bench_table(a);
+  std::printf("mixed control: predictor %s, stress_tolerance %g (relative)\n", a.predictor.c_str(),
+              a.stress_tolerance);
   std::printf("%s\n", t.header().c_str());
   const auto grains = random_orientations(static_cast<size_t>(a.grains), 20000);
   AggregateOptions options;
   options.predictor = a.predictor == "trend" ? MixedPredictor::trend : MixedPredictor::last;
+  options.stress_tolerance = a.stress_tolerance;
   for (const auto& lattice : a.lattices) {
     for (int threads : a.threads) {
       omp_set_num_threads(threads);

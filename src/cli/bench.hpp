@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "subslip/crystal/aggregate.hpp"
 #include "subslip/study/bench_phase.hpp"
 
 namespace subslip::cli {
@@ -15,6 +16,8 @@ struct BenchArgs {
   std::vector<int> threads{1, 2};
   std::vector<std::string> lattices = study::bench_lattices();
   std::string predictor = "last";  // mixed control's start (integrator key `predictor`)
+  // Mixed control's tolerance on the free stresses, relative (integrator key `stress_tolerance`).
+  double stress_tolerance = crystal::AggregateOptions{}.stress_tolerance;
 };
 
 void add_bench_command(CLI::App& app, BenchArgs& args);
