@@ -51,6 +51,16 @@ Mat3 symmetric_part(const Mat3& l) {
   return 0.5 * (l + l.transpose());
 }
 
+// The free-stress Jacobian's singular value decomposition J = U S V^T and the residual r in its
+// left singular basis, U^T r: both corrections below act on r one singular direction at a time.
+struct SingularBasis {
+  SingularBasis(const Eigen::MatrixXd& jac, const Eigen::VectorXd& r)
+      : svd(jac, Eigen::ComputeFullU | Eigen::ComputeFullV),
+        residual(svd.matrixU().transpose() * r) {}
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd;
+  Eigen::VectorXd residual;
+};
+
 // The least change d of the free components of L whose linearised residual r + J d is at most
 // `allowed` (2-norm): argmin |d| subject to |r + J d| <= allowed, the Tikhonov step
 // d = -(J^T J + lambda I)^-1 J^T r with lambda where the bound is met (Morozov's discrepancy
@@ -62,9 +72,9 @@ Mat3 symmetric_part(const Mat3& l) {
 // the stresses do not determine it.
 Eigen::VectorXd least_change_step(const Eigen::MatrixXd& jac, const Eigen::VectorXd& r,
                                   double allowed) {
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::VectorXd c = svd.matrixU().transpose() * r;
-  const Eigen::VectorXd& s = svd.singularValues();
+  const SingularBasis basis(jac, r);
+  const Eigen::VectorXd& c = basis.residual;
+  const Eigen::VectorXd& s = basis.svd.singularValues();
   // The residual left by the step of parameter lambda: components c_i lambda / (s_i^2 + lambda).
   const auto left = [&](double lambda) {
     double sum = 0.0;
@@ -91,7 +101,7 @@ Eigen::VectorXd least_change_step(const Eigen::MatrixXd& jac, const Eigen::Vecto
   Eigen::VectorXd along(s.size());
   for (int i = 0; i < s.size(); ++i)
     along(i) = s(i) > 0.0 ? -s(i) * c(i) / (s(i) * s(i) + lambda) : 0.0;
-  return svd.matrixV() * along;
+  return basis.svd.matrixV() * along;
 }
 
 // The change of the free components of L that removes the free-stress residual r to first
@@ -103,14 +113,14 @@ Eigen::VectorXd least_change_step(const Eigen::MatrixXd& jac, const Eigen::Vecto
 // direction is what took the lateral flow to a far branch: docs/internals.md, "Mixed control").
 Eigen::VectorXd error_correction(const Eigen::MatrixXd& jac, const Eigen::VectorXd& r,
                                  double tolerance, const Mat3& l) {
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::VectorXd c = svd.matrixU().transpose() * r;
-  const Eigen::VectorXd& s = svd.singularValues();
+  const SingularBasis basis(jac, r);
+  const Eigen::VectorXd& c = basis.residual;
+  const Eigen::VectorXd& s = basis.svd.singularValues();
   const double size = l.cwiseAbs().maxCoeff();
   Eigen::VectorXd along = Eigen::VectorXd::Zero(s.size());
   for (int i = 0; i < s.size(); ++i)
     if (s(i) * size > tolerance) along(i) = -c(i) / s(i);
-  return svd.matrixV() * along;
+  return basis.svd.matrixV() * along;
 }
 
 // d(Mandel strain increment)/du_k per unit dt.
