@@ -835,6 +835,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
             .cwiseQuotient(tangent_directions_.colwise().squaredNorm().transpose());
     GrainStepOptions grain_options = opt.grain;
     grain_options.tangent_directions = tangent_directions_;
+    GrainStepOptions grain_options_first_try = grain_options;
+    grain_options_first_try.continuation = false;
     solved_.valid = false;
     std::array<parallel::ExactSum, 6> stress_sum;
 #pragma omp parallel if (n > 1)
@@ -845,8 +847,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         const auto gi = static_cast<size_t>(g);
         Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
         if (implicit) {
-          solve_implicit_grain(gi, l, dt, grain_options, t, warm, carried, slip_tangent,
-                               direction_change);
+          solve_implicit_grain(gi, l, dt, grain_options, grain_options_first_try, t, warm, carried,
+                               slip_tangent, direction_change);
         } else {
           reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
           if (t) *t = (*t * tangent_directions_).eval();
@@ -876,8 +878,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // Grain gi's implicit step (solve_grains): from its own start (continued rates, or the warm
   // rates carried by its slip tangent), then, should that fail, from its committed rates.
   void solve_implicit_grain(
-      size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options, Tangent* t,
-      bool warm, bool carried, bool slip_tangent,
+      size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options,
+      const GrainStepOptions& grain_options_first_try, Tangent* t, bool warm, bool carried,
+      bool slip_tangent,
       const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>& direction_change) {
     GrainStepReport& rep = reports_[gi];
     SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
@@ -891,7 +894,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     // (A start other than the committed rates gets a second try from them.)
     const bool own_start = carried || !warm;
     const bool other_start = warm || start != committed_[gi].rate;
-    rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
+    // The continuation in the strain increment (the semismooth step's last resort) only on
+    // the last try: a second start mostly converges at once.
+    rep = implicit_grain_step(phase_, committed_[gi], l, dt,
+                              other_start ? grain_options_first_try : grain_options, trial_[gi], t,
                               own_start ? &start : &warm_[gi], st);
     if (!rep.ok && other_start) {
       const int spent = rep.iterations;

@@ -531,42 +531,27 @@ NewtonStep<N> newton_step(const typename SlipTypes<N>::MatNN& j, const Iterate<N
   return out;
 }
 
-}  // namespace
-
+// Newton's iteration on the merit 1/2 |rows|^2 from x at the trial stress of `solver`: whether
+// it ends on a root of the rows that is on the law's flow rules (then `it` holds it). Its
+// iterations are added to the report, which names why where it does not converge.
 template <int N>
-GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
-                                      double dt, const GrainStepOptions& opt, GrainState<N>& s1,
-                                      Tangent* tangent,
-                                      const typename SlipTypes<N>::VecN* start_rate,
-                                      SlipTangent<N>* slip_tangent) {
-  using T = SlipTypes<N>;
-  using VecN = typename T::VecN;
-  const int n = ph.slip_count;
-  GrainStepReport rep;
-  const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
-  const Vec6 stress_trial = s0.stress + ph.stiffness * kin.strain_increment;
-  ImplicitSolver<N> solver(ph, s0, stress_trial, dt);
-
-  // Warm start: the previous slip rate where its sign agrees with the trial shear.
-  const VecN& start = start_rate != nullptr ? *start_rate : s0.rate;
-  VecN x(n);
-  for (int a = 0; a < n; ++a) {
-    const double previous = start(a) * dt;
-    const double direction = sign_of(solver.tau_trial()(a));
-    x(a) = previous * direction > 0.0 ? solver.unknown_of(a, direction, std::abs(previous)) : 0.0;
-  }
-  Iterate<N> it, trial;
+bool solve_rows(const ImplicitSolver<N>& solver, typename SlipTypes<N>::VecN x,
+                const GrainStepOptions& opt, Iterate<N>& it, Iterate<N>& trial,
+                GrainStepReport& rep) {
+  using VecN = typename SlipTypes<N>::VecN;
+  using MatNN = typename SlipTypes<N>::MatNN;
+  const int n = static_cast<int>(x.size());
   if (!solver.admissible_start(x, it, opt.tolerance)) {
     rep.why = "no admissible start (r >= r_hat or slip plane open)", rep.system = it.bad_system;
-    return rep;
+    return false;
   }
-
+  int iterations = 0;
   // The line search gives up where Armijo's decrease kArmijo alpha merit falls below the
   // merit's own rounding: no trial closer to the iterate can show a decrease.
   const double smallest_alpha = 4.0 * std::numeric_limits<double>::epsilon() / kArmijo;
   bool converged = false;
-  for (rep.iterations = 0; rep.iterations < opt.max_iterations; ++rep.iterations) {
-    const typename T::MatNN j = solver.jacobian(it);
+  for (; iterations < opt.max_iterations; ++iterations) {
+    const MatNN j = solver.jacobian(it);
     // Converged when every row is within tolerance or within what double precision resolves
     // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
     // (An infinite slope, e.g. an overflowed power-form derivative, resolves nothing.)
@@ -611,11 +596,106 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
     if (!accepted) break;
     std::swap(it, trial);
   }
+  rep.iterations += iterations;
   if (!converged) {
     rep.why = "slip increments did not converge";
     it.rows.cwiseAbs().maxCoeff(&rep.system);  // the system with the largest residual
-    return rep;
   }
+  return converged;
+}
+
+// The warm start of a solve: the slip rates `rate` over dt where their signs agree with the
+// solver's trial shears.
+template <int N>
+typename SlipTypes<N>::VecN warm_start(const ImplicitSolver<N>& solver,
+                                       const typename SlipTypes<N>::VecN& rate, double dt) {
+  typename SlipTypes<N>::VecN x(rate.size());
+  for (int a = 0; a < rate.size(); ++a) {
+    const double previous = rate(a) * dt;
+    const double direction = sign_of(solver.tau_trial()(a));
+    x(a) = previous * direction > 0.0 ? solver.unknown_of(a, direction, std::abs(previous)) : 0.0;
+  }
+  return x;
+}
+
+// Continuation in the step's strain increment (docs/grain_step.md, "Continuation in the strain
+// increment"): the rows of the same step (same start state, same dt) at the trial stress
+// sigma_0 + theta C de, for theta from 0 to 1, each stage started from the root of the last.
+// Where the roots form a path x(theta) with a regular Jacobian, a stage short enough starts
+// inside the region where Newton's iteration converges to the next point of the path, so
+// halving a stage that fails and doubling one after a stage that converges reaches theta = 1;
+// the root found there is the step's, the same backward-Euler equations, not a shorter step.
+// The stride ends at sqrt(eps) of the increment (a stage that short changes the trial stress
+// by less than the rows resolve: a path that does not go on there has a turning point) and
+// after kMostStages stages (a bound on the work); the aggregate's cutback is what follows.
+constexpr int kMostStages = 64;
+
+template <int N>
+bool continue_along_increment(const Phase<N>& ph, const GrainState<N>& s0, const Vec6& increment,
+                              double dt, const ImplicitSolver<N>& full,
+                              const typename SlipTypes<N>::VecN& rate, const GrainStepOptions& opt,
+                              Iterate<N>& it, Iterate<N>& trial, GrainStepReport& rep) {
+  const double smallest_stride = std::sqrt(std::numeric_limits<double>::epsilon());
+  double reached = 0.0, before = 0.0, stride = 0.5;
+  bool failed_last = true;  // the full step just failed
+  typename SlipTypes<N>::VecN x = rate, slips = rate * 0.0, slips_before = slips;
+  for (int stage = 0; stage < kMostStages && stride >= smallest_stride; ++stage) {
+    const double target = std::min(1.0, reached + stride);
+    const bool last = target == 1.0;
+    bool converged;
+    const ImplicitSolver<N> part(ph, s0, s0.stress + target * increment, target * dt);
+    const ImplicitSolver<N>& solver = last ? full : part;
+    if (reached == 0.0) {
+      x = warm_start(solver, rate, target * dt);
+    } else {
+      // The secant through the last two roots, in slips (the path is smooth in the slips; in
+      // the unknowns z = g^(1/p) it is not, near zero).
+      const double ahead = (target - reached) / (reached - before);
+      for (int a = 0; a < x.size(); ++a) {
+        const double g = slips(a) + ahead * (slips(a) - slips_before(a));
+        x(a) = g == 0.0 ? 0.0 : solver.unknown_of(a, g > 0.0 ? 1.0 : -1.0, std::abs(g));
+      }
+    }
+    converged = solve_rows(solver, x, opt, it, trial, rep);
+    if (!converged) {
+      stride *= 0.5, failed_last = true;
+      continue;
+    }
+    if (last) return true;
+    slips_before = slips, slips = it.dgamma, before = reached, reached = target;
+    if (!failed_last) stride *= 2.0;
+    stride = std::min(stride, 1.0 - reached);
+    failed_last = false;
+  }
+  return false;
+}
+
+}  // namespace
+
+template <int N>
+GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                      double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                      Tangent* tangent,
+                                      const typename SlipTypes<N>::VecN* start_rate,
+                                      SlipTangent<N>* slip_tangent) {
+  using T = SlipTypes<N>;
+  using VecN = typename T::VecN;
+  GrainStepReport rep;
+  const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
+  const Vec6 stress_trial = s0.stress + ph.stiffness * kin.strain_increment;
+  ImplicitSolver<N> solver(ph, s0, stress_trial, dt);
+
+  // Warm start: the previous slip rate where its sign agrees with the trial shear.
+  const VecN& start = start_rate != nullptr ? *start_rate : s0.rate;
+  Iterate<N> it, trial;
+  // Newton from the warm start; where that does not converge, the continuation in the strain
+  // increment from the start state.
+  rep.iterations = 0;
+  if (!solve_rows(solver, warm_start(solver, start, dt), opt, it, trial, rep) &&
+      !(opt.continuation && continue_along_increment(ph, s0, Vec6(stress_trial - s0.stress), dt,
+                                                     solver, start, opt, it, trial, rep)))
+    return rep;
+  rep.why = "", rep.system = -1;
 
   const VecN& dgamma = it.dgamma;
   s1.stress = stress_trial - ph.c_schmid * dgamma;

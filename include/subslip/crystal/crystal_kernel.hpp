@@ -122,6 +122,10 @@ struct GrainStepOptions {
   // components' alone (their k columns cost a fraction of the six: the condensed system is
   // solved for k right-hand sides and only k columns are rotated to the sample frame).
   StrainDirections tangent_directions = Mat6::Identity();
+  // Whether a semismooth step that Newton's iteration does not resolve from its start goes on
+  // by continuation in the strain increment (semismooth_grain_step.cpp): a caller that will try
+  // another start first turns it off for the first try.
+  bool continuation = true;
 };
 
 struct GrainStepReport {
