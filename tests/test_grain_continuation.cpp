@@ -71,8 +71,9 @@ TEST(GrainContinuation, ResolvesStepsNewtonDoesNotOnTheirOwnRoot) {
       virgin.reset(12, grains[static_cast<size_t>(g)].g, built.initial_mu);
       cr::GrainState<12> prestrained = virgin;
       // (A grain whose prestrain does not run, even with its steps halved 4 times, is measured
-      // from its virgin state alone: found 5 of the 16, a failure the continuation does not
-      // address, measured here so that it shows.)
+      // from its virgin state alone: found 5 of the 16, each with one or two of its planes open
+      // (the prescribed lateral extension puts a tensile normal stress beyond tau0 on them),
+      // where the step fails to converge with or without the continuation.)
       bool prestrain_ran = true;
       for (int k = 0; k < 20 && prestrain_ran; ++k)
         prestrain_ran = advance(built.phase, L, 2e-3 / kRate, continued, prestrained, 4);
