@@ -104,6 +104,17 @@ class ImplicitSolver {
     const double p = start(a, 1.0).exponent;
     return direction * (p == 1.0 ? slip : std::pow(slip, 1.0 / p));
   }
+  // The unknown of a signed slip increment g.
+  double unknown_of_slip(int a, double g) const {
+    return g == 0.0 ? 0.0 : unknown_of(a, sign_of(g), std::abs(g));
+  }
+  // The size of each unknown in the units the Jacobian's columns are in (z; g on an open plane).
+  VecN unknown_sizes(const Iterate<N>& it) const {
+    VecN out = it.x.cwiseAbs();
+    for (int a = 0; a < n_; ++a)
+      if (it.open(a)) out(a) = std::abs(it.dgamma(a));
+    return out;
+  }
 
   void evaluate(const VecN& x, Iterate<N>& it) const {
     it.x = x;
@@ -155,6 +166,10 @@ class ImplicitSolver {
       // until tau_a = 0. Its row is that shear in ratio units (r = 0, no flow rule),
       // increasing in its own slip.
       it.open(a) = true;
+      // Its unknown is its slip itself (d slip / d unknown = 1 in the Jacobian; the step's
+      // update carries it back to z): with z = g^(1/p) its column would vanish at z = 0, where
+      // nothing couples it to the others' rows, and Newton's step would never move it.
+      it.dslip_dx(a) = 1.0;
       it.rows(a) = -it.tau(a) / (mu.value * ph_.tau0(a));
       it.g_value(a) = 0.0;
       return true;
@@ -556,7 +571,7 @@ bool solve_rows(const ImplicitSolver<N>& solver, typename SlipTypes<N>::VecN x,
     // at this x (a few ulp of x_a times the row's slope): very stiff rows stop there.
     // (An infinite slope, e.g. an overflowed power-form derivative, resolves nothing.)
     const VecN resolution = (4.0 * std::numeric_limits<double>::epsilon() *
-                             j.diagonal().cwiseAbs().cwiseProduct(it.x.cwiseAbs()))
+                             j.diagonal().cwiseAbs().cwiseProduct(solver.unknown_sizes(it)))
                                 .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
     const VecN allowed = resolution.cwiseMax(opt.tolerance);
     if ((it.rows.cwiseAbs() - allowed).maxCoeff() <= 0.0) {
@@ -573,8 +588,12 @@ bool solve_rows(const ImplicitSolver<N>& solver, typename SlipTypes<N>::VecN x,
     auto line_search = [&](const VecN& step) {
       for (double alpha = 1.0; alpha >= smallest_alpha; alpha *= 0.5) {
         VecN xt = it.x + alpha * step;
-        for (int a = 0; a < n; ++a)
-          if (!it.open(a) && it.direction(a) * xt(a) < 0.0) xt(a) = 0.0;
+        for (int a = 0; a < n; ++a) {
+          if (it.open(a))
+            xt(a) = solver.unknown_of_slip(a, it.dgamma(a) + alpha * step(a));  // (a slip step)
+          else if (it.direction(a) * xt(a) < 0.0)
+            xt(a) = 0.0;
+        }
         solver.evaluate(xt, trial);
         // Systems the Newton step holds (see needs_scalar_start) follow the others through
         // their own scalar roots, so that the merit measures the step of the systems it moved.
