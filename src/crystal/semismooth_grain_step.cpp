@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "kernel_detail.hpp"
 #include "subslip/integrators/scalar_root.hpp"
@@ -638,15 +639,16 @@ typename SlipTypes<N>::VecN warm_start(const ImplicitSolver<N>& solver,
 }
 
 // Continuation in the step's strain increment (docs/grain_step.md, "Continuation in the strain
-// increment"): the rows of the same step (same start state, same dt) at the trial stress
-// sigma_0 + theta C de, for theta from 0 to 1, each stage started from the root of the last.
-// Where the roots form a path x(theta) with a regular Jacobian, a stage short enough starts
-// inside the region where Newton's iteration converges to the next point of the path, so
-// halving a stage that fails and doubling one after a stage that converges reaches theta = 1;
-// the root found there is the step's, the same backward-Euler equations, not a shorter step.
-// The stride ends at sqrt(eps) of the increment (a stage that short changes the trial stress
-// by less than the rows resolve: a path that does not go on there has a turning point) and
-// after kMostStages stages (a bound on the work); the aggregate's cutback is what follows.
+// increment"): the rows from the same start state with the strain increment and the step length
+// scaled by theta, trial stress sigma_0 + theta C de over theta dt, for theta from 0 (no slip)
+// to 1 (the step), each stage started from the secant through the last two roots. Where the
+// roots form a path x(theta) with a regular Jacobian, a stage short enough starts inside the
+// region where Newton's iteration converges to the next point of the path, so halving a stage
+// that fails and doubling one after two that converge reaches theta = 1; the root found there
+// is the step's, the same backward-Euler equations, not the end of shorter steps. The stride
+// ends at sqrt(eps) of the increment (a stage that short changes the trial stress by less than
+// the rows resolve: a path that does not go on there has a turning point) and after
+// kMostStages stages (a bound on the work); the aggregate's cutback is what follows.
 constexpr int kMostStages = 64;
 
 template <int N>
@@ -654,29 +656,27 @@ bool continue_along_increment(const Phase<N>& ph, const GrainState<N>& s0, const
                               double dt, const ImplicitSolver<N>& full,
                               const typename SlipTypes<N>::VecN& rate, const GrainStepOptions& opt,
                               Iterate<N>& it, Iterate<N>& trial, GrainStepReport& rep) {
+  using VecN = typename SlipTypes<N>::VecN;
   const double smallest_stride = std::sqrt(std::numeric_limits<double>::epsilon());
   double reached = 0.0, before = 0.0, stride = 0.5;
   bool failed_last = true;  // the full step just failed
-  typename SlipTypes<N>::VecN x = rate, slips = rate * 0.0, slips_before = slips;
+  VecN x = rate, slips = VecN::Zero(rate.size()), slips_before = slips;
+  std::optional<ImplicitSolver<N>> part;
   for (int stage = 0; stage < kMostStages && stride >= smallest_stride; ++stage) {
     const double target = std::min(1.0, reached + stride);
     const bool last = target == 1.0;
-    bool converged;
-    const ImplicitSolver<N> part(ph, s0, s0.stress + target * increment, target * dt);
-    const ImplicitSolver<N>& solver = last ? full : part;
+    if (!last) part.emplace(ph, s0, s0.stress + target * increment, target * dt);
+    const ImplicitSolver<N>& solver = last ? full : *part;
     if (reached == 0.0) {
       x = warm_start(solver, rate, target * dt);
     } else {
       // The secant through the last two roots, in slips (the path is smooth in the slips; in
       // the unknowns z = g^(1/p) it is not, near zero).
       const double ahead = (target - reached) / (reached - before);
-      for (int a = 0; a < x.size(); ++a) {
-        const double g = slips(a) + ahead * (slips(a) - slips_before(a));
-        x(a) = g == 0.0 ? 0.0 : solver.unknown_of(a, g > 0.0 ? 1.0 : -1.0, std::abs(g));
-      }
+      for (int a = 0; a < x.size(); ++a)
+        x(a) = solver.unknown_of_slip(a, slips(a) + ahead * (slips(a) - slips_before(a)));
     }
-    converged = solve_rows(solver, x, opt, it, trial, rep);
-    if (!converged) {
+    if (!solve_rows(solver, x, opt, it, trial, rep)) {
       stride *= 0.5, failed_last = true;
       continue;
     }
