@@ -5,7 +5,9 @@
 // for what the stress-space formulation does not cover: friction coefficients that soften with
 // slip (mu above mu_k, or mu_k below mu_s), where a system's slip at a held shear need not exist,
 // pressure-sensitive planes, and the rate-independent form, whose slip response to the shear is
-// unbounded at r_s = 1. Internal to src/crystal/.
+// unbounded at r_s = 1. Where Newton's iteration from the warm start does not converge, the same
+// step is solved by continuation in its strain increment (GrainStepOptions::continuation;
+// docs/grain_step.md, "Continuation in the strain increment"). Internal to src/crystal/.
 #pragma once
 
 #include "subslip/crystal/crystal_kernel.hpp"
