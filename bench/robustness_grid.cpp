@@ -7,6 +7,7 @@
 // inadmissible converged states, Newton iterations per solve and the first failing grain.
 //
 // Usage: subslip_robustness_grid [--grains 500] [--lattice fcc ...] [--threads N] [--csv FILE]
+//                                [--pressure-sensitive] [--overstress exponential|power]
 // Exit status 0 whatever it finds (it is a report); the last line is `failures: N`, N counting
 // the failed solves of the tested steps and of the prestrains.
 #include <omp.h>
@@ -15,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -29,12 +31,16 @@ void print_header(const RobustnessGrid& grid, int threads) {
   std::printf(
       "# Robustness grid of the implicit grain step: %zu random grains per lattice (seed %llu), "
       "%d threads\n"
+      "# phase: bench phase, overstress form %s%s\n"
       "# L fully prescribed at a rate of %g /s (tension: D = rate diag(1, -1/2, -1/2); shear: "
       "L_12 = rate); one implicit_grain_step with GrainStepOptions{} defaults\n"
       "# prestrained: %g strain in steps of %g of the same loading first\n"
       "# step: strain step [-], dt [s]; solves: grains tested; fail: not converged; inadm: "
       "converged to an inadmissible state; newton: iterations per solve, failed ones included\n",
-      grid.grains, static_cast<unsigned long long>(grid.seed), threads, grid.rate, grid.prestrain,
+      grid.grains, static_cast<unsigned long long>(grid.seed), threads,
+      subslip::law::to_string(grid.overstress).data(),
+      grid.pressure_sensitive ? ", pressure-sensitive (normal traction plays f_n)" : "", grid.rate,
+      grid.prestrain,
       grid.prestrain_step);
   std::printf("%-6s %-8s %-12s %8s %7s %6s %5s %5s %11s %10s  %s\n", "phase", "loading", "start",
               "step[-]", "dt[s]", "solves", "fail", "inadm", "newton_mean", "newton_max",
@@ -111,7 +117,16 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "OpenMP threads (results do not depend on it)")
       ->check(CLI::PositiveNumber);
   app.add_option("--csv", csv, "also write the table to this CSV file");
+  app.add_flag("--pressure-sensitive", grid.pressure_sensitive,
+               "the pressure-sensitive reading of the law (planes under tension open)");
+  const std::map<std::string, subslip::law::OverstressForm> forms{
+      {"exponential", subslip::law::OverstressForm::exponential},
+      {"power", subslip::law::OverstressForm::power}};
+  std::string overstress = "exponential";
+  app.add_option("--overstress", overstress, "overstress form of the bench phase")
+      ->check(CLI::IsMember(forms));
   CLI11_PARSE(app, argc, argv);
+  grid.overstress = forms.at(overstress);
   omp_set_num_threads(threads);
 
   print_header(grid, threads);

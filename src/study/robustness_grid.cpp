@@ -229,11 +229,18 @@ int GridResult::inadmissible() const {
   return n;
 }
 
+crystal::PhaseDescription grid_phase(const RobustnessGrid& grid, const std::string& lattice) {
+  crystal::PhaseDescription d = bench_phase(lattice);
+  d.pressure_sensitive = grid.pressure_sensitive;
+  for (crystal::SlipGroupSettings& g : d.family_settings) g.law.overstress.form = grid.overstress;
+  return d;
+}
+
 GridResult run_robustness_grid(const RobustnessGrid& grid) {
   if (prestrains(grid)) prestrain_steps(grid);  // checked before any work
   GridResult result;
   for (const std::string& lattice : grid.lattices) {
-    visit_phase(bench_phase(lattice), [&](const auto& built) {
+    visit_phase(grid_phase(grid, lattice), [&](const auto& built) {
       LatticeRun run(built, lattice, grid);
       for (GridLoading loading : grid.loadings) run.run(loading, result);
     });

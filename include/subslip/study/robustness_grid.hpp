@@ -49,7 +49,15 @@ struct RobustnessGrid {
   double prestrain_step = 1e-3;  // [-]
   std::size_t grains = 500;      // random orientations per lattice, the first of the seed's
   std::uint64_t seed = 20000;    // random_orientations seed (the one `subslip bench` uses)
+  // Variants of the bench phase (bench_phase): the pressure-sensitive reading of the law (the
+  // normal traction on each slip plane plays f_n, so planes under tension open) and the
+  // overstress form; the defaults are `subslip bench`'s phase.
+  bool pressure_sensitive = false;
+  law::OverstressForm overstress = law::OverstressForm::exponential;
 };
+
+// The phase of one lattice of the grid: bench_phase with the grid's variants.
+crystal::PhaseDescription grid_phase(const RobustnessGrid& grid, const std::string& lattice);
 
 // One tested step: lattice x loading x start x strain step, over the grains that reached its start.
 struct GridCell {
