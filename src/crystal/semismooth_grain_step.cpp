@@ -633,7 +633,7 @@ typename SlipTypes<N>::VecN warm_start(const ImplicitSolver<N>& solver,
   for (int a = 0; a < rate.size(); ++a) {
     const double previous = rate(a) * dt;
     const double direction = sign_of(solver.tau_trial()(a));
-    x(a) = previous * direction > 0.0 ? solver.unknown_of(a, direction, std::abs(previous)) : 0.0;
+    x(a) = previous * direction > 0.0 ? solver.unknown_of_slip(a, previous) : 0.0;
   }
   return x;
 }
