@@ -40,8 +40,7 @@ void print_header(const RobustnessGrid& grid, int threads) {
       grid.grains, static_cast<unsigned long long>(grid.seed), threads,
       subslip::law::to_string(grid.overstress).data(),
       grid.pressure_sensitive ? ", pressure-sensitive (normal traction plays f_n)" : "", grid.rate,
-      grid.prestrain,
-      grid.prestrain_step);
+      grid.prestrain, grid.prestrain_step);
   std::printf("%-6s %-8s %-12s %8s %7s %6s %5s %5s %11s %10s  %s\n", "phase", "loading", "start",
               "step[-]", "dt[s]", "solves", "fail", "inadm", "newton_mean", "newton_max",
               "first failure");

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <string>
+#include <vector>
 
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/study/robustness_grid.hpp"
@@ -38,12 +40,20 @@ TEST(RobustnessGridAdmissibility, NamesEachViolation) {
             "system 0: r >= r_hat (");
 }
 
-class RobustnessGrid : public ::testing::TestWithParam<std::string> {};
+// The grid with each lattice's bench phase as given, and with its power overstress variant
+// (study::grid_phase): both must converge everywhere.
+struct GridCase {
+  std::string lattice;
+  subslip::law::OverstressForm overstress;
+};
+
+class RobustnessGrid : public ::testing::TestWithParam<GridCase> {};
 
 TEST_P(RobustnessGrid, EveryStepConvergesToAnAdmissibleState) {
   st::RobustnessGrid grid;
   grid.grains = 20;
-  grid.lattices = {GetParam()};
+  grid.lattices = {GetParam().lattice};
+  grid.overstress = GetParam().overstress;
   const st::GridResult result = st::run_robustness_grid(grid);
 
   ASSERT_EQ(result.prestrains.size(), grid.loadings.size());
@@ -61,7 +71,40 @@ TEST_P(RobustnessGrid, EveryStepConvergesToAnAdmissibleState) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Lattices, RobustnessGrid, ::testing::ValuesIn(st::bench_lattices()),
-                         [](const auto& info) { return info.param; });
+// The variants change the bench phase in exactly the fields they name, on every family.
+TEST(RobustnessGridPhase, VariantsChangeOnlyTheirFields) {
+  st::RobustnessGrid grid;
+  grid.pressure_sensitive = true;
+  grid.overstress = subslip::law::OverstressForm::power;
+  for (const std::string& lattice : st::bench_lattices()) {
+    const cr::PhaseDescription bench = st::bench_phase(lattice);
+    const cr::PhaseDescription variant = st::grid_phase(grid, lattice);
+    EXPECT_FALSE(bench.pressure_sensitive);
+    EXPECT_TRUE(variant.pressure_sensitive);
+    ASSERT_EQ(variant.family_settings.size(), bench.family_settings.size());
+    for (std::size_t f = 0; f < bench.family_settings.size(); ++f) {
+      subslip::law::LawParameters expected = bench.family_settings[f].law;
+      EXPECT_NE(expected.overstress.form, subslip::law::OverstressForm::power);
+      expected.overstress.form = subslip::law::OverstressForm::power;
+      EXPECT_EQ(variant.family_settings[f].law, expected) << lattice << ", family " << f;
+      EXPECT_EQ(variant.family_settings[f].tau0, bench.family_settings[f].tau0);
+    }
+  }
+}
+
+std::vector<GridCase> grid_cases() {
+  std::vector<GridCase> cases;
+  for (const std::string& lattice : st::bench_lattices())
+    for (auto form :
+         {subslip::law::OverstressForm::exponential, subslip::law::OverstressForm::power})
+      cases.push_back({lattice, form});
+  return cases;
+}
+
+INSTANTIATE_TEST_SUITE_P(Lattices, RobustnessGrid, ::testing::ValuesIn(grid_cases()),
+                         [](const auto& info) {
+                           return info.param.lattice + "_" +
+                                  std::string(subslip::law::to_string(info.param.overstress));
+                         });
 
 }  // namespace
