@@ -118,10 +118,10 @@ int main(int argc, char** argv) {
   app.add_option("--csv", csv, "also write the table to this CSV file");
   app.add_flag("--pressure-sensitive", grid.pressure_sensitive,
                "the pressure-sensitive reading of the law (planes under tension open)");
-  const std::map<std::string, subslip::law::OverstressForm> forms{
-      {"exponential", subslip::law::OverstressForm::exponential},
-      {"power", subslip::law::OverstressForm::power}};
-  std::string overstress = "exponential";
+  std::map<std::string, subslip::law::OverstressForm> forms;
+  for (subslip::law::OverstressForm form : grid_overstress_forms())
+    forms.emplace(subslip::law::to_string(form), form);
+  std::string overstress(subslip::law::to_string(grid.overstress));
   app.add_option("--overstress", overstress, "overstress form of the bench phase")
       ->check(CLI::IsMember(forms));
   CLI11_PARSE(app, argc, argv);

@@ -1,8 +1,9 @@
 // The robustness grid of issue 14 on a small sample: the first 20 grains of the report's 500
 // (bench/robustness_grid.cpp runs the full grid from the same definition, study::RobustnessGrid).
-// Every lattice, both loadings, both starts, every strain step from 1e-4 to 3e-1: the implicit
-// grain step must converge on every grain, and every state it commits (the prestrain's too) must
-// be admissible: finite, 0 <= r_s <= r < r_hat on every slip system.
+// Every lattice (with its bench phase and with the power overstress), both loadings, both starts,
+// every strain step from 1e-4 to 3e-1: the implicit grain step must converge on every grain, and
+// every state it commits (the prestrain's too) must be admissible: finite, 0 <= r_s <= r < r_hat
+// on every slip system.
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -95,8 +96,7 @@ TEST(RobustnessGridPhase, VariantsChangeOnlyTheirFields) {
 std::vector<GridCase> grid_cases() {
   std::vector<GridCase> cases;
   for (const std::string& lattice : st::bench_lattices())
-    for (auto form :
-         {subslip::law::OverstressForm::exponential, subslip::law::OverstressForm::power})
+    for (subslip::law::OverstressForm form : st::grid_overstress_forms())
       cases.push_back({lattice, form});
   return cases;
 }

@@ -236,6 +236,12 @@ crystal::PhaseDescription grid_phase(const RobustnessGrid& grid, const std::stri
   return d;
 }
 
+const std::vector<law::OverstressForm>& grid_overstress_forms() {
+  static const std::vector<law::OverstressForm> forms{law::OverstressForm::exponential,
+                                                      law::OverstressForm::power};
+  return forms;
+}
+
 GridResult run_robustness_grid(const RobustnessGrid& grid) {
   if (prestrains(grid)) prestrain_steps(grid);  // checked before any work
   GridResult result;

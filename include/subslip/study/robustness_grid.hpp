@@ -59,6 +59,10 @@ struct RobustnessGrid {
 // The phase of one lattice of the grid: bench_phase with the grid's variants.
 crystal::PhaseDescription grid_phase(const RobustnessGrid& grid, const std::string& lattice);
 
+// The overstress forms the grid's phase takes (RobustnessGrid::overstress): the viscous ones,
+// exponential (bench_phase's) first.
+const std::vector<law::OverstressForm>& grid_overstress_forms();
+
 // One tested step: lattice x loading x start x strain step, over the grains that reached its start.
 struct GridCell {
   std::string lattice;
