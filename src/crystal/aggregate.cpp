@@ -1080,15 +1080,26 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   Eigen::MatrixXd free_stress_jacobian(const std::vector<FreeComponent>& fc, double dt) const {
     // The grains' tangents are d sigma / d(D dt) along the free components' strain directions
     // (tangent_directions_): column b is d sigma / d u_b per dt.
+    // Only the free components' rows of the mean tangent enter the Jacobian (free_entries), so
+    // only those entries of the grains' tangents are summed (the others stay zero).
     const int k = static_cast<int>(fc.size());
+    std::array<int, 6> rows{};
+    for (int a = 0; a < k; ++a) {
+      const FreeComponent& c = fc[static_cast<size_t>(a)];
+      rows[static_cast<size_t>(a)] = kMandelIndex[c.i][c.j];
+    }
     std::array<parallel::ExactSum, 36> sum;
     for (size_t g = 0; g < tangents_.size(); ++g) {
-      const Tangent t = weights_[g] * tangents_[g];
-      for (int i = 0; i < 6 * k; ++i) sum[static_cast<size_t>(i)].add(t.data()[i]);
+      const Tangent& t = tangents_[g];
+      for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a)
+          sum[static_cast<size_t>(b * k + a)].add(weights_[g] * t(rows[static_cast<size_t>(a)], b));
     }
-    team_.sum(std::span(sum).first(static_cast<size_t>(6 * k)));
-    Tangent mean_tangent(6, k);
-    for (int i = 0; i < 6 * k; ++i) mean_tangent.data()[i] = sum[static_cast<size_t>(i)].value();
+    team_.sum(std::span(sum).first(static_cast<size_t>(k * k)));
+    Tangent mean_tangent = Tangent::Zero(6, k);
+    for (int b = 0; b < k; ++b)
+      for (int a = 0; a < k; ++a)
+        mean_tangent(rows[static_cast<size_t>(a)], b) = sum[static_cast<size_t>(b * k + a)].value();
     const Mat3 sigma = symmetric_from_mandel(trial_average_stress());
     Eigen::MatrixXd jac(k, k);
     for (int b = 0; b < k; ++b) {
