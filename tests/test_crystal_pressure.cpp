@@ -2,10 +2,17 @@
 // stress on the plane of a), i.e. the literal Coulomb law with a cohesion tau0.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
 
+#include "grain_recorder.hpp"
+#include "message_number.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/crystal/texture.hpp"
 
 namespace {
 
@@ -109,4 +116,63 @@ TEST(CrystalPressureSensitive, AnOpenPlaneCarriesNoShearAndClosesAgain) {
   EXPECT_NEAR(sigma22.back(), -5.0, 1e-6);
   EXPECT_NEAR(tau.back(), mu * (tau0 + 5.0), 1e-5 * mu * (tau0 + 5.0));
   EXPECT_GE(stats.increments, 230);
+}
+
+// Under tension the pressure-sensitive reading can stop a run where a plane is about to open
+// (docs/grain_step.md, "The pressure-sensitive reading under tension": a known limit of the grain
+// step). The failure then names the planes' normal tractions at the failing step's start: the
+// failing system's f_n and the smallest of its grain, each tau0 - n . sigma n on one of the
+// four {111} planes of the named grain in the last output's state (no cutback: the failing step
+// starts there).
+TEST(CrystalPressureSensitive, ATensionFailureNamesThePlanesNormalTractions) {
+  const double tau0 = 10.0;
+  PhaseDescription d;
+  d.families = {SlipFamily::fcc_111_110};
+  law::LawParameters p;
+  p.friction = {1.6, 14.8, 20.0, 0.0};
+  p.subloading = {law::SubloadingFunction::cot, 200.0};
+  p.overstress = {law::OverstressForm::exponential, 1e-3, 16.0, 1.6};
+  d.family_settings = {{p, tau0, 0.0}};
+  d.stiffness = cubic_stiffness(168400.0, 121400.0, 75400.0);
+  d.kinematics = Kinematics::finite_rotation;
+  d.pressure_sensitive = true;
+  const int grains = 40;
+  auto aggregate = build_taylor_aggregate(d, random_orientations(grains, 5));
+  LoadSegment pull;  // D = 1e-3 /s diag(-1/2, -1/2, 1), strain steps of 1e-3
+  pull.velocity_gradient.diagonal() << -0.5e-3, -0.5e-3, 1e-3;
+  pull.duration = 20.0;
+  pull.increments = 20;
+  AggregateOptions opt;
+  opt.max_cutbacks = 0;
+  subslip::testing::GrainRecorder rec;
+  std::string message;
+  try {
+    aggregate->run({pull}, opt, rec.observer());
+  } catch (const CrystalStepFailure& e) {
+    message = e.what();
+  }
+  ASSERT_FALSE(message.empty()) << "the run reached the end: the limit this test documents moved";
+  ASSERT_FALSE(rec.snaps.empty());
+  EXPECT_EQ(message.find("nan"), std::string::npos) << message;
+  using subslip::testing::number_after;
+  const auto grain = static_cast<size_t>(number_after(message, "grain "));
+  const double fn_system = number_after(message, "f_n = ");
+  const double fn_smallest = number_after(message, "smallest plane normal traction f_n = ");
+  ASSERT_LT(grain, static_cast<size_t>(grains)) << message;
+  const subslip::testing::GrainSnapshot& last = rec.snaps.back();
+  const double* s = &last.stress[6 * grain];  // sample frame: 11 22 33 23 13 12
+  Mat3 sigma;
+  sigma << s[0], s[5], s[4], s[5], s[1], s[3], s[4], s[3], s[2];
+  Mat3 g;  // v_crystal = g v_sample
+  for (int i = 0; i < 9; ++i)
+    g(i / 3, i % 3) = last.orientation[9 * grain + static_cast<size_t>(i)];
+  const Mat3 lattice_stress = g * sigma * g.transpose();
+  std::vector<double> fn;
+  for (const Vec3& m : {Vec3(1, 1, 1), Vec3(-1, 1, 1), Vec3(1, -1, 1), Vec3(1, 1, -1)})
+    fn.push_back(tau0 - m.normalized().dot(lattice_stress * m.normalized()));
+  const double tolerance = 1e-9 * (tau0 + lattice_stress.cwiseAbs().maxCoeff());
+  EXPECT_NEAR(fn_smallest, *std::min_element(fn.begin(), fn.end()), tolerance) << message;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (double v : fn) nearest = std::min(nearest, std::abs(v - fn_system));
+  EXPECT_LT(nearest, tolerance) << message;
 }

@@ -998,8 +998,21 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       msg << std::setprecision(17) << "; start state: mu = " << s.mu(rep.system)
           << ", r = " << r(rep.system) << ", r_s = " << s.r_s(rep.system)
           << ", slip = " << s.slip(rep.system);
+      if (phase_.pressure_sensitive) describe_plane_pressure(s, rep.system, msg);
     }
     return msg.str();
+  }
+
+  // With the pressure-sensitive reading a step can stall where a plane is about to open under
+  // tension (docs/grain_step.md, "The pressure-sensitive reading under tension"): the failure
+  // names the normal tractions f_n = tau0 - M_a : sigma at the step's start, the failing
+  // system's and the smallest of the grain's, in the scene's stress unit.
+  void describe_plane_pressure(const GrainState<N>& s, int system, std::ostringstream& msg) const {
+    const VecN fn = phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress;
+    int lowest = 0;
+    const double smallest = fn.minCoeff(&lowest);
+    msg << ", f_n = " << fn(system) << "; smallest plane normal traction f_n = " << smallest
+        << " (system " << lowest << "; the plane opens at f_n <= 0)";
   }
 
   // The volume average of the grains' sample-frame stress, over the team (exact sums). The
