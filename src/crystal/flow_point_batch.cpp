@@ -137,7 +137,11 @@ bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws
 }
 
 void clear_batch_padding(FlowBatchInput& in, int count) {
-  const int end = std::min((count + 7) / 8 * 8, kFlowBatchCapacity);
+  // Only the lanes the chosen kernel's last batch reads (none where count fills whole batches,
+  // as 12 systems do in AVX2's batches of 4).
+  const int width = chosen().width;
+  const int end = std::min((count + width - 1) / width * width, kFlowBatchCapacity);
+  if (end == count) return;
   for (FlowBatchArray* v : {&in.mu0, &in.slip, &in.effective, &in.r0, &in.cos0, &in.one_minus_cos0,
                             &in.rate0, &in.shear, &in.normal})
     std::fill(v->begin() + count, v->begin() + end, 0.0);

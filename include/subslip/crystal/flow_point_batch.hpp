@@ -76,8 +76,9 @@ const char* grain_step_isa_name();
 // Whether the first `count` systems share one law whose flow points have the batched closed form.
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count);
 
-// Zeroes the lanes after the first `count` up to the widest batch, which batched_flow_points
-// computes on and does not report (so that they hold numbers, not whatever memory was there).
+// Zeroes the lanes after the first `count` up to the end of the chosen kernel's last batch,
+// which batched_flow_points computes on and does not report (so that they hold numbers, not
+// whatever memory was there).
 void clear_batch_padding(FlowBatchInput& in, int count);
 
 // Fills the starts of systems 0 ... count - 1 from their r0, for the cot subloading function of
