@@ -1008,7 +1008,7 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // names the normal tractions f_n = tau0 - M_a : sigma at the step's start, the failing
   // system's and the smallest of the grain's, in the scene's stress unit.
   void describe_plane_pressure(const GrainState<N>& s, int system, std::ostringstream& msg) const {
-    const VecN fn = phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress;
+    const VecN fn = normal_traction(phase_, s);
     int lowest = 0;
     const double smallest = fn.minCoeff(&lowest);
     msg << ", f_n = " << fn(system) << "; smallest plane normal traction f_n = " << smallest

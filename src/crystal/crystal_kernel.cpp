@@ -170,6 +170,11 @@ typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N
 }
 
 template <int N>
+typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState<N>& s) {
+  return detail::normal_traction(ph, s.stress);
+}
+
+template <int N>
 GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
                                            GrainState<N>& s) {
   const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
@@ -272,6 +277,7 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                                   const Mat3&, double, GrainState<N>&, Tangent*, \
                                                   integrators::ExplicitStability);               \
   template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);           \
+  template SlipTypes<N>::VecN normal_traction<N>(const Phase<N>&, const GrainState<N>&);         \
   template GrainStepReport restore_extrapolated_state<N>(const Phase<N>&, const GrainState<N>&,  \
                                                          GrainState<N>&);                        \
   template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);             \

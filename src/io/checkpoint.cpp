@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "subslip/io/result_file.hpp"
@@ -29,8 +30,13 @@ std::vector<std::string> value_names() {
   for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_" + std::to_string(k));
   for (int k = 1; k <= kMaxFree; ++k) names.push_back("free_L_trend_" + std::to_string(k));
   for (int k = 1; k <= kMaxFree; ++k) names.emplace_back("free_L_path_" + std::to_string(k));
-  for (int k = 1; k <= kMaxFree; ++k)
-    names.emplace_back("free_strain_correction_" + std::to_string(k));
+  for (int k = 1; k <= kMaxFree; ++k) {
+    // (Appended, not "literal" + std::to_string(k): GCC 12's -Warray-bounds misreads that
+    // temporary's copy at -O3.)
+    std::string name = "free_strain_correction_";
+    name += std::to_string(k);
+    names.push_back(std::move(name));
+  }
   // (emplace_back: GCC 12's -Warray-bounds misreads push_back of this literal at -O2.)
   names.emplace_back("last_output_time");
   for (const char* m :

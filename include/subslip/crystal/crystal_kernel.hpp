@@ -211,4 +211,9 @@ GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<
 template <int N>
 typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N>& s);
 
+// Normal traction f_n,a of a state, per system: tau0_a, or with the pressure-sensitive reading
+// tau0_a - M_a : sigma (the plane is open where f_n,a <= 0).
+template <int N>
+typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState<N>& s);
+
 }  // namespace subslip::crystal
