@@ -111,6 +111,14 @@ void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, 
   // The batch leaves out the plane-pressure coefficient of the slips' Newton step.
   batched_flow_points =
       !pressure_sensitive && detail::flow_batches_pay() && detail::has_batched_flow_points(laws, n);
+  // (No laws yet: a zero bound, so the quick test never passes and the full one decides.)
+  ratio_limit = SlipTypes<N>::VecN::Zero(n);
+  if (static_cast<int>(laws.size()) == n) {
+    for (int a = 0; a < n; ++a) {
+      const auto& o = laws[static_cast<size_t>(a)].parameters().overstress;
+      ratio_limit(a) = o.form == law::OverstressForm::rate_independent ? 1.0 : o.r_hat;
+    }
+  }
 }
 
 template <int N>

@@ -631,8 +631,11 @@ class StressSolver {
     // The rounding of the largest slip, which the stress C P dgamma cannot resolve below.
     p.slip_resolution = 4.0 * kEps * dgamma.cwiseAbs().maxCoeff();
     const double slip_resolution = p.slip_resolution;
+    if (batched_) {
+      batch_flow_points(dgamma, tau, fn, latent_drive);
+      return batched_rows(dgamma, tau, fn, p);
+    }
     RoleChange change;
-    if (batched_) batch_flow_points(dgamma, tau, fn, latent_drive);
     for (int a = 0; a < n_; ++a) {
       if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
       const double latent = latent_drive(a);
@@ -704,6 +707,49 @@ class StressSolver {
       p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
       p.e(a) = ph_.pressure_sensitive ? s * f.g_dr * (-f.r / fn(a)) * inverse_slope : 0.0;
       p.l(a) = s * f.g_dr * (-f.r / f.mu) * f.dmu_de * inverse_slope;
+    }
+    return change;
+  }
+
+  // evaluate_slips' rows from the flow points of one batch (batch_flow_points): the same tests
+  // and the same arithmetic as its general loop, for what a batch allows (one exponential law
+  // of the cot function for every system, no plane pressure, so no saturated system and f_n =
+  // tau0), read from the batch's arrays directly.
+  RoleChange batched_rows(const VecN& dgamma, const VecN& tau, const VecN& fn, SlipPoint& p) const {
+    const FlowBatchOutput& o = batch_out_;
+    RoleChange change;
+    for (int a = 0; a < n_; ++a) {
+      const auto i = static_cast<size_t>(a);
+      if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
+      if (dgamma(a) == 0.0) {
+        const double r0 = starts_[i][tau(a) * tau_start_(a) < 0.0 ? 1 : 0].r0;
+        p.mu(a) = o.mu[i], p.r_s(a) = r0;
+        if (!(std::abs(tau(a)) / (o.mu[i] * fn(a)) - r0 > tolerance_)) continue;  // idle
+      } else if (tau(a) * dgamma(a) <= 0.0) {
+        if (change.kind == RoleChange::none) change = {RoleChange::turned_against, a};
+        continue;
+      }
+      const double g = o.g[i], g_s = o.g_slip[i];
+      if (!std::isfinite(g)) return {RoleChange::inadmissible, a};
+      const bool finite_slope = g_s < 0.0 && std::isfinite(g_s);
+      if (dgamma(a) == 0.0 && finite_slope && g <= -g_s * p.slip_resolution) continue;
+      if (!finite_slope) {
+        if (dgamma(a) != 0.0) return {RoleChange::inadmissible, a};
+        if (change.kind == RoleChange::none) change = {RoleChange::wants_to_slip, a};
+        p.worst = std::max(p.worst, g);
+        p.converged = false;
+        continue;
+      }
+      p.mu(a) = o.mu[i], p.r_s(a) = o.r_s[i];
+      p.worst = std::max(p.worst, std::abs(g));
+      p.converged = p.converged &&
+                    (std::abs(g) <= tolerance_ || within_floor(batched_flow_point(a, batch_z_[i]),
+                                                               batch_z_[i], a, dgamma, fn(a)));
+      const double s = sign_of(tau(a));
+      p.sign(a) = s;
+      p.w(a) = s * o.newton_w[i];
+      p.d(a) = o.newton_d[i];
+      p.l(a) = s * o.newton_l[i];
     }
     return change;
   }

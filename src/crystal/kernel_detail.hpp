@@ -98,8 +98,13 @@ inline StepKinematics step_kinematics(const Mat3& g0, const Mat3& L, double dt,
   }
   const Vec3 w = lattice_spin(g0, L);
   const Mat3 g_mid = rotation_exp(-0.5 * dt * w) * g0;
-  const LatticeKinematics k = lattice_kinematics(g_mid, L);
-  return {k.strain_rate * dt, w, g_mid, rotation_exp(-dt * w) * g0};
+  // D alone at g_mid (lattice_kinematics would resolve the spin there too, which the step does
+  // not use). The whole turn is its own exponential, not the half turn squared: the same value
+  // in exact arithmetic, but the orientations' rounding, and with it the iteration counts the
+  // instruction sets are tested to agree on (tests/test_grain_step_isa.cpp), would change.
+  const Mat3 d = 0.5 * (L + L.transpose());
+  return {mandel_from_symmetric(g_mid * d * g_mid.transpose()) * dt, w, g_mid,
+          rotation_exp(-dt * w) * g0};
 }
 
 // The end orientation: after the total spin, the lattice turns back by the plastic spin
@@ -133,6 +138,21 @@ typename SlipTypes<N>::VecN loading_ratio_of(const Phase<N>& ph, const Vec6& str
 // Open slip planes (f_n <= 0, r = 0) are admissible where the step resolved them (implicit).
 enum class OpenPlanes { refused, resolved };
 
+// Whether every test of admissible_state passes, on whole vectors at once (most states are
+// admissible; the per-system loop then only has to name the first failing system). Conservative:
+// a rate-independent system's r in (1, 1 + flow tolerance] fails here and passes there.
+template <int N>
+bool plainly_admissible(const Phase<N>& ph, const GrainState<N>& s,
+                        const typename SlipTypes<N>::VecN& r, const typename SlipTypes<N>::VecN& fn,
+                        OpenPlanes open) {
+  // The comparisons are false for NaN, and r < ratio_limit (finite) rejects an infinite r and,
+  // through r_s <= r, an infinite r_s.
+  return s.mu.allFinite() && s.slip.allFinite() && (s.mu.array() > 0.0).all() &&
+         (open == OpenPlanes::resolved || (fn.array() > 0.0).all()) &&
+         (s.r_s.array() >= 0.0).all() && (s.r_s.array() <= r.array()).all() &&
+         (r.array() < ph.ratio_limit.array()).all();
+}
+
 template <int N>
 bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
                       const typename SlipTypes<N>::VecN& r, const typename SlipTypes<N>::VecN& fn,
@@ -142,6 +162,7 @@ bool admissible_state(const Phase<N>& ph, const GrainState<N>& s,
     rep.why = "non-finite stress or orientation";
     return false;
   }
+  if (plainly_admissible(ph, s, r, fn, open)) return true;
   for (int a = 0; a < ph.slip_count; ++a) {
     const auto& o = ph.laws[static_cast<size_t>(a)].parameters().overstress;
     const bool ri = o.form == law::OverstressForm::rate_independent;
@@ -186,23 +207,22 @@ template <int N>
 Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Tangent& d_sigma_lattice,
                        const SlipTangent<N>& d_dgamma) {
   const Mat3& g1 = s1.orientation;
+  const bool spins = ph.kinematics == Kinematics::finite_rotation;
+  const Mat3 sigma = symmetric_from_mandel(s1.stress);
   Tangent t(6, d_sigma_lattice.cols());
-  for (int k = 0; k < t.cols(); ++k)
-    t.col(k) =
-        mandel_from_symmetric(g1.transpose() * symmetric_from_mandel(d_sigma_lattice.col(k)) * g1);
-  if (ph.kinematics == Kinematics::finite_rotation) {
-    // With dg1 = [dw] g1: d sigma_sample = g1^T (sigma [dw] - [dw] sigma) g1, linear in the
-    // plastic spin's change dw = W_p d dgamma: its 6 x 3 matrix from the three unit spins.
-    const Mat3 sigma = symmetric_from_mandel(s1.stress);
-    Eigen::Matrix<double, 6, 3> per_spin;
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 e = Vec3::Unit(k);
+  for (int k = 0; k < t.cols(); ++k) {
+    Mat3 change = symmetric_from_mandel(d_sigma_lattice.col(k));
+    if (spins) {
+      // With dg1 = [dw] g1: d sigma_sample = g1^T (d sigma + sigma [dw] - [dw] sigma) g1, dw =
+      // W_p d dgamma the plastic spin's change; for the skew [dw], sigma [dw] - [dw] sigma is
+      // sigma [dw] plus its transpose. One turn to the sample frame per column.
+      const Vec3 dw = ph.slip_spin * d_dgamma.col(k);
       Mat3 skew;
-      skew << 0.0, -e.z(), e.y(), e.z(), 0.0, -e.x(), -e.y(), e.x(), 0.0;
-      per_spin.col(k) = mandel_from_symmetric(g1.transpose() * (sigma * skew - skew * sigma) * g1);
+      skew << 0.0, -dw.z(), dw.y(), dw.z(), 0.0, -dw.x(), -dw.y(), dw.x(), 0.0;
+      const Mat3 turn = sigma * skew;
+      change += turn + turn.transpose();
     }
-    const Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 6> spin = ph.slip_spin * d_dgamma;
-    t.noalias() += per_spin * spin;
+    t.col(k) = mandel_from_symmetric(g1.transpose() * change * g1);
   }
   return t;
 }

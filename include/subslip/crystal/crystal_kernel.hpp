@@ -91,6 +91,10 @@ struct Phase {
   // updates for all systems, batches wide enough to pay: flow_point_batch.hpp). Set by
   // assemble() from `laws`, which are assigned first.
   bool batched_flow_points = false;
+  // Each system's bound on the loading ratio r (set by assemble() from `laws`): r < r_hat under
+  // an overstress form, 1 under the rate-independent form (whose steps may end within the flow
+  // rule's tolerance above it). The end state's quick admissibility test reads it.
+  typename T::VecN ratio_limit;
 
   // Builds the derived matrices from the slip directions/normals (lattice frame, unit vectors)
   // and the lattice-frame stiffness (after the laws, tau0 and the latent settings are set).
