@@ -73,13 +73,13 @@ struct SystemResponse {
 
 // The flow rule of one system, one value of its unknown z.
 struct FlowPoint {
-  double g;     // G, ratio units; +inf where r >= r_hat
-  double g_z;   // dG/dz
-  double g_s;   // dG/d ds (-inf at ds = 0 where r_s or the overstress grows like a root of ds)
-  double g_dr;  // dG/dr
-  double r;
-  double dmu_de;  // d mu / d(effective slip)
-  double mu, r_s;
+  double g = 0.0;    // G, ratio units; +inf where r >= r_hat
+  double g_z = 0.0;  // dG/dz
+  double g_s = 0.0;  // dG/d ds (-inf at ds = 0 where r_s or the overstress grows like a root of ds)
+  double g_dr = 0.0;  // dG/dr
+  double r = 0.0;
+  double dmu_de = 0.0;  // d mu / d(effective slip)
+  double mu = 0.0, r_s = 0.0;
 };
 
 template <int N>
@@ -225,7 +225,7 @@ class StressSolver {
         it.bad_system = it.opening = a;
         return;
       }
-      const bool against = it.tau(a) * tau_start_(a) < 0.0;
+      const bool against = slips_against(a, it.tau);
       const double latent =
           latent_rank_ > 0 ? ph_.latent_factor.row(a).head(latent_rank_).dot(y.head(latent_rank_)) /
                                  latent_scale_
@@ -630,58 +630,53 @@ class StressSolver {
     p.converged = true;
     // The rounding of the largest slip, which the stress C P dgamma cannot resolve below.
     p.slip_resolution = 4.0 * kEps * dgamma.cwiseAbs().maxCoeff();
-    const double slip_resolution = p.slip_resolution;
     if (batched_) {
       batch_flow_points(dgamma, tau, fn, latent_drive);
-      return batched_rows(dgamma, tau, fn, p);
+      return slip_rows<true>(dgamma, tau, fn, latent_drive, p);
     }
+    return slip_rows<false>(dgamma, tau, fn, latent_drive, p);
+  }
+
+  // evaluate_slips' rows, one system at a time, from the flow points of one SIMD batch
+  // (`Batched`, batch_flow_points: one exponential law of the cot function on every system and
+  // no plane pressure, so no saturated system) or of each system's own law (flow_point). The
+  // tests that set a system's role are the same for both sources.
+  template <bool Batched>
+  RoleChange slip_rows(const VecN& dgamma, const VecN& tau, const VecN& fn,
+                       const VecN& latent_drive, SlipPoint& p) const {
     RoleChange change;
     for (int a = 0; a < n_; ++a) {
+      const auto i = static_cast<size_t>(a);
       if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
-      const double latent = latent_drive(a);
-      const bool against = tau(a) * tau_start_(a) < 0.0;
-      const auto& start = starts_[static_cast<size_t>(a)][against ? 1 : 0];
-      const auto& law = ph_.laws[static_cast<size_t>(a)];
-      double z = 0.0;
       if (dgamma(a) == 0.0) {
-        const double mu = batched_ ? batch_out_.mu[static_cast<size_t>(a)]
-                                   : law.friction_coefficient_after(s0_.mu(a), latent, dt_).value;
-        const double excess = std::abs(tau(a)) / (mu * fn(a)) - start.r0;
-        p.mu(a) = mu, p.r_s(a) = start.r0;
-        if (!(excess > tolerance_)) continue;  // idle: G(0) = r - r_s0 <= 0
+        const double mu = Batched ? batch_out_.mu[i] : idle_friction(a, latent_drive(a));
+        const double r0 = starts_[i][slips_against(a, tau) ? 1 : 0].r0;
+        p.mu(a) = mu, p.r_s(a) = r0;
+        if (!(std::abs(tau(a)) / (mu * fn(a)) - r0 > tolerance_)) continue;  // idle
         // Loaded past r_s0: active at zero slip, linearised on the side of its shear.
       } else if (tau(a) * dgamma(a) <= 0.0) {
         if (change.kind == RoleChange::none) change = {RoleChange::turned_against, a};
         continue;
-      } else if (batched_) {
-        z = batch_z_[static_cast<size_t>(a)];
-      } else {
-        const double p_exp = exponent_[static_cast<size_t>(a)];
-        const double slip = std::abs(dgamma(a));
-        z = p_exp == 2.0 ? std::sqrt(slip) : std::pow(slip, 1.0 / p_exp);
       }
-      const FlowPoint f = batched_ ? batched_flow_point(a, z)
-                                   : flow_point(a, std::abs(tau(a)), fn(a), latent, against, z);
+      const double z = Batched ? batch_z_[i] : slip_root(a, dgamma(a));
+      // From a batch, only what every row reads; the whole point where within_floor needs it.
+      const FlowPoint f = Batched ? FlowPoint{.g = batch_out_.g[i],
+                                              .g_s = batch_out_.g_slip[i],
+                                              .mu = batch_out_.mu[i],
+                                              .r_s = batch_out_.r_s[i]}
+                                  : flow_point(a, std::abs(tau(a)), fn(a), latent_drive(a),
+                                               slips_against(a, tau), z);
       if (!std::isfinite(f.g)) return {RoleChange::inadmissible, a};
-      if (is_saturated(a, f, fn(a))) {
-        // Slipping (or loaded past r = r_s0 = 1 at zero slip: the slip is then ready to grow)
-        // with a flow rule that no longer depends on its own slip: a yield condition.
-        const double s = dgamma(a) != 0.0 ? sign_of(dgamma(a)) : sign_of(tau(a));
-        p.saturated(a) = true;
-        p.sign(a) = s;
-        p.mu(a) = f.mu, p.r_s(a) = f.r_s;
-        p.worst = std::max(p.worst, std::abs(f.g));
-        p.converged = p.converged && within_floor(f, z, a, dgamma, fn(a));
-        // dG = g_dr (dr/d|tau| s P_a:ds - r/f_n df_n), df_n = -M_a:ds; scaled by mu f_n/g_dr.
-        p.yield_normal(a) = ph_.pressure_sensitive ? f.r * f.mu : 0.0;
-        p.yield_rhs(a) = -f.g * f.mu * fn(a) / f.g_dr;
-        continue;
+      if constexpr (!Batched) {
+        if (is_saturated(a, f, fn(a))) {
+          saturated_row(a, f, z, dgamma, tau, fn, p);
+          continue;
+        }
       }
+      const bool finite_slope = f.g_s < 0.0 && std::isfinite(f.g_s);
       // An idle system whose excess a slip below that rounding would remove is at its root.
-      if (dgamma(a) == 0.0 && f.g_s < 0.0 && std::isfinite(f.g_s) &&
-          f.g <= -f.g_s * slip_resolution)
-        continue;
-      if (!(f.g_s < 0.0) || !std::isfinite(f.g_s)) {
+      if (dgamma(a) == 0.0 && finite_slope && f.g <= -f.g_s * p.slip_resolution) continue;
+      if (!finite_slope) {
         // No finite slope: at zero slip where r_s (from r_s0 = 0) or the power overstress grows
         // like a root of the slip, or a flow rule that no longer depends on the slip.
         if (dgamma(a) != 0.0) return {RoleChange::inadmissible, a};
@@ -692,66 +687,55 @@ class StressSolver {
       }
       p.mu(a) = f.mu, p.r_s(a) = f.r_s;
       p.worst = std::max(p.worst, std::abs(f.g));
-      p.converged = p.converged && within_floor(f, z, a, dgamma, fn(a));
+      p.converged = p.converged &&
+                    (std::abs(f.g) <= tolerance_ ||
+                     within_floor(Batched ? batched_flow_point(a, z) : f, z, a, dgamma, fn(a)));
       const double s = sign_of(tau(a));
       p.sign(a) = s;
-      if (batched_) {
-        const auto i = static_cast<size_t>(a);
+      if constexpr (Batched) {
         p.w(a) = s * batch_out_.newton_w[i];
         p.d(a) = batch_out_.newton_d[i];
         p.l(a) = s * batch_out_.newton_l[i];
-        continue;
+      } else {
+        const double inverse_slope = 1.0 / (-f.g_s);
+        p.w(a) = s * f.g * inverse_slope;
+        p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
+        p.e(a) = ph_.pressure_sensitive ? s * f.g_dr * (-f.r / fn(a)) * inverse_slope : 0.0;
+        p.l(a) = s * f.g_dr * (-f.r / f.mu) * f.dmu_de * inverse_slope;
       }
-      const double inverse_slope = 1.0 / (-f.g_s);
-      p.w(a) = s * f.g * inverse_slope;
-      p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
-      p.e(a) = ph_.pressure_sensitive ? s * f.g_dr * (-f.r / fn(a)) * inverse_slope : 0.0;
-      p.l(a) = s * f.g_dr * (-f.r / f.mu) * f.dmu_de * inverse_slope;
     }
     return change;
   }
 
-  // evaluate_slips' rows from the flow points of one batch (batch_flow_points): the same tests
-  // and the same arithmetic as its general loop, for what a batch allows (one exponential law
-  // of the cot function for every system, no plane pressure, so no saturated system and f_n =
-  // tau0), read from the batch's arrays directly.
-  RoleChange batched_rows(const VecN& dgamma, const VecN& tau, const VecN& fn, SlipPoint& p) const {
-    const FlowBatchOutput& o = batch_out_;
-    RoleChange change;
-    for (int a = 0; a < n_; ++a) {
-      const auto i = static_cast<size_t>(a);
-      if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
-      if (dgamma(a) == 0.0) {
-        const double r0 = starts_[i][tau(a) * tau_start_(a) < 0.0 ? 1 : 0].r0;
-        p.mu(a) = o.mu[i], p.r_s(a) = r0;
-        if (!(std::abs(tau(a)) / (o.mu[i] * fn(a)) - r0 > tolerance_)) continue;  // idle
-      } else if (tau(a) * dgamma(a) <= 0.0) {
-        if (change.kind == RoleChange::none) change = {RoleChange::turned_against, a};
-        continue;
-      }
-      const double g = o.g[i], g_s = o.g_slip[i];
-      if (!std::isfinite(g)) return {RoleChange::inadmissible, a};
-      const bool finite_slope = g_s < 0.0 && std::isfinite(g_s);
-      if (dgamma(a) == 0.0 && finite_slope && g <= -g_s * p.slip_resolution) continue;
-      if (!finite_slope) {
-        if (dgamma(a) != 0.0) return {RoleChange::inadmissible, a};
-        if (change.kind == RoleChange::none) change = {RoleChange::wants_to_slip, a};
-        p.worst = std::max(p.worst, g);
-        p.converged = false;
-        continue;
-      }
-      p.mu(a) = o.mu[i], p.r_s(a) = o.r_s[i];
-      p.worst = std::max(p.worst, std::abs(g));
-      p.converged = p.converged &&
-                    (std::abs(g) <= tolerance_ || within_floor(batched_flow_point(a, batch_z_[i]),
-                                                               batch_z_[i], a, dgamma, fn(a)));
-      const double s = sign_of(tau(a));
-      p.sign(a) = s;
-      p.w(a) = s * o.newton_w[i];
-      p.d(a) = o.newton_d[i];
-      p.l(a) = s * o.newton_l[i];
-    }
-    return change;
+  // The row of a saturated system (is_saturated): slipping, or loaded past r = r_s0 = 1 at zero
+  // slip (the slip is then ready to grow), with a flow rule that no longer depends on its own
+  // slip: a yield condition on the stress.
+  void saturated_row(int a, const FlowPoint& f, double z, const VecN& dgamma, const VecN& tau,
+                     const VecN& fn, SlipPoint& p) const {
+    p.saturated(a) = true;
+    p.sign(a) = dgamma(a) != 0.0 ? sign_of(dgamma(a)) : sign_of(tau(a));
+    p.mu(a) = f.mu, p.r_s(a) = f.r_s;
+    p.worst = std::max(p.worst, std::abs(f.g));
+    p.converged = p.converged && within_floor(f, z, a, dgamma, fn(a));
+    // dG = g_dr (dr/d|tau| s P_a:ds - r/f_n df_n), df_n = -M_a:ds; scaled by mu f_n/g_dr.
+    p.yield_normal(a) = ph_.pressure_sensitive ? f.r * f.mu : 0.0;
+    p.yield_rhs(a) = -f.g * f.mu * fn(a) / f.g_dr;
+  }
+
+  // Whether system a's shear is against its shear at the start of the step: its subloading
+  // ratio then restarts from 0 (3.12).
+  bool slips_against(int a, const VecN& tau) const { return tau(a) * tau_start_(a) < 0.0; }
+  // A system's friction coefficient at zero slip of its own (the latent drive only).
+  double idle_friction(int a, double latent) const {
+    return ph_.laws[static_cast<size_t>(a)]
+        .friction_coefficient_after(s0_.mu(a), latent, dt_)
+        .value;
+  }
+  // z = |ds|^(1/p): the unknown in which a system's flow rule keeps a finite slope at zero slip.
+  double slip_root(int a, double dgamma) const {
+    const double p_exp = exponent_[static_cast<size_t>(a)];
+    const double slip = std::abs(dgamma);
+    return p_exp == 2.0 ? std::sqrt(slip) : std::pow(slip, 1.0 / p_exp);
   }
 
   // The Newton system of a slip point, condensed to 6 x 6. With K = P diag(d) - M diag(e)
@@ -957,7 +941,7 @@ class StressSolver {
       const auto i = static_cast<size_t>(a);
       const double z = dgamma(a) == 0.0 ? 0.0 : std::sqrt(std::abs(dgamma(a)));
       batch_z_[i] = z;
-      const auto& start = starts_[i][tau(a) * tau_start_(a) < 0.0 ? 1 : 0];
+      const auto& start = starts_[i][slips_against(a, tau) ? 1 : 0];
       in.mu0[i] = s0_.mu(a);
       in.slip[i] = z * z;
       in.effective[i] = q * in.slip[i] + latent_drive(a);
