@@ -631,7 +631,7 @@ class StressSolver {
     // The rounding of the largest slip, which the stress C P dgamma cannot resolve below.
     p.slip_resolution = 4.0 * kEps * dgamma.cwiseAbs().maxCoeff();
     if (batched_) {
-      batch_flow_points(dgamma, tau, fn, latent_drive);
+      batch_flow_points(dgamma, tau, latent_drive);
       return slip_rows<true>(dgamma, tau, fn, latent_drive, p);
     }
     return slip_rows<false>(dgamma, tau, fn, latent_drive, p);
@@ -911,8 +911,14 @@ class StressSolver {
 
  private:
   // Every system's subloading starts, the batched flow points' law's (cot) in SIMD batches: at
-  // its r_s from the start of the step and, for a slip against its start shear, at 0.
+  // its r_s from the start of the step and, for a slip against its start shear, at 0. And the
+  // batch's inputs that a solve holds fixed: mu at the start of the step and f_n (tau0: a batch
+  // has no plane pressure).
   void set_batched_starts() {
+    for (int a = 0; a < n_; ++a) {
+      batch_in_.mu0[static_cast<size_t>(a)] = s0_.mu(a);
+      batch_in_.normal[static_cast<size_t>(a)] = ph_.tau0(a);
+    }
     const auto& law = ph_.laws.front();
     SubloadingStartBatch b;
     for (int a = 0; a < n_; ++a) b.r0[static_cast<size_t>(a)] = std::clamp(s0_.r_s(a), 0.0, 1.0);
@@ -933,8 +939,7 @@ class StressSolver {
   // updates, see flow_point_batch.hpp): what flow_point gives system by system, with each
   // system's slip at z = |ds|^(1/2) (the exponent of the exponential form) as evaluate_slips
   // takes it.
-  void batch_flow_points(const VecN& dgamma, const VecN& tau, const VecN& fn,
-                         const VecN& latent_drive) const {
+  void batch_flow_points(const VecN& dgamma, const VecN& tau, const VecN& latent_drive) const {
     const double q = ph_.has_latent ? ph_.latent_self : 1.0;
     FlowBatchInput& in = batch_in_;
     for (int a = 0; a < n_; ++a) {
@@ -942,13 +947,11 @@ class StressSolver {
       const double z = dgamma(a) == 0.0 ? 0.0 : std::sqrt(std::abs(dgamma(a)));
       batch_z_[i] = z;
       const auto& start = starts_[i][slips_against(a, tau) ? 1 : 0];
-      in.mu0[i] = s0_.mu(a);
       in.slip[i] = z * z;
       in.effective[i] = q * in.slip[i] + latent_drive(a);
       in.r0[i] = start.r0, in.cos0[i] = start.cos0, in.one_minus_cos0[i] = start.one_minus_cos0;
       in.rate0[i] = start.rate0;
       in.shear[i] = std::abs(tau(a));
-      in.normal[i] = fn(a);
     }
     batched_flow_points(ph_.laws.front().parameters(), dt_, q, n_, in, batch_out_);
   }

@@ -208,7 +208,7 @@ Tangent sample_tangent(const Phase<N>& ph, const GrainState<N>& s1, const Tangen
                        const SlipTangent<N>& d_dgamma) {
   const Mat3& g1 = s1.orientation;
   const bool spins = ph.kinematics == Kinematics::finite_rotation;
-  const Mat3 sigma = symmetric_from_mandel(s1.stress);
+  const Mat3 sigma = spins ? symmetric_from_mandel(s1.stress) : Mat3::Zero();  // read if spins
   Tangent t(6, d_sigma_lattice.cols());
   for (int k = 0; k < t.cols(); ++k) {
     Mat3 change = symmetric_from_mandel(d_sigma_lattice.col(k));
