@@ -28,6 +28,7 @@
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
 #include "subslip/io/contact_scene.hpp"
+#include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
@@ -482,6 +483,49 @@ TEST(AdaptiveCrystal, SegmentTimeResolvesStepsTheAbsoluteTimeCannot) {
   measured() << "outputs " << out.size()
              << ", of them at the same absolute time as the one before: " << repeated_times << "\n";
   EXPECT_GT(repeated_times, 0) << "the case no longer shows what segment_time is for";
+}
+
+// A nearly rate-independent grain (the parser edge initial_mu = 0.01, eta_v = 1e-9 s, n = 0.5,
+// r_hat = 1 + 1e-6, u_tilde = 1e6 of inputs/extreme/crystal_parser_edges.yaml) with its tension
+// given as one increment, order 2 at 1e-9: 0.05 s in, the estimate stays at about 2e-9 however
+// short the step (the free stresses are resolved to their tolerance over an initial CRSS of
+// 0.1 MPa). The run ends naming that, and the time's resolution, instead of handing the grain
+// a substep of length zero (which it reported as "slip increments did not converge").
+TEST(AdaptiveCrystal, StepsBelowTheTimesResolutionEndTheRunWithTheirCause) {
+  const auto scene = subslip::io::parse_crystal_scene(subslip::io::YamlDocument::from_string(
+      R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  initial_mu: 0.01
+  law:
+    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 10.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 1.0e6}
+    overstress: {form: exponential, eta_v: 1.0e-9, n: 0.5, r_hat: 1.000001}
+orientations:
+  euler_deg: [[10, 20, 30]]
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    strain: 0.05
+    increments: 1
+integrator: {method: implicit, tolerance: 1.0e-9, order: 2}
+)",
+      "edge.yaml"));
+  const auto& c = scene.cases.at(0);
+  auto agg = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  std::string message;
+  try {
+    agg->run(c.segments, c.options, [](const crystal::MacroState&, const crystal::GrainFields&) {});
+  } catch (const crystal::CrystalStepFailure& e) {
+    message = e.what();
+  }
+  ASSERT_FALSE(message.empty()) << "the run reached the end: the case no longer shows the limit";
+  EXPECT_NE(message.find("fell below what the time"), std::string::npos) << message;
+  EXPECT_NE(message.find("local error estimate"), std::string::npos) << message;
+  EXPECT_EQ(message.find("did not converge"), std::string::npos) << message;
 }
 
 // ---- scenes -------------------------------------------------------------------------------

@@ -72,6 +72,31 @@ TEST(StepControl, KnownResolutionDecidesTheNoiseFloor) {
   EXPECT_NE(why.find("1e-09"), std::string::npos) << why;
 }
 
+// A step shorter than the time it starts at resolves (kSameTime of it: its end, or the end of a
+// substep of it, would round onto its start) is none. An estimate that stays above the
+// tolerance and above its known resolution shrinks the step down to there, and the clock gives
+// up with its own message; it never hands a solver a step whose substeps have length zero.
+TEST(StepControl, StepBelowTheTimesResolutionEndsTheSegment) {
+  using subslip::integrators::kSameTime;
+  AdaptiveSegment clock(1.0, 0.0514, 1e-9, 2);
+  clock.accept(1e-12);  // t = 0.0514 s into the segment
+  const double t = clock.time();
+  ASSERT_GT(t, 0.05);
+  int refusals = 0;
+  for (;;) {
+    const double h = clock.step();
+    for (int k = 1; k <= 4; ++k) EXPECT_NE(t + h / k, t) << "a substep of length zero";
+    if (!clock.refuse(false, 2.2e-9, 1e-12)) break;
+    ++refusals;
+  }
+  EXPECT_GT(refusals, 20);
+  EXPECT_FALSE(clock.at_noise_floor());
+  EXPECT_TRUE(clock.below_time_resolution());
+  EXPECT_LE(clock.planned_step(), kSameTime * t);
+  const std::string why = clock.time_resolution_message();
+  EXPECT_NE(why.find("fell below what the time 0.0514"), std::string::npos) << why;
+}
+
 // The step factor of an estimate of order q: the step that would meet the tolerance exactly,
 // 0.9 (tol/err)^(1/q), within the limits.
 TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {

@@ -492,11 +492,13 @@ void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactMo
     if (!a.ok || !(error <= opt.tolerance)) {
       a.ok ? ++stats.rejected : ++stats.cutbacks;
       if (!clock.refuse(!a.ok, error, resolution)) {
-        throw StepFailure(failure_message(s, clock.refusals(), h,
-                                          !a.ok ? a.why
-                                          : clock.at_noise_floor()
-                                              ? clock.noise_floor_message()
-                                              : "local error estimate stays above the tolerance"));
+        std::string why = !a.ok ? a.why
+                          : clock.at_noise_floor()
+                              ? clock.noise_floor_message()
+                              : "local error estimate stays above the tolerance";
+        if (clock.below_time_resolution())
+          why = clock.time_resolution_message() + " (last attempt: " + why + ")";
+        throw StepFailure(failure_message(s, clock.refusals(), h, why));
       }
       continue;
     }

@@ -502,7 +502,10 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         if (solved) why = describe_error(error);
         if (!clock.refuse(!solved, error.value,
                           extrapolated ? extrapolation_resolution(fc, opt) : 0.0)) {
-          if (clock.at_noise_floor()) why = clock.noise_floor_message() + " (" + why + ")";
+          if (clock.at_noise_floor())
+            why = clock.noise_floor_message() + " (" + why + ")";
+          else if (clock.below_time_resolution())
+            why = clock.time_resolution_message() + " (last attempt: " + why + ")";
           std::ostringstream msg;
           msg << "crystal step failed at time " << macro_.time << " after " << clock.refusals()
               << " refused attempts (dt = " << h << "): " << why;

@@ -208,7 +208,8 @@ class AdaptiveSegment {
       ++refusals_;
       noise_floor_ = !failed && error <= resolution;
       if (noise_floor_) floor_start_ = floor_end_ = {h, resolution};
-      return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+      below_time_resolution_ = !resolvable(dt_);
+      return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && !below_time_resolution_;
     }
     if (failed) {
       floor_start_ = {};  // a failed attempt has no estimate: start again after it
@@ -220,9 +221,21 @@ class AdaptiveSegment {
     noise_floor_ = !failed && floor_start_.error > 0.0 && h <= floor_start_.step / kFloorShrink &&
                    error >= 0.5 * floor_start_.error;
     if (noise_floor_) floor_end_ = {h, error};
-    return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && dt_ > 0.0 && t_ + dt_ != t_;
+    below_time_resolution_ = !(dt_ > 0.0 && t_ + dt_ != t_);
+    return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && !below_time_resolution_;
   }
   bool at_noise_floor() const { return noise_floor_; }
+  // Whether the last refusal gave up because the step it planned is shorter than the time
+  // resolves.
+  bool below_time_resolution() const { return !noise_floor_ && below_time_resolution_; }
+  // Why a driver stops below the time's resolution, for its failure message.
+  std::string time_resolution_message() const {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "the step (%.3g) fell below what the time %.17g into the segment resolves", dt_,
+                  t_);
+    return buf;
+  }
 
   // Why a driver stops at the noise floor, for its failure message.
   std::string noise_floor_message() const {
@@ -245,6 +258,13 @@ class AdaptiveSegment {
   }
 
  private:
+  // A step of the extrapolated integrators (those that pass the estimate's resolution to
+  // refuse) is one where it is longer than kSameTime of the time it starts at: they divide it
+  // into up to 4 substeps whose ends are times, and below that a substep's end rounds onto its
+  // start, a step of length zero that no solve resolves. (kSameTime is also what makes a stop
+  // that close to a step's end that end, and the fixed steps' rule.) Backward Euler's steps
+  // are not divided: for them a step is one that moves the time at all.
+  bool resolvable(double dt) const { return dt > kSameTime * std::abs(t_) && t_ + dt != t_; }
   // A time reaches a stop when it is at or past it, or short of it by round-off of the stop's
   // time (kSameTime).
   static bool reaches(double time, double stop) { return time >= stop * (1.0 - kSameTime); }
@@ -265,6 +285,7 @@ class AdaptiveSegment {
   };
   Attempt floor_start_, floor_end_;  // the first rejected attempt in a row, and the last
   bool noise_floor_ = false;
+  bool below_time_resolution_ = false;  // the last refusal gave up on the step's length
 };
 
 }  // namespace subslip::integrators
