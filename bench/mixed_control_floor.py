@@ -2,7 +2,8 @@
 """Mixed control's cost against L prescribed, and the floor no two-sweep scheme goes below.
 
     /usr/bin/python3 bench/mixed_control_floor.py [--subslip build/src/subslip]
-                     [--scene inputs/default.yaml] [--workdir DIR]
+                     [--scene inputs/default.yaml] [--workdir DIR] [--stress-tolerance T]
+                     [--profiles PRESCRIBED MIXED]
 
 Runs the scene twice under valgrind's callgrind, one thread: as it is (mixed control: L33
 prescribed, the lateral and shear stresses held) and with its velocity gradient fully
