@@ -15,7 +15,7 @@ tolerances). From the two profiles it prints, in instructions per grain and incr
   the plastic spin, the sample stress);
 * T, a grain's consistent tangent (slip_sensitivities with its condensation, sample_tangent);
 
-and the floors of docs/grain_step.md ("A floor for any scheme that verifies each grain at the
+and the floors of docs/benchmarks.md ("A floor for any scheme that verifies each grain at the
 final L"): with the free stresses' tolerance below what a predictor reaches, every increment
 solves each grain at a trial L and again at the final L, and the solve at the final L needs at
 least one evaluation and the kinematics there. So mixed control costs at least

@@ -4,7 +4,7 @@
 // sanitizer report, or an accepted orientation that is not a finite unit quaternion with a
 // finite positive weight (fuzz_checks.hpp) is a finding.
 //
-// Build and run: README.md, "Fuzzing".
+// Build and run: docs/internals.md, "Sanitizers and fuzzing".
 #include <cstddef>
 #include <cstdint>
 #include <sstream>

@@ -7,7 +7,7 @@
 // law the law's constructor refuses, slip systems that are not unit and orthogonal). Inputs that
 // are only slow (many sweep cases, huge generated orientation sets) are skipped: too_costly().
 //
-// Build and run: README.md, "Fuzzing".
+// Build and run: docs/internals.md, "Sanitizers and fuzzing".
 #include <yaml-cpp/yaml.h>
 
 #include <cstddef>

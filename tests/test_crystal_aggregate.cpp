@@ -254,7 +254,7 @@ TEST(CrystalTaylor, RateIndependentTaylorAggregateToStrainOne) {
 // loading. Checked: the run passes the strain of ~0.25 where the free-stress iteration once
 // stalled, the lateral stresses meet their targets at every output, and the Taylor factor is
 // within the prescribed run's bounds. (20 grains keep it to seconds; docs/grain_step.md measures
-// 200 grains to a strain of 1: 86 s with the least-norm split, half of the run in 14 min without.)
+// 200 grains to a strain of 1.)
 TEST(CrystalTaylor, RateIndependentTaylorAggregateUnderMixedControl) {
   const double tau0 = kPlasticTau0, mu = kPlasticMu;
   auto agg = perfectly_plastic_fcc_aggregate(20);

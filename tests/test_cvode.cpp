@@ -3,7 +3,7 @@
 // analytical steady state, the converged implicit integrator (Richardson extrapolation of two
 // fine runs, itself checked for convergence), and the contact point through the single-slip
 // crystal. Errors must fall as the tolerance tightens. Measured values are printed with the
-// prefix "[ measured ]" (the CVODE counters are the cost figures of the README).
+// prefix "[ measured ]" (the CVODE counters are the cost figures of docs/accuracy.md).
 //
 // Compiled in every build: without CVODE the first test checks that the entry points say so.
 #include <gtest/gtest.h>

@@ -450,7 +450,7 @@ double largest_difference(const std::vector<std::vector<double>>& a,
 // The units enter only through the inputs, whose conversions round differently (168.4 GPa is
 // not 168400 MPa / 1000 to the last bit), so the runs agree to round-off, amplified where the
 // problem amplifies it: the traction alpha_t (du - ds) of a stiff contact cancels du ~ ds, so its
-// relative round-off is about eps alpha_t du / f_t (README, "Adaptive stepping"). The bound is
+// relative round-off is about eps alpha_t du / f_t (docs/integrators.md, "Adaptive backward Euler"). The bound is
 // 8 eps times the larger of that amplification and the number of increments (sums of times and
 // slips accumulate one rounding per increment).
 TEST(UnitsPhysics, ContactSceneInThreeUnitSystemsGivesOneResult) {

@@ -140,7 +140,7 @@ TEST(Warnings, ForwardEulerBeyondItsStabilityEstimate) {
   expect_one(w, {"c.yaml: loading[0]: forward_euler", "method implicit"});
 }
 
-// The estimate 2 / (alpha_t / (f_n mu) dphi/dr) at steady sliding: it matches the README's
+// The estimate 2 / (alpha_t / (f_n mu) dphi/dr) at steady sliding: it matches docs/model.md's
 // measured limit (stable below ~5e-8 min, not at 5e-7) for the paper's contact, and with a softer
 // contact forward Euler runs cleanly at half the estimate and needs cutbacks at four times it.
 TEST(Warnings, ForwardEulerEstimateSeparatesStableFromUnstable) {

@@ -1,5 +1,5 @@
 // subslip accuracy: the work-precision study of a scene (error against run time for every
-// integrator; see include/subslip/study/work_precision.hpp and README "Error against run time").
+// integrator; see include/subslip/study/work_precision.hpp and docs/accuracy.md).
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -1,7 +1,7 @@
 // The grain step for laws outside the stress-space solver's assumptions (implicit_grain_step.hpp,
 // docs/grain_step.md): a semismooth Newton iteration on the signed slips, each system's residual
 // continuous through zero slip (docs/grain_step.md, "The semismooth step on signed slips"), with
-// the merit 1/2 |rows|^2. Its magnitude form was the solver of subslip up to 2026-11-26, kept
+// the merit 1/2 |rows|^2. It is kept
 // for what the stress-space formulation does not cover: friction coefficients that soften with
 // slip (mu above mu_k, or mu_k below mu_s), where a system's slip at a held shear need not exist,
 // pressure-sensitive planes, and the rate-independent form, whose slip response to the shear is

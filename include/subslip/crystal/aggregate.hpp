@@ -51,7 +51,8 @@ enum class CrystalMethod { implicit, forward_euler };
 // segment's last step (a component that would change sign keeps its value; a step that fails
 // from there is tried from `last`, and a failed step clears the trend): fewer grain Newton
 // iterations on smooth loading paths, but a different path through holds at yield vertices of
-// nearly ideal plasticity, where the free L is hardly determined (docs/grain_step.md).
+// nearly ideal plasticity, where the free L is hardly determined (docs/benchmarks.md, "The
+// free components' trend").
 enum class MixedPredictor { last, trend };
 
 struct AggregateOptions {
