@@ -33,7 +33,7 @@ void print_header(const RobustnessGrid& grid, int threads) {
       "%d threads\n"
       "# phase: bench phase, overstress form %s%s\n"
       "# L fully prescribed at a rate of %g /s (tension: D = rate diag(1, -1/2, -1/2); shear: "
-      "L_12 = rate); one implicit_grain_step with GrainStepOptions{} defaults\n"
+      "L_12 = rate); one point::GrainPoint update from the committed slip rates, default options\n"
       "# prestrained: %g strain in steps of %g of the same loading first\n"
       "# step: strain step [-], dt [s]; solves: grains tested; fail: not converged; inadm: "
       "converged to an inadmissible state; newton: iterations per solve, failed ones included\n",

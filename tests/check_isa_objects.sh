@@ -7,11 +7,13 @@
 # function of a header compiled there with wide instructions, such as std::array's operator[],
 # would be one definition among identical ones, and the linker's pick could put AVX-512 code on a
 # path that runs on machines without it.
-# Usage: check_isa_objects.sh "obj1;obj2" ENTRY_REGEX (CMake's $<TARGET_OBJECTS:...> or a list;
-# ENTRY_REGEX: what each object's global functions must include, e.g. its kernels' names).
+# Usage: check_isa_objects.sh "obj1;obj2" ENTRY_REGEX [COUNT] (CMake's $<TARGET_OBJECTS:...> or a
+# list; ENTRY_REGEX: what each object's global functions must include, e.g. its kernels' names;
+# COUNT: how many objects there must be, 2 by default).
 set -eu
 objects=$(printf '%s' "$1" | tr ';' ' ')
 entry=$2
+expected=${3:-2}
 status=0
 count=0
 for o in $objects; do
@@ -27,5 +29,5 @@ for o in $objects; do
   nm -C --defined-only "$o" | grep -q -E " [TW] .*($entry)" ||
     { echo "$o: no kernel defined"; status=1; }
 done
-[ "$count" -eq 2 ] || { echo "expected 2 objects, got $count"; status=1; }
+[ "$count" -eq "$expected" ] || { echo "expected $expected objects, got $count"; status=1; }
 exit $status

@@ -192,8 +192,9 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
 
 StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
                           const ContactState& s0, const Vec2& du_t, double fn1, double dt,
-                          double residual_tolerance) {
+                          double residual_tolerance, ContactTangent* tangent) {
   ContactState s = kinematic_update(s0, du_t, fn1, dt);
+  if (tangent) tangent->setZero();
   if (fn1 <= 0.0) return open_contact(law, s, dt);
   const Vec2 trial = s0.traction_t + c.alpha_t * du_t;
   const double ft_trial = trial.norm();
@@ -217,6 +218,7 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
     s.r = r_trial;
     s.law.r_s = std::min(rs_start, r_trial);
     s.vp_rate = 0.0;
+    if (tangent) tangent->leftCols<2>() = c.alpha_t * Eigen::Matrix2d::Identity();
     return {s, 0, true, {}};
   }
 
@@ -269,6 +271,21 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   StepAttempt out{s, root.iterations, true, {}};
   out.why = inadmissible_reason(law, s);
   out.ok = out.why.empty();
+  if (tangent && out.ok) {
+    // f_t = t (ft_trial - alpha_t ds), t = trial / ft_trial, with ds(ft_trial, f_n) the root of
+    // G(r, r_s(ds), ds) = 0 at r = (ft_trial - alpha_t ds) / (f_n mu(ds)).
+    const auto rs = law.subloading_ratio_after(rs_start, ds);
+    const auto g = law.flow_residual(s.r, rs.value, ds, slip_time);
+    const double g_slip = g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip;
+    const double dds_dtrial = -g.d_r / (fn1 * mu.value) / g_slip;
+    const double dds_dfn = g.d_r * s.r / fn1 / g_slip;
+    const Vec2 t = trial / ft_trial;
+    const double ft = ft_trial - c.alpha_t * ds;
+    const Eigen::Matrix2d tt = t * t.transpose();
+    tangent->leftCols<2>() = c.alpha_t * ((ft / ft_trial) * (Eigen::Matrix2d::Identity() - tt) +
+                                          (1.0 - c.alpha_t * dds_dtrial) * tt);
+    tangent->col(2) = -c.alpha_t * dds_dfn * t;
+  }
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "subslip/crystal/aggregate.hpp"
 
+#include "grain_update.hpp"
 #include "subslip/crystal/free_components.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/integrators/extrapolation.hpp"
@@ -173,10 +174,9 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     tangents_.resize(n);
     reports_.resize(n);
     warm_.resize(n);
-    trend_.assign(n, VecN::Zero(phase_.slip_count));
-    trend_change_.assign(n, VecN::Zero(phase_.slip_count));
-    solved_.trend.assign(n, VecN::Zero(phase_.slip_count));
-    solved_.trend_change.assign(n, VecN::Zero(phase_.slip_count));
+    const RateHistory<N> none{VecN::Zero(phase_.slip_count), VecN::Zero(phase_.slip_count)};
+    history_.assign(n, none);
+    solved_.history.assign(n, none);
     extrapolation_errors_.resize(n);
     weights_ = weights.empty() ? std::vector<double>(n, 1.0) : weights;
     std::array<parallel::ExactSum, 1> total;
@@ -246,7 +246,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       out = std::copy(g.stress.data(), g.stress.data() + 6, out);
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) *out++ = g.orientation(i, j);
-      for (const auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &trend_[k], &trend_change_[k]})
+      for (const auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &history_[k].trend,
+                            &history_[k].trend_change})
         out = std::copy(v->data(), v->data() + n, out);
     }
     return c;
@@ -267,7 +268,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
       in += 6;
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) g.orientation(i, j) = *in++;
-      for (auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &trend_[k], &trend_change_[k]}) {
+      for (auto* v : {&g.mu, &g.r_s, &g.slip, &g.rate, &history_[k].trend,
+                      &history_[k].trend_change}) {
         std::copy(in, in + n, v->data());
         in += n;
       }
@@ -838,8 +840,6 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
             .cwiseQuotient(tangent_directions_.colwise().squaredNorm().transpose());
     GrainStepOptions grain_options = opt.grain;
     grain_options.tangent_directions = tangent_directions_;
-    GrainStepOptions grain_options_first_try = grain_options;
-    grain_options_first_try.continuation = false;
     solved_.valid = false;
     std::array<parallel::ExactSum, 6> stress_sum;
 #pragma omp parallel if (n > 1)
@@ -850,8 +850,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
         const auto gi = static_cast<size_t>(g);
         Tangent* t = want_tangent ? &tangents_[gi] : nullptr;
         if (implicit) {
-          solve_implicit_grain(gi, l, dt, grain_options, grain_options_first_try, t, warm, carried,
-                               slip_tangent, direction_change);
+          solve_implicit_grain(gi, l, dt, grain_options, t, warm, carried, slip_tangent,
+                               direction_change);
         } else {
           reports_[gi] = explicit_grain_step(phase_, committed_[gi], l, dt, trial_[gi], t);
           if (t) *t = (*t * tangent_directions_).eval();
@@ -881,32 +881,22 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // Grain gi's implicit step (solve_grains): from its own start (continued rates, or the warm
   // rates carried by its slip tangent), then, should that fail, from its committed rates.
   void solve_implicit_grain(
-      size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options,
-      const GrainStepOptions& grain_options_first_try, Tangent* t, bool warm, bool carried,
-      bool slip_tangent,
+      size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options, Tangent* t,
+      bool warm, bool carried, bool slip_tangent,
       const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>& direction_change) {
     GrainStepReport& rep = reports_[gi];
     SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
-    VecN start;
-    if (carried) {
-      start = warm_[gi];
+    if (!warm) {
+      rep = cold_implicit_step(phase_, committed_[gi], history_[gi], trend_step_, l, dt,
+                               grain_options, trial_[gi], t, st);
+    } else if (carried) {
+      VecN start = warm_[gi];
       start.noalias() += slip_tangents_[gi] * direction_change;
-    } else if (!warm) {
-      start = continued_rates(gi, dt);
-    }
-    // (A start other than the committed rates gets a second try from them.)
-    const bool own_start = carried || !warm;
-    const bool other_start = warm || start != committed_[gi].rate;
-    // The continuation in the strain increment (the semismooth step's last resort) only on
-    // the last try: a second start mostly converges at once.
-    rep = implicit_grain_step(phase_, committed_[gi], l, dt,
-                              other_start ? grain_options_first_try : grain_options, trial_[gi], t,
-                              own_start ? &start : &warm_[gi], st);
-    if (!rep.ok && other_start) {
-      const int spent = rep.iterations;
-      rep = implicit_grain_step(phase_, committed_[gi], l, dt, grain_options, trial_[gi], t,
-                                nullptr, st);
-      rep.iterations += spent;
+      rep = implicit_step_from(phase_, committed_[gi], l, dt, grain_options, start, true,
+                               trial_[gi], t, st);
+    } else {
+      rep = implicit_step_from(phase_, committed_[gi], l, dt, grain_options, warm_[gi], true,
+                               trial_[gi], t, st);
     }
     if (rep.ok) warm_[gi] = trial_[gi].rate;
   }
@@ -916,7 +906,8 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // after one of trend_step_), and its weighted stress added to the thread's part of the
   // average (exact sums: the same bits in any order).
   void note_solved_grain(size_t gi, double dt, std::array<parallel::ExactSum, 6>& part) {
-    trend_after_step(gi, dt, solved_.trend[gi], solved_.trend_change[gi]);
+    history_after_step(committed_[gi], trial_[gi], history_[gi], trend_step_, dt,
+                       solved_.history[gi]);
     const Vec6 s = weights_[gi] * trial_[gi].sample_stress();
     for (int i = 0; i < 6; ++i) part[static_cast<size_t>(i)].add(s(i));
   }
@@ -924,46 +915,6 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // The average stress of trial_: the last solve's (solve_grains) where trial_ is still its.
   Vec6 trial_average_stress() const {
     return solved_.valid ? solved_.average_stress : average_stress(trial_);
-  }
-
-  // Grain g's change of slip rates per unit time over the step being committed, the trend its
-  // next step starts along (continued_rates). A system idle at the step's start has no trend
-  // yet: its rate over the step is the onset of its slip (after the virgin first step, of every
-  // system's), whose continuation (twice that rate) is no guess for the next step; from such
-  // starts the active sets of the default scene's second increment cycled in 757 of 1000
-  // grains, each then solved in stress space (docs/grain_step.md).
-  VecN rate_trend(size_t g, double dt) const {
-    const VecN& before = committed_[g].rate;
-    VecN trend = (trial_[g].rate - before) / dt;
-    for (int a = 0; a < phase_.slip_count; ++a)
-      if (before(a) == 0.0) trend(a) = 0.0;
-    return trend;
-  }
-
-  // Grain g's trend after the step being committed (rate_trend), and its change per unit time
-  // between the midpoints of the last step (trend_step_; zero where there was none) and this one.
-  // `trend` may be trend_[g] itself: it is read before it is written.
-  void trend_after_step(size_t g, double dt, VecN& trend, VecN& change) const {
-    const VecN next = rate_trend(g, dt);
-    if (trend_step_ > 0.0)
-      change = (next - trend_[g]) / (0.5 * (dt + trend_step_));
-    else
-      change.setZero();
-    trend = next;
-  }
-
-  // Grain g's committed slip rates continued over dt along the parabola through the rates of
-  // the last three committed states (Newton's form: the chord of the last step, trend_, and the
-  // change of the chords per unit time between their midpoints, trend_change_, where an
-  // earlier step exists); a system whose rate would change sign (or start from zero) keeps its
-  // committed rate.
-  VecN continued_rates(size_t g, double dt) const {
-    const VecN& rate = committed_[g].rate;
-    VecN start = rate + trend_[g] * dt;
-    if (trend_step_ > 0.0) start += (0.5 * dt * (dt + trend_step_)) * trend_change_[g];
-    for (int a = 0; a < phase_.slip_count; ++a)
-      if (!(start(a) * rate(a) > 0.0)) start(a) = rate(a);
-    return start;
   }
 
   // Whether every grain's report (reports_) is ok; else why, for the first failing grain. The
@@ -1331,14 +1282,14 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
     const bool noted = solved_.valid && solved_.dt == dt && solved_.trend_step == trend_step_;
     solved_.valid = false;
     if (noted) {
-      std::swap(trend_, solved_.trend);
-      std::swap(trend_change_, solved_.trend_change);
+      std::swap(history_, solved_.history);
     } else {
       const long n = static_cast<long>(committed_.size());
 #pragma omp parallel for schedule(static) if (n > 1)
       for (long g = 0; g < n; ++g) {
         const auto gi = static_cast<size_t>(g);
-        trend_after_step(gi, dt, trend_[gi], trend_change_[gi]);
+        history_after_step(committed_[gi], trial_[gi], history_[gi], trend_step_, dt,
+                           history_[gi]);
       }
     }
     trend_step_ = dt;
@@ -1421,14 +1372,13 @@ class TaylorAggregate final : public Aggregate, private GrainFields {
   // The grains' slip-rate history (continued_rates): the rates' change per unit time over the
   // last committed step, trend_, and that trend's change per unit time since the step before,
   // trend_change_ (valid where trend_step_ > 0, the last step's length).
-  std::vector<VecN> trend_;
-  std::vector<VecN> trend_change_;
+  std::vector<RateHistory<N>> history_;
   double trend_step_ = 0.0;
   // What commit() takes from the grain loop of the last solve (note_solved_grain): each grain's
   // trend and trend change over the step dt solved after one of trend_step, and the average
   // stress of trial_. Valid while trial_ and committed_ are that solve's.
   struct SolvedStep {
-    std::vector<VecN> trend, trend_change;
+    std::vector<RateHistory<N>> history;
     Vec6 average_stress = Vec6::Zero();
     double dt = 0.0, trend_step = 0.0;
     bool valid = false;
@@ -1474,12 +1424,6 @@ std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,
       Phase<N>, const std::vector<Mat3>&, const std::vector<double>&, \
       const typename SlipTypes<N>::VecN&, const GrainShare&);
 
-SUBSLIP_INSTANTIATE_AGGREGATE(1)
-SUBSLIP_INSTANTIATE_AGGREGATE(3)
-SUBSLIP_INSTANTIATE_AGGREGATE(6)
-SUBSLIP_INSTANTIATE_AGGREGATE(12)
-SUBSLIP_INSTANTIATE_AGGREGATE(24)
-SUBSLIP_INSTANTIATE_AGGREGATE(48)
-SUBSLIP_INSTANTIATE_AGGREGATE(Eigen::Dynamic)
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_AGGREGATE)
 
 }  // namespace subslip::crystal

@@ -292,12 +292,6 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,       \
                                const Mat3&, GrainRates<N>&);
 
-SUBSLIP_INSTANTIATE_KERNEL(1)
-SUBSLIP_INSTANTIATE_KERNEL(3)
-SUBSLIP_INSTANTIATE_KERNEL(6)
-SUBSLIP_INSTANTIATE_KERNEL(12)
-SUBSLIP_INSTANTIATE_KERNEL(24)
-SUBSLIP_INSTANTIATE_KERNEL(48)
-SUBSLIP_INSTANTIATE_KERNEL(Eigen::Dynamic)
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_KERNEL)
 
 }  // namespace subslip::crystal

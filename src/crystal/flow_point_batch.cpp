@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <stdexcept>
+#include <string>
 #include <string_view>
 
 #include "flow_point_batch_kernels.hpp"
@@ -98,7 +100,9 @@ void limit_flow_batches(int level) {
 }
 
 const char* grain_step_isa_name() {
-#if SUBSLIP_GRAIN_STEP_ISAS
+#if SUBSLIP_GRAIN_STEP_ISAS && !SUBSLIP_GRAIN_STEP_PORTABLE
+  return SUBSLIP_GRAIN_STEP_AVX512 ? "avx512" : "avx2";
+#elif SUBSLIP_GRAIN_STEP_ISAS
   switch (flow_batch_level()) {  // (the dispatch of implicit_grain_step.hpp)
     case 2:
       return "avx512";
@@ -109,6 +113,17 @@ const char* grain_step_isa_name() {
   }
 #else
   return std::string_view(SUBSLIP_BUILD) == "native" ? "native" : "baseline";
+#endif
+}
+
+void require_grain_step_isa() {
+#if SUBSLIP_GRAIN_STEP_ISAS && !SUBSLIP_GRAIN_STEP_PORTABLE
+  const FlowBatchIsa isa = SUBSLIP_GRAIN_STEP_AVX512 ? FlowBatchIsa::avx512 : FlowBatchIsa::avx2;
+  if (!flow_batch_isa_available(isa))
+    throw std::runtime_error(
+        std::string("this subslip was built for its building machine's ") + grain_step_isa_name() +
+        ", which this machine does not run: build it here, or build a binary for any x86-64 "
+        "machine with -DSUBSLIP_GRAIN_STEP_ISA=all");
 #endif
 }
 

@@ -1,10 +1,15 @@
 // The grain step compiled for wider instruction sets than the build's own.
 //
-// The portable x86-64 build (SSE2) also compiles the grain step of the commonest slip counts (12:
-// FCC, BCC {110}; 24: HCP; 48: BCC) for AVX2 with FMA and for AVX-512, from the same sources
-// (implicit_grain_step_<N>.cpp compiled with SUBSLIP_GRAIN_STEP_ISA=isa_avx2 or isa_avx512), and
-// implicit_grain_step<N> calls the widest the machine runs and the run allows (the flow batches'
-// level, flow_point_batch.hpp). A native build (-march=native) compiles one step, for its own set.
+// The x86-64 build (SSE2) also compiles the grain step of the commonest slip counts (12: FCC,
+// BCC {110}; 24: HCP; 48: BCC) for AVX2 with FMA and for AVX-512, from the same sources
+// (implicit_grain_step_<N>.cpp compiled with SUBSLIP_GRAIN_STEP_ISA=isa_avx2 or isa_avx512).
+// Which, src/CMakeLists.txt's SUBSLIP_GRAIN_STEP_ISA says:
+// * host (the default of a source build): the widest set the building machine runs, alone
+//   (SUBSLIP_GRAIN_STEP_PORTABLE = 0): implicit_grain_step<N> is that step, and the binary stops
+//   with a message on a machine without the set (require_grain_step_isa);
+// * all: both sets beside the portable step; implicit_grain_step<N> calls the widest the machine
+//   runs and the run allows (the flow batches' level, flow_point_batch.hpp);
+// * none, and native builds (-march=native): the build's own step alone.
 //
 // Two hazards of mixing instruction sets in one program, and what keeps them away:
 // * One definition: an inline function of a header (Eigen's, the standard library's, ours)
@@ -27,6 +32,15 @@ namespace subslip::crystal {
 
 #ifndef SUBSLIP_GRAIN_STEP_ISAS
 #define SUBSLIP_GRAIN_STEP_ISAS 0
+#endif
+#ifndef SUBSLIP_GRAIN_STEP_AVX2
+#define SUBSLIP_GRAIN_STEP_AVX2 SUBSLIP_GRAIN_STEP_ISAS
+#endif
+#ifndef SUBSLIP_GRAIN_STEP_AVX512
+#define SUBSLIP_GRAIN_STEP_AVX512 SUBSLIP_GRAIN_STEP_ISAS
+#endif
+#ifndef SUBSLIP_GRAIN_STEP_PORTABLE
+#define SUBSLIP_GRAIN_STEP_PORTABLE 1
 #endif
 
 // Whether the build has the grain step of N slip systems for AVX2 and AVX-512 too.

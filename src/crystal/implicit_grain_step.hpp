@@ -1381,9 +1381,10 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
 }
 }  // namespace SUBSLIP_GRAIN_STEP_ISA
 #else
-// The step of the build's own instruction set, or, for the slip counts compiled for wider ones
-// too, the widest the machine runs and the run allows (the flow batches' level: one choice for
-// both, which MPI ranks agree on).
+// The step of the build's own instruction set; for the slip counts compiled for wider ones too,
+// the one wide step of a host build, or the widest the machine runs and the run allows (the flow
+// batches' level: one choice for both, which MPI ranks agree on) where the portable step is
+// compiled beside them (grain_step_isa.hpp).
 template <int N>
 GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const GrainStepOptions& opt, GrainState<N>& s1,
@@ -1391,6 +1392,13 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                     SlipTangent<N>* slip_tangent) {
 #if SUBSLIP_GRAIN_STEP_ISAS  // (the wide steps are declared only in builds that have them)
   if constexpr (has_isa_grain_steps(N)) {
+#if !SUBSLIP_GRAIN_STEP_PORTABLE && SUBSLIP_GRAIN_STEP_AVX512
+    return isa_avx512::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
+                                           slip_tangent);
+#elif !SUBSLIP_GRAIN_STEP_PORTABLE
+    return isa_avx2::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
+                                         slip_tangent);
+#else
     switch (detail::flow_batch_level()) {
       case 2:
         return isa_avx512::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
@@ -1399,11 +1407,15 @@ GrainStepReport implicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
         return isa_avx2::implicit_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate,
                                              slip_tangent);
       default:
-        break;
+        return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
     }
-  }
 #endif
+  } else {
+    return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+  }
+#else
   return solve_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+#endif
 }
 #endif
 

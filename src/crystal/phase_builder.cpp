@@ -3,6 +3,9 @@
 #include <set>
 #include <stdexcept>
 
+#include "grain_step_isa.hpp"
+#include "subslip/crystal/flow_point_batch.hpp"
+
 namespace subslip::crystal {
 
 std::vector<DescribedSystem> described_systems(const PhaseDescription& d) {
@@ -52,6 +55,7 @@ typename SlipTypes<N>::MatNN latent_matrix(const PhaseDescription& d,
 
 template <int N>
 BuiltPhase<N> build_phase(const PhaseDescription& d) {
+  if (has_isa_grain_steps(N)) detail::require_grain_step_isa();
   const auto systems = described_systems(d);
   const int n = static_cast<int>(systems.size());
   BuiltPhase<N> out;
@@ -112,12 +116,6 @@ std::unique_ptr<Aggregate> build_taylor_aggregate(const PhaseDescription& d,
 #define SUBSLIP_INSTANTIATE_BUILD_PHASE(N) \
   template BuiltPhase<N> build_phase<N>(const PhaseDescription&);
 
-SUBSLIP_INSTANTIATE_BUILD_PHASE(1)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(3)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(6)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(12)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(24)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(48)
-SUBSLIP_INSTANTIATE_BUILD_PHASE(Eigen::Dynamic)
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_BUILD_PHASE)
 
 }  // namespace subslip::crystal

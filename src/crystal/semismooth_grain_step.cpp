@@ -748,12 +748,6 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
   template GrainStepReport semismooth_grain_step<N>(                                       \
       const Phase<N>&, const GrainState<N>&, const Mat3&, double, const GrainStepOptions&, \
       GrainState<N>&, Tangent*, const typename SlipTypes<N>::VecN*, SlipTangent<N>*);
-SUBSLIP_INSTANTIATE_SEMISMOOTH(1)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(3)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(6)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(12)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(24)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(48)
-SUBSLIP_INSTANTIATE_SEMISMOOTH(Eigen::Dynamic)
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_SEMISMOOTH)
 
 }  // namespace subslip::crystal::detail

@@ -758,12 +758,6 @@ GrainStepReport vertex_grain_step(const Phase<N>& ph, const GrainState<N>& s0, c
   template GrainStepReport vertex_grain_step<N>(const Phase<N>&, const GrainState<N>&,        \
                                                 const Mat3&, double, const GrainStepOptions&, \
                                                 GrainState<N>&, Tangent*, SlipTangent<N>*);
-SUBSLIP_INSTANTIATE_VERTEX(1)
-SUBSLIP_INSTANTIATE_VERTEX(3)
-SUBSLIP_INSTANTIATE_VERTEX(6)
-SUBSLIP_INSTANTIATE_VERTEX(12)
-SUBSLIP_INSTANTIATE_VERTEX(24)
-SUBSLIP_INSTANTIATE_VERTEX(48)
-SUBSLIP_INSTANTIATE_VERTEX(Eigen::Dynamic)
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_VERTEX)
 
 }  // namespace subslip::crystal::detail

@@ -6,30 +6,43 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "subslip/crystal/crystal_kernel.hpp"
-#include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/material_point.hpp"
 
 namespace subslip::study {
 
 namespace {
 
-using namespace subslip::crystal;
+using point::GrainPoint;
+using point::GrainState;
+using Mat3 = Eigen::Matrix3d;
 
-// What one grain's solve (or prestrain) left: the kernel's report and the first violation of
+// What one grain's solve (or prestrain) left: the update's report and the first violation of
 // admissibility among the states it committed (empty: all admissible).
 struct GrainOutcome {
-  GrainStepReport report;
+  point::SolveReport report;
   std::string violation;
 };
 
-// One implicit step with the default options; s1 gets the new state when the solve converges.
-template <int N>
-GrainOutcome tested_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L, double dt,
-                         GrainState<N>& s1) {
+// The grain update the grid tests: the default solver options, each step from its committed
+// slip rates (one try), no tangent.
+point::GrainOptions tested_options() {
+  point::GrainOptions o;
+  o.tangent = false;
+  o.start = point::GrainStart::committed;
+  return o;
+}
+
+// One implicit step; s1 gets the new state when the solve converges.
+GrainOutcome tested_step(const GrainPoint& grain, const GrainState& s0, const Mat3& L, double dt,
+                         GrainState& s1) {
   GrainOutcome out;
-  out.report = implicit_grain_step(ph, s0, L, dt, GrainStepOptions{}, s1, nullptr);
-  if (out.report.ok) out.violation = admissibility_violation(ph, s1);
+  point::GrainUpdate u = grain.update(s0, L, dt);
+  out.report = std::move(u.report);
+  if (out.report.ok) {
+    s1 = std::move(u.state);
+    out.violation = grain.admissibility_violation(s1);
+  }
   return out;
 }
 
@@ -43,14 +56,13 @@ int prestrain_steps(const RobustnessGrid& grid) {
 // Drives s by `steps` steps of dt; stops at the first failed step, s then being the last
 // committed state and `done` the number of committed steps. The report is the failed or the
 // last step's.
-template <int N>
-GrainOutcome prestrain_grain(const Phase<N>& ph, const Mat3& L, int steps, double dt,
-                             GrainState<N>& s, int& done) {
+GrainOutcome prestrain_grain(const GrainPoint& grain, const Mat3& L, int steps, double dt,
+                             GrainState& s, int& done) {
   std::string first_violation;
   GrainOutcome out;
   for (done = 0; done < steps; ++done) {
-    GrainState<N> next = s;
-    out = tested_step(ph, s, L, dt, next);
+    GrainState next = s;
+    out = tested_step(grain, s, L, dt, next);
     if (!out.report.ok) break;
     s = next;
     if (first_violation.empty()) first_violation = out.violation;
@@ -118,20 +130,20 @@ bool prestrains(const RobustnessGrid& grid) {
 
 // One lattice: its virgin grains, and per loading (run) the prestrain when a start needs it,
 // then every start and step.
-template <int N>
 class LatticeRun {
  public:
-  LatticeRun(const BuiltPhase<N>& built, const std::string& lattice, const RobustnessGrid& grid)
-      : ph_(built.phase), lattice_(lattice), grid_(grid), virgin_(grid.grains) {
-    const auto grains = random_orientations(grid.grains, grid.seed);
-    for (std::size_t g = 0; g < grid.grains; ++g)
-      virgin_[g].reset(ph_.slip_count, grains[g].g, built.initial_mu);
+  LatticeRun(const crystal::PhaseDescription& phase, const std::string& lattice,
+             const RobustnessGrid& grid)
+      : grain_(phase, tested_options()), lattice_(lattice), grid_(grid) {
+    const auto grains = crystal::random_orientations(grid.grains, grid.seed);
+    virgin_.reserve(grid.grains);
+    for (std::size_t g = 0; g < grid.grains; ++g) virgin_.push_back(grain_.initial_state(grains[g].g));
   }
 
   void run(GridLoading loading, GridResult& result) {
     const Mat3 L = grid_velocity_gradient(loading, grid_.rate);
     std::vector<bool> everyone(grid_.grains, true), reached = everyone;
-    std::vector<GrainState<N>> prestrained = virgin_;
+    std::vector<GrainState> prestrained = virgin_;
     if (prestrains(grid_)) result.prestrains.push_back(prestrain(loading, L, prestrained, reached));
     for (GridStart start : grid_.starts) {
       const bool virgin = start == GridStart::virgin;
@@ -142,13 +154,13 @@ class LatticeRun {
   }
 
  private:
-  PrestrainOutcome prestrain(GridLoading loading, const Mat3& L, std::vector<GrainState<N>>& s,
+  PrestrainOutcome prestrain(GridLoading loading, const Mat3& L, std::vector<GrainState>& s,
                              std::vector<bool>& reached) const {
     const int steps = prestrain_steps(grid_);
     const double dt = grid_.prestrain_step / grid_.rate;
     std::vector<int> done(s.size(), 0);
     const auto out = for_each_grain(
-        reached, [&](std::size_t g) { return prestrain_grain(ph_, L, steps, dt, s[g], done[g]); });
+        reached, [&](std::size_t g) { return prestrain_grain(grain_, L, steps, dt, s[g], done[g]); });
     PrestrainOutcome p;
     p.lattice = lattice_;
     p.loading = loading;
@@ -158,7 +170,7 @@ class LatticeRun {
   }
 
   GridCell cell(GridLoading loading, GridStart start, double strain_step, const Mat3& L,
-                const std::vector<GrainState<N>>& from, const std::vector<bool>& tested) const {
+                const std::vector<GrainState>& from, const std::vector<bool>& tested) const {
     GridCell c;
     c.lattice = lattice_;
     c.loading = loading;
@@ -166,17 +178,17 @@ class LatticeRun {
     c.strain_step = strain_step;
     c.dt = strain_step / grid_.rate;
     const auto out = for_each_grain(tested, [&](std::size_t g) {
-      GrainState<N> s1 = from[g];
-      return tested_step(ph_, from[g], L, c.dt, s1);
+      GrainState s1 = from[g];
+      return tested_step(grain_, from[g], L, c.dt, s1);
     });
     summarise(out, tested, c);
     return c;
   }
 
-  const Phase<N>& ph_;
+  GrainPoint grain_;
   const std::string& lattice_;
   const RobustnessGrid& grid_;
-  std::vector<GrainState<N>> virgin_;
+  std::vector<GrainState> virgin_;
 };
 
 std::string failure_text(int grain, int system, const std::string& why) {
@@ -246,10 +258,8 @@ GridResult run_robustness_grid(const RobustnessGrid& grid) {
   if (prestrains(grid)) prestrain_steps(grid);  // checked before any work
   GridResult result;
   for (const std::string& lattice : grid.lattices) {
-    visit_phase(grid_phase(grid, lattice), [&](const auto& built) {
-      LatticeRun run(built, lattice, grid);
-      for (GridLoading loading : grid.loadings) run.run(loading, result);
-    });
+    LatticeRun run(grid_phase(grid, lattice), lattice, grid);
+    for (GridLoading loading : grid.loadings) run.run(loading, result);
   }
   return result;
 }

@@ -107,11 +107,17 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
                                integrators::ExplicitStability stability =
                                    integrators::ExplicitStability::refuse_unstable_steps);
 
+// The consistent tangent of an implicit update: d f_t(n+1) / d (du_t, f_n(n+1)), columns du_1,
+// du_2 [stress/length] and f_n [-].
+using ContactTangent = Eigen::Matrix<double, 2, 3>;
+
 // One implicit update: exact mu and r_s updates, radial return of the tangential traction, and
-// the flow rule solved as a bracketed scalar equation in the viscoplastic slip increment.
+// the flow rule solved as a bracketed scalar equation in the viscoplastic slip increment. With
+// `tangent`, its consistent tangent at the step's start point of sliding (a step whose
+// traction passes through a lower ratio first, as a reversal does, takes that point as fixed).
 StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
                           const ContactState& s0, const Vec2& du_t, double fn1, double dt,
-                          double residual_tolerance);
+                          double residual_tolerance, ContactTangent* tangent = nullptr);
 
 // Advances over one increment, halving it when an update fails (non-finite, out of the
 // admissible set r_s <= r < r_hat, or no convergence). Throws StepFailure when max_cutbacks

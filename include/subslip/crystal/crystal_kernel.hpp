@@ -36,6 +36,14 @@ namespace subslip::crystal {
 
 inline constexpr int kMaxSlipSystems = 48;
 
+// The slip counts the kernel is compiled for with fixed sizes: one system (the single-slip
+// check), 12 (FCC, BCC {110}), 24 (HCP) and 48 (BCC); every other count runs with Eigen::Dynamic
+// (a fixed capacity of kMaxSlipSystems: still no allocation per grain-step). Every file that
+// instantiates the kernel's templates applies its macro X to each entry of this one list, and
+// visit_phase (phase_builder.hpp) picks among the same counts. Each count compiles the whole
+// grain solver again: that is what the list costs the build.
+#define SUBSLIP_FOR_EACH_SLIP_COUNT(X) X(1) X(12) X(24) X(48) X(Eigen::Dynamic)
+
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 using Vec6 = MandelVector;

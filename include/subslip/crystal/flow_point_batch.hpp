@@ -69,10 +69,14 @@ void limit_flow_batches(int level);
 // batches do not pay (the system-by-system path).
 const char* flow_batch_isa_name();
 // The instruction set the grain step of 12, 24 and 48 slip systems runs in, as --version says:
-// in a portable x86-64 GCC build, which has that step for AVX2 and AVX-512 too, the batches'
-// ("avx512", "avx2", or "baseline": the build's x86-64 code); in any other build the build's own
-// code ("native" or "baseline").
+// a host build's one set ("avx512" or "avx2"); in a build with both beside the portable step,
+// the batches' ("avx512", "avx2", or "baseline": the build's x86-64 code); in any other build the
+// build's own code ("native" or "baseline").
 const char* grain_step_isa_name();
+// Throws std::runtime_error, saying how to build for it, where this machine does not run the
+// instruction set that a host build compiled its grain step of 12, 24 and 48 systems for (the
+// binary was built on another machine).
+void require_grain_step_isa();
 // Whether the first `count` systems share one law whose flow points have the batched closed form.
 bool has_batched_flow_points(const std::vector<law::SubloadingFrictionLaw>& laws, int count);
 

@@ -1,7 +1,8 @@
 // From a runtime description of a phase (what a scene file says) to the compile-time kernel:
 // the slip count picks the template instance, so a scene pays only for the slip systems it
-// declares (fixed-size vectors for 1, 3, 6, 12, 24 and 48 systems; other counts use a
-// fixed-capacity dynamic size, still with no allocation per grain-step).
+// declares (fixed-size vectors for the counts of SUBSLIP_FOR_EACH_SLIP_COUNT, crystal_kernel.hpp:
+// 1, 12, 24 and 48 systems; other counts use a fixed-capacity dynamic size, still with no
+// allocation per grain-step).
 #pragma once
 
 #include <memory>
@@ -63,8 +64,9 @@ std::unique_ptr<Aggregate> build_taylor_aggregate(
     const parallel::Team& team = parallel::serial_team(), const parallel::Block* held = nullptr);
 
 // The kernel phase of a description for N slip systems, with the initial mu of each system, for
-// drivers other than the Taylor aggregate (the CVODE peer). visit_phase picks N from the slip
-// count exactly as build_taylor_aggregate does and calls visitor(BuiltPhase<N>).
+// drivers other than the Taylor aggregate (the CVODE peer, the material-point API). visit_phase
+// picks N from the slip count exactly as build_taylor_aggregate does (SUBSLIP_FOR_EACH_SLIP_COUNT)
+// and calls visitor(BuiltPhase<N>).
 template <int N>
 struct BuiltPhase {
   Phase<N> phase;
@@ -82,10 +84,6 @@ decltype(auto) visit_phase(const PhaseDescription& d, Visitor&& visitor) {
   switch (checked_slip_count(d)) {
     case 1:
       return visitor(build_phase<1>(d));
-    case 3:
-      return visitor(build_phase<3>(d));
-    case 6:
-      return visitor(build_phase<6>(d));
     case 12:
       return visitor(build_phase<12>(d));
     case 24:
