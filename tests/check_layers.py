@@ -49,20 +49,6 @@ ALLOWED = [
      "the run model (ContactCase) still lives with its parser"),
     ("include/subslip/driver/crystal_run.hpp", "include/subslip/io/crystal_scene.hpp",
      "the run model (CrystalCase) still lives with its parser"),
-    ("src/integrators/cvode/crystal_cvode.cpp", "include/subslip/crystal/elasticity.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("src/integrators/cvode/crystal_cvode.cpp", "include/subslip/crystal/free_components.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("src/integrators/cvode/cvode_solver.hpp", "include/subslip/law/subloading_friction.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("include/subslip/integrators/cvode_peer.hpp", "include/subslip/contact/contact_point.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("include/subslip/integrators/cvode_peer.hpp", "include/subslip/crystal/aggregate.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("include/subslip/integrators/cvode_peer.hpp", "include/subslip/crystal/phase_builder.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
-    ("include/subslip/integrators/cvode_peer.hpp", "include/subslip/crystal/rotation.hpp",
-     "the CVODE peer of the accuracy study integrates the physics"),
 ]
 
 SOURCE_SUFFIXES = (".hpp", ".cpp", ".h", ".cc", ".hh", ".ipp", ".inl")
