@@ -56,19 +56,19 @@
 #include <utility>
 #include <vector>
 
+#include "subslip/driver/sink_error.hpp"
+
 namespace subslip::io::h5 {
 
 // A failed HDF5 call. what(): "HDF5: ACTION: REASON"; `action` says what was attempted and on
 // which object ("write rows 0..255 of dataset /cases/base/time"), `reason` is the operating
 // system's (errno: "No space left on device") when HDF5 recorded one, else HDF5's own words.
-struct Error : std::runtime_error {
-  explicit Error(const std::string& message) : std::runtime_error(message), action(message) {}
-  Error(std::string what_failed, std::string why)
-      : std::runtime_error("HDF5: " + what_failed + (why.empty() ? "" : ": " + why)),
-        action(std::move(what_failed)),
-        reason(std::move(why)) {}
-  std::string action;
-  std::string reason;
+// A sink's failed write (driver::SinkWriteError), which the drivers pass on between ranks.
+struct Error : driver::SinkWriteError {
+  explicit Error(const std::string& message) : driver::SinkWriteError(message, message, "") {}
+  Error(const std::string& what_failed, const std::string& why)
+      : driver::SinkWriteError("HDF5: " + what_failed + (why.empty() ? "" : ": " + why),
+                               what_failed, why) {}
 };
 
 // HDF5's own error stack is not printed (errors become Error); with `on`, every failed call
