@@ -26,8 +26,8 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
-#include "subslip/study/cvode_peer.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/cvode_peer.hpp"
 
 namespace cv = subslip::cvode;
 namespace ct = subslip::contact;

@@ -24,7 +24,8 @@ std::size_t checkpoint_values(const model::CrystalCase& c) {
          static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
 }
 
-std::size_t checkpoint_capacity(const model::CrystalScene& scene, std::optional<long> command_line) {
+std::size_t checkpoint_capacity(const model::CrystalScene& scene,
+                                std::optional<long> command_line) {
   std::size_t most = 0;
   for (const auto& c : scene.cases) {
     if (checkpoint_policy(c, command_line).enabled()) most = std::max(most, checkpoint_values(c));

@@ -323,7 +323,8 @@ std::vector<ContactCaseResult> run_contact_scene_on_team(const model::ContactSce
   return results;
 }
 
-std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene, ContactSink& sink,
+std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene,
+                                                 ContactSink& sink,
                                                  const ContactRunOptions& options) {
   RunContext run{scene, sink, options};
   std::vector<ContactCaseResult> results(scene.cases.size());

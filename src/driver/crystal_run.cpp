@@ -382,7 +382,8 @@ std::vector<CrystalCaseResult> run_crystal_scene_on_team(const model::CrystalSce
   return run_crystal_scene(scene, shared, over_ranks);
 }
 
-std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene, CrystalSink& sink,
+std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene,
+                                                 CrystalSink& sink,
                                                  const CrystalRunOptions& options) {
   std::vector<CrystalCaseResult> results;
   for (std::size_t k = 0; k < scene.cases.size(); ++k) {

@@ -231,7 +231,6 @@ ContactCase parse_case(SweepCase swept, const Units& units) {
 
 }  // namespace
 
-
 ContactScene load_contact_scene(const std::filesystem::path& path) {
   return parse_contact_scene(YamlDocument::from_file(path));
 }

@@ -299,8 +299,7 @@ std::vector<crystal::Orientation> read_shared_file(const CheckedNode& node,
     return visit_orientation_file(node, source, each);
   };
   reader.noted = [&] { return source.largest_euler_deg; };
-  reader.second_pass =
-      [&](const driver::OrientationVisitor& each) -> std::optional<std::size_t> {
+  reader.second_pass = [&](const driver::OrientationVisitor& each) -> std::optional<std::size_t> {
     try {
       OrientationSource again;
       return visit_orientation_file(node, again, each);

@@ -12,8 +12,7 @@ namespace {
 
 // Before any work: the result (and checkpoints) must fit in the free space of the output's file
 // system and the largest case in memory. A restart's file is laid out already: memory only.
-void check_fits(const OutputRequest& request, const YamlDocument& document,
-                const RunSize& size) {
+void check_fits(const OutputRequest& request, const YamlDocument& document, const RunSize& size) {
   const fs::path& out = request.path;
   io::Capacity capacity = io::capacity_for(out);
   if (request.restart) capacity.disk_bytes = std::numeric_limits<double>::infinity();
@@ -109,8 +108,7 @@ std::string RunOutput::write_failure(const driver::SinkWriteError& e) {
   std::error_code ec;
   if (!restart() && fs::exists(partial, ec)) {
     fs::remove(partial, ec);
-    return what + "; the result's layout was not complete, so " + partial.string() +
-           " was removed";
+    return what + "; the result's layout was not complete, so " + partial.string() + " was removed";
   }
   const long long rows = rows_in(path);
   if (!restart() && rows == 0) {
@@ -125,8 +123,7 @@ std::string RunOutput::write_failure(const driver::SinkWriteError& e) {
 
 RunOutput open_output(const OutputRequest& request, const YamlDocument& document,
                       const std::vector<std::string>& case_names, const RestartInfo* restart,
-                      const std::vector<fs::path>& inputs, const RunSize& size,
-                      bool checkpoints) {
+                      const std::vector<fs::path>& inputs, const RunSize& size, bool checkpoints) {
   const fs::path& out = request.path;
   if (restart != nullptr) {
     io::check_restart_cases(out, *restart, case_names);

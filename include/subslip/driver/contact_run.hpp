@@ -40,7 +40,8 @@ struct ContactRunOptions {
 // Runs the cases of `scene` into `sink`. A case that fails numerically (contact::StepFailure)
 // keeps the states it reached, is ended with fail_case and gets a result with `failure` set;
 // the other cases still run. Other errors (the sink's) are thrown.
-std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene, ContactSink& sink,
+std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene,
+                                                 ContactSink& sink,
                                                  const ContactRunOptions& options = {});
 
 // The cases of `scene` over the ranks of `team` (every rank calls it; `root_sink`: the result

@@ -84,7 +84,8 @@ struct RunStopped : std::runtime_error {
 // it, the others start. A case that fails numerically (crystal::CrystalStepFailure) is ended
 // with fail_case and gets a result with `failure` set; the other cases still run. Other errors
 // (the sink's) are thrown.
-std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene, CrystalSink& sink,
+std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene,
+                                                 CrystalSink& sink,
                                                  const CrystalRunOptions& options = {});
 
 }  // namespace subslip::driver

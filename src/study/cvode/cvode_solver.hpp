@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "subslip/study/cvode_peer.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/cvode_peer.hpp"
 
 namespace subslip::cvode::detail {
 
