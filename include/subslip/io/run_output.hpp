@@ -15,6 +15,7 @@
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/restart.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/run_size.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
