@@ -15,6 +15,7 @@
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "terminal_screen.hpp"
 
 namespace fs = std::filesystem;

@@ -24,6 +24,7 @@
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/orientation_file.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;

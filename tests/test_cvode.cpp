@@ -1,4 +1,4 @@
-// The SUNDIALS CVODE peer (include/subslip/integrators/cvode_peer.hpp): the same physics as an
+// The SUNDIALS CVODE peer (include/subslip/study/cvode_peer.hpp): the same physics as an
 // ODE system integrated by a general stiff solver, checked against what it must agree with: the
 // analytical steady state, the converged implicit integrator (Richardson extrapolation of two
 // fine runs, itself checked for convergence), and the contact point through the single-slip
@@ -26,8 +26,8 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
-#include "subslip/integrators/cvode_peer.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/cvode_peer.hpp"
 
 namespace cv = subslip::cvode;
 namespace ct = subslip::contact;

@@ -29,6 +29,7 @@
 #include "small_tmpfs.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace {
 

@@ -25,6 +25,7 @@
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/output_points.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;

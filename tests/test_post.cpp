@@ -26,6 +26,7 @@
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/result_file.hpp"
 #include "subslip/io/result_post.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
 namespace fs = std::filesystem;

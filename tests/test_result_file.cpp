@@ -19,6 +19,7 @@
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;

@@ -1,4 +1,4 @@
-// Units of scene values (include/subslip/io/units.hpp): parsing unit names, exact conversions,
+// Units of scene values (include/subslip/model/units.hpp): parsing unit names, exact conversions,
 // values written with a unit in a scene, and the physics: one physical scene written in
 // MPa/mm/s, in GPa/um/min, and in GPa/um/min with its values given in MPa/mm/s, run through the
 // contact driver and the crystal driver, gives the same results once the outputs are converted.

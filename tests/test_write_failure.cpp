@@ -25,6 +25,7 @@
 #include "scratch_dir.hpp"
 #include "small_tmpfs.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;

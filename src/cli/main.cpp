@@ -38,6 +38,8 @@
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
+#include "subslip/driver/orientation_sharing.hpp"
+#include "subslip/driver/sink_error.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -47,6 +49,7 @@
 #include "subslip/io/orientation_file.hpp"
 #include "subslip/io/restart.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/run_output.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/scene_warnings.hpp"
 #include "subslip/io/text_layout.hpp"
@@ -79,19 +82,6 @@ fs::path output_path(const RunArgs& a) {
   return fs::path("results") / (fs::path(a.scene).stem().string() + ".h5");
 }
 
-// The valid rows of every case in a result file (0 when it cannot be read).
-long long rows_in(const fs::path& file) {
-  try {
-    const io::h5::File f = io::h5::File::open_read(file);
-    const auto progress = io::h5::CaseProgress::open(f.root());
-    long long rows = 0;
-    for (std::size_t k = 0; k < progress.size(); ++k) rows += progress.rows(k);
-    return rows;
-  } catch (const io::h5::Error&) {
-    return 0;
-  }
-}
-
 // A crystal run stopped by a signal: its exit status is 128 + the signal's number, as if the
 // signal had ended it.
 struct StoppedBySignal : std::runtime_error {
@@ -121,167 +111,13 @@ int exit_code_of(const std::exception_ptr& failure) {
   }
 }
 
-// Where a run writes: a new file, created under a temporary name and renamed once its header
-// is complete (so the result path never names a half-written header), or, with --restart, the
-// file of the interrupted run.
-struct RunOutput {
-  fs::path path;
-  fs::path partial;  // empty on a restart
-  io::h5::File file;
-  bool keep_restart = false;
-  bool restart() const { return partial.empty(); }
-  void header_written() { fs::rename(partial, path); }
-  fs::path restart_file() const { return io::restart_file_for(path); }
-
-  // MPI ranks write the file together (run_collectively): after the root laid it out
-  // (or reopened it) and closed it, they open it for their writes; when they have closed it,
-  // the root finishes it, or reports `failure` as write() does.
-  void finish_collective_run(const std::optional<io::h5::Error>& failure) {
-    if (failure) {
-      file = io::h5::File::open_write(path);  // (write_failure records the error in it)
-      throw std::runtime_error(write_failure(*failure));
-    }
-    finish();
-  }
-
-  // Runs `run` (which writes into `file`), then closes the file and, when every case ended,
-  // rewrites it as the finished file (exactly its rows) and deletes the restart file (unless
-  // --keep-restart). A failed write (a full disk, a file-size limit) becomes one error naming
-  // the file, what was being written and the system's reason; the file records it and keeps
-  // the rows written before, or is removed when it holds none (it would only take space on a
-  // disk that is already full).
-  template <class Run>
-  auto write(Run&& run) -> decltype(run()) {
-    try {
-      auto result = run();
-      file.close();
-      finish();
-      return result;
-    } catch (const io::h5::Error& e) {
-      throw std::runtime_error(write_failure(e));
-    }
-  }
-
- private:
-  // The working file, closed, becomes the finished file. A failure leaves the working file as
-  // it was (every row in it, /progress counting them) and says how to finish it later.
-  void finish() {
-    if (!io::every_case_ended(path)) return;
-    std::string why;
-    try {
-      io::finish_result(path);
-    } catch (const io::h5::Error& e) {
-      why = e.action + (e.reason.empty() ? "" : ": " + e.reason);
-    } catch (const fs::filesystem_error& e) {
-      why = e.what();
-    }
-    if (!why.empty()) {
-      const std::string what = path.string() + ": cannot write the finished file (" + why + ")";
-      {
-        io::h5::File working = io::h5::File::open_write(path);
-        io::h5::mark_write_failed(working, "the run ended but " + what);
-        working.close_quietly();
-      }
-      throw std::runtime_error(what + "; every row is in the working file " + path.string() +
-                               " (/progress counts them); free space and finish it with "
-                               "--restart " +
-                               path.string());
-    }
-    std::error_code ec;
-    if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
-  }
-
-  std::string write_failure(const io::h5::Error& e) {
-    const std::string what =
-        path.string() + ": cannot " + e.action + (e.reason.empty() ? "" : ": " + e.reason);
-    const bool recorded = io::h5::mark_write_failed(file, "the run stopped: " + what);
-    file.close_quietly();
-    std::error_code ec;
-    if (!restart() && fs::exists(partial, ec)) {
-      fs::remove(partial, ec);
-      return what + "; the result's layout was not complete, so " + partial.string() +
-             " was removed";
-    }
-    const long long rows = rows_in(path);
-    if (!restart() && rows == 0) {
-      fs::remove(path, ec);
-      return what + "; no output step had been written, so the file was removed";
-    }
-    return what + "; the rows written before (" + std::to_string(rows) +
-           ") stay readable and the file is marked incomplete (completed = 0" +
-           (recorded ? ", write_error" : "") + "); free space and continue with --restart " +
-           path.string();
-  }
-};
-
-// Before any work: the result (and checkpoints) must fit in the free space of the output's file
-// system and the largest case in memory. A restart's file is laid out already: memory only.
-void check_run_fits(const RunArgs& a, const io::YamlDocument& document, const io::RunSize& size) {
-  const fs::path out = output_path(a);
-  io::Capacity capacity = io::capacity_for(out);
-  if (!a.restart.empty()) capacity.disk_bytes = std::numeric_limits<double>::infinity();
-  io::check_run_fits(document, size, capacity, out);
-}
-
-// A result path naming one of the run's input files would replace it (with --force) by its own
-// result: refused, --force or not.
-void refuse_output_over_inputs(const fs::path& out, const std::vector<fs::path>& inputs) {
-  for (const auto& in : inputs) {
-    std::error_code ec;  // (a path that does not exist is no input file)
-    if (fs::equivalent(out, in, ec)) {
-      throw io::h5::OutputPathError(out.string() + ": is the input file " + in.string() +
-                                    " of this run; choose another output path (-o)");
-    }
-  }
-}
-
-// The restart file of a new run's result (checkpoints): a restart file left by an interrupted
-// run is replaced only with --force; anything else at that path is never replaced.
-void check_restart_path(const fs::path& out, bool force) {
-  const fs::path restart = io::restart_file_for(out);
-  std::error_code ec;
-  if (!fs::exists(restart, ec)) return;
-  if (!io::is_restart_file(restart)) {
-    throw io::h5::OutputPathError(restart.string() +
-                                  ": exists and is not a subslip restart file, but the "
-                                  "checkpoints of " +
-                                  out.string() + " go there; move it away or choose another -o");
-  }
-  if (!force) {
-    throw io::h5::OutputPathError(restart.string() +
-                                  ": already exists (the checkpoints of an "
-                                  "interrupted run of " +
-                                  out.string() + "); continue that run with --restart " +
-                                  out.string() + ", or use --force to start anew");
-  }
-}
-
 // The checks of the output, then the file: `size` is what the run will write and need.
-RunOutput open_output(const RunArgs& a, const io::YamlDocument& document,
-                      const std::vector<std::string>& case_names, const io::RestartInfo* restart,
-                      const std::vector<fs::path>& inputs, const io::RunSize& size,
-                      bool checkpoints = false) {
-  const fs::path out = output_path(a);
-  if (restart != nullptr) {
-    io::check_restart_cases(out, *restart, case_names);
-    check_run_fits(a, document, size);
-    return {out, {}, io::h5::File::open_write(out), a.keep_restart};
-  }
-  refuse_output_over_inputs(out, inputs);
-  if (checkpoints) refuse_output_over_inputs(io::restart_file_for(out), inputs);
-  check_run_fits(a, document, size);  // before check_output_path creates directories
-  io::h5::check_output_path(out, a.force);
-  if (checkpoints) check_restart_path(out, a.force);
-  fs::path partial = out;
-  partial += ".partial";
-  try {
-    return {out, partial, io::h5::File::create(partial, true), a.keep_restart};
-  } catch (const io::h5::Error& e) {
-    std::error_code ec;
-    fs::remove(partial, ec);
-    throw std::runtime_error(out.string() + ": cannot " + e.action +
-                             (e.reason.empty() ? "" : ": " + e.reason));
-  }
+io::RunOutput open_output(const RunArgs& a, const io::YamlDocument& document,
+                          const std::vector<std::string>& case_names,
+                          const io::RestartInfo* restart, const std::vector<fs::path>& inputs,
+                          const io::RunSize& size, bool checkpoints = false) {
+  const io::OutputRequest request{output_path(a), !a.restart.empty(), a.force, a.keep_restart};
+  return io::open_output(request, document, case_names, restart, inputs, size, checkpoints);
 }
 
 template <class Case>
@@ -408,7 +244,7 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::Re
   // Every input and output check comes before the first step is computed.
   const auto session = std::chrono::steady_clock::now();
   const io::ContactScene scene = io::parse_contact_scene(document);
-  std::optional<RunOutput> output;  // the root's
+  std::optional<io::RunOutput> output;  // the root's
   const bool speaks = team.is_root() && !a.quiet;
   parallel::on_root(
       team,
@@ -618,7 +454,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     team.max(handlers_ready);
   }
   // Ranks that will write the file together keep only their blocks of the orientations.
-  io::OrientationSharing sharing;
+  driver::OrientationSharing sharing;
   if (team.size() > 1 && io::h5::parallel_hdf5() && !a.gather_output)
     sharing = {&team, exit_code_of};
   const io::CrystalScene scene = io::parse_crystal_scene(document, sharing);
@@ -630,7 +466,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     checkpoints = checkpoints && on;
     any_checkpoints = any_checkpoints || on;
   }
-  std::optional<RunOutput> output;  // the root's
+  std::optional<io::RunOutput> output;  // the root's
   parallel::on_root(
       team,
       [&] {
@@ -701,7 +537,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
     io::CrystalSinkOptions to_file = sink_options(path, true);  // (continues the layout)
     to_file.mpi = io::h5::MpiAccess{team.mpi_communicator(), team.rank()};
     to_file.ranks = team.size();
-    std::optional<io::h5::Error> failure;
+    std::optional<driver::SinkWriteError> failure;
     std::vector<driver::CrystalCaseResult> results;
     {
       // (the sink's objects are closed before the file: MPI-IO files close only without)
@@ -711,7 +547,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
         results = driver::run_crystal_scene_on_team(scene, team, &*sink, options, true);
         sink.reset();
         file.close();
-      } catch (const io::h5::Error& e) {  // (every rank has it: CollectiveCrystalSink)
+      } catch (const driver::SinkWriteError& e) {  // (every rank: CollectiveCrystalSink)
         sink.reset();
         file.close_quietly();
         failure = e;

@@ -6,7 +6,7 @@
 
 namespace subslip::driver {
 
-CheckpointPolicy checkpoint_policy(const io::CrystalCase& c, std::optional<long> command_line) {
+CheckpointPolicy checkpoint_policy(const model::CrystalCase& c, std::optional<long> command_line) {
   CheckpointPolicy p;
   if (command_line) {
     p.every_increments = *command_line;
@@ -18,13 +18,14 @@ CheckpointPolicy checkpoint_policy(const io::CrystalCase& c, std::optional<long>
   return p;
 }
 
-std::size_t checkpoint_values(const io::CrystalCase& c) {
+std::size_t checkpoint_values(const model::CrystalCase& c) {
   const auto slip_count = static_cast<int>(crystal::described_systems(c.phase).size());
   return c.grain_count() *
          static_cast<std::size_t>(crystal::checkpoint_values_per_grain(slip_count));
 }
 
-std::size_t checkpoint_capacity(const io::CrystalScene& scene, std::optional<long> command_line) {
+std::size_t checkpoint_capacity(const model::CrystalScene& scene,
+                                std::optional<long> command_line) {
   std::size_t most = 0;
   for (const auto& c : scene.cases) {
     if (checkpoint_policy(c, command_line).enabled()) most = std::max(most, checkpoint_values(c));

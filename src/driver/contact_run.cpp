@@ -25,7 +25,7 @@ void SummaryTracker::add(const contact::ContactState& s) {
   final_ = ratio;
 }
 
-ContactSummary SummaryTracker::result(const io::ContactCase& c,
+ContactSummary SummaryTracker::result(const model::ContactCase& c,
                                       const contact::RunStats& stats) const {
   ContactSummary out;
   if (peak_ >= 0.0) {
@@ -34,14 +34,14 @@ ContactSummary SummaryTracker::result(const io::ContactCase& c,
   }
   out.bottom_ratio = bottom_;
   out.final_ratio = final_;
-  out.steady_speed = io::last_sliding_speed(c.segments);
+  out.steady_speed = model::last_sliding_speed(c.segments);
   out.steady_ratio_analytical = steady_ratio_analytical(c);
   out.stats = stats;
   return out;
 }
 
-double steady_ratio_analytical(const io::ContactCase& c) {
-  const double v = io::last_sliding_speed(c.segments);
+double steady_ratio_analytical(const model::ContactCase& c) {
+  const double v = model::last_sliding_speed(c.segments);
   if (!(v > 0.0)) return ContactSummary::kNone;
   return law::SubloadingFrictionLaw(c.model.law).steady_state(v).ratio;
 }
@@ -59,12 +59,12 @@ struct Recording {
 
 // What a result says of a failed case; its sink stores only `why` (in the case's own group), as
 // a crystal sink does, so that a restart that reads it back names the case once.
-std::string case_failure(const io::ContactCase& c, const std::string& why) {
+std::string case_failure(const model::ContactCase& c, const std::string& why) {
   return "case '" + c.name + "': " + why;
 }
 
 struct RunContext {
-  const io::ContactScene& scene;
+  const model::ContactScene& scene;
   ContactSink& sink;
   const ContactRunOptions& options;
 };
@@ -72,7 +72,7 @@ struct RunContext {
 // Ends a case that ran to its end (or failed for `why`).
 ContactCaseResult close_case(RunContext& run, std::size_t index, const SummaryTracker& tracker,
                              const contact::RunStats& stats, const std::string& why) {
-  const io::ContactCase& c = run.scene.cases[index];
+  const model::ContactCase& c = run.scene.cases[index];
   ContactCaseResult result{c.name, tracker.result(c, stats), {}};
   if (why.empty()) {
     run.sink.complete_case(result.summary);
@@ -85,7 +85,7 @@ ContactCaseResult close_case(RunContext& run, std::size_t index, const SummaryTr
 
 // Streams one case: every output state goes to the sink as it is computed.
 ContactCaseResult stream_case(RunContext& run, std::size_t index) {
-  const io::ContactCase& c = run.scene.cases[index];
+  const model::ContactCase& c = run.scene.cases[index];
   run.sink.begin_case(index);
   SummaryTracker tracker;
   contact::RunStats stats;
@@ -103,9 +103,9 @@ ContactCaseResult stream_case(RunContext& run, std::size_t index) {
   return close_case(run, index, tracker, stats, failure);
 }
 
-Recording record_case(const io::ContactCase& c) {
+Recording record_case(const model::ContactCase& c) {
   Recording rec;
-  rec.rows.reserve(io::output_count(c.segments));
+  rec.rows.reserve(model::output_count(c.segments));
   try {
     rec.stats = contact::run_history(c.model, c.segments, c.integrator,
                                      [&](const contact::ContactState& s, int segment) {
@@ -172,7 +172,7 @@ void run_parallel(RunContext& run, const std::vector<std::size_t>& todo,
   if (write_error) std::rethrow_exception(write_error);
 }
 
-ContactCaseResult stored_result(const io::ContactCase& c, const StoredContactCase& stored) {
+ContactCaseResult stored_result(const model::ContactCase& c, const StoredContactCase& stored) {
   ContactCaseResult r{c.name, stored.summary, {}};
   if (!stored.failure.empty()) r.failure = case_failure(c, stored.failure);
   return r;
@@ -245,7 +245,7 @@ std::string what_of(const std::exception_ptr& error) {
 // Case `index`, recorded by rank `owner` (`mine` there): the root writes it; every rank gets
 // its result (the summary on the root only: the others print nothing).
 ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_sink,
-                                const io::ContactScene& scene, const ContactRunOptions& options,
+                                const model::ContactScene& scene, const ContactRunOptions& options,
                                 std::size_t index, int owner, const Recording* mine) {
   std::string failure, error;
   if (mine != nullptr) {
@@ -254,7 +254,7 @@ ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_si
   }
   team.broadcast(failure, owner);
   team.broadcast(error, owner);
-  const io::ContactCase& c = scene.cases[index];
+  const model::ContactCase& c = scene.cases[index];
   if (!error.empty()) parallel::stop_every_rank(team, case_failure(c, error), owner);
   std::vector<double> message;
   if (mine != nullptr) {
@@ -273,7 +273,7 @@ ContactCaseResult write_case_of(const parallel::Team& team, ContactSink* root_si
 
 }  // namespace
 
-std::vector<ContactCaseResult> run_contact_scene_on_team(const io::ContactScene& scene,
+std::vector<ContactCaseResult> run_contact_scene_on_team(const model::ContactScene& scene,
                                                          const parallel::Team& team,
                                                          ContactSink* root_sink,
                                                          const ContactRunOptions& options) {
@@ -323,7 +323,8 @@ std::vector<ContactCaseResult> run_contact_scene_on_team(const io::ContactScene&
   return results;
 }
 
-std::vector<ContactCaseResult> run_contact_scene(const io::ContactScene& scene, ContactSink& sink,
+std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene,
+                                                 ContactSink& sink,
                                                  const ContactRunOptions& options) {
   RunContext run{scene, sink, options};
   std::vector<ContactCaseResult> results(scene.cases.size());

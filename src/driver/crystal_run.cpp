@@ -48,7 +48,7 @@ double von_mises_strain(const Eigen::Matrix3d& strain) {
 
 namespace {
 
-CrystalSummary summarise(const io::CrystalCase& c, const crystal::MacroState& last,
+CrystalSummary summarise(const model::CrystalCase& c, const crystal::MacroState& last,
                          const crystal::AggregateStats& stats) {
   CrystalSummary s;
   s.final_state = last;
@@ -65,13 +65,13 @@ CrystalSummary summarise(const io::CrystalCase& c, const crystal::MacroState& la
   return s;
 }
 
-std::string case_failure(const io::CrystalCase& c, const std::string& why) {
+std::string case_failure(const model::CrystalCase& c, const std::string& why) {
   return "case '" + c.name + "': " + why;
 }
 
 // The result of a case an earlier session ended, from what its sink stored. The derived
 // numbers are recomputed, as when the case ended.
-CrystalCaseResult stored_result(const io::CrystalCase& c, const StoredCrystalCase& stored) {
+CrystalCaseResult stored_result(const model::CrystalCase& c, const StoredCrystalCase& stored) {
   CrystalCaseResult r{c.name, summarise(c, stored.final_state, stored.stats), {}};
   if (!stored.failure.empty()) r.failure = case_failure(c, stored.failure);
   return r;
@@ -100,7 +100,7 @@ class CheckpointClock {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-double loading_time(const io::CrystalCase& c) {
+double loading_time(const model::CrystalCase& c) {
   double t = 0.0;
   for (const auto& s : c.segments) t += s.duration;
   return t;
@@ -108,7 +108,7 @@ double loading_time(const io::CrystalCase& c) {
 
 // Whether case `c` writes checkpoints: its policy says so and the sink can hold them (a store
 // too small for it comes from a run that had none for it).
-bool writes_checkpoints(const CheckpointPolicy& policy, const io::CrystalCase& c,
+bool writes_checkpoints(const CheckpointPolicy& policy, const model::CrystalCase& c,
                         const CrystalSink& sink) {
   const std::size_t capacity = sink.checkpoint_capacity();
   return policy.enabled() && capacity > 0 && capacity >= checkpoint_values(c);
@@ -116,7 +116,7 @@ bool writes_checkpoints(const CheckpointPolicy& policy, const io::CrystalCase& c
 
 // Ends the running case in the sink: completed, or failed for `failure` (the rows it reached
 // stay). The summary is of the last state written.
-CrystalCaseResult end_case(const io::CrystalCase& c, CrystalSink& sink,
+CrystalCaseResult end_case(const model::CrystalCase& c, CrystalSink& sink,
                            const crystal::MacroState& last_output,
                            const crystal::AggregateStats& stats,
                            const std::optional<std::string>& failure) {
@@ -130,7 +130,7 @@ CrystalCaseResult end_case(const io::CrystalCase& c, CrystalSink& sink,
   return result;
 }
 
-std::string stopped_at(const io::CrystalCase& c, const crystal::RunPosition& at,
+std::string stopped_at(const model::CrystalCase& c, const crystal::RunPosition& at,
                        const crystal::MacroState& m, bool checkpointed) {
   std::ostringstream msg;
   msg << "case '" << c.name << "' stopped after increment " << at.increment << " of loading["
@@ -142,9 +142,9 @@ std::string stopped_at(const io::CrystalCase& c, const crystal::RunPosition& at,
 
 // Runs case `index` into the sink; `resuming`: an interrupted case, continued from the sink's
 // latest checkpoint of it (or from the start when it has none).
-CrystalCaseResult run_case(const io::CrystalScene& scene, CrystalSink& sink,
+CrystalCaseResult run_case(const model::CrystalScene& scene, CrystalSink& sink,
                            const CrystalRunOptions& options, std::size_t index, bool resuming) {
-  const io::CrystalCase& c = scene.cases[index];
+  const model::CrystalCase& c = scene.cases[index];
   std::optional<ResumePoint> resume;
   if (resuming) resume = sink.latest_checkpoint(index);
   const CheckpointPolicy policy = checkpoint_policy(c, options.checkpoint_every);
@@ -253,7 +253,7 @@ struct CaseAlone {
   std::string error;
 };
 
-void run_alone(const io::CrystalScene& scene, std::size_t index, CaseAlone& out) {
+void run_alone(const model::CrystalScene& scene, std::size_t index, CaseAlone& out) {
   CrystalRunOptions alone;  // the serial team, no checkpoints, no callbacks
   alone.checkpoint_every = 0;
   try {
@@ -289,7 +289,7 @@ void replay(CrystalSink& sink, std::size_t index, const std::vector<double>& mes
 
 // Case `index`, recorded by rank `owner` (`mine` there): its result on every rank, its states
 // written by the root.
-CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::Team& team,
+CrystalCaseResult write_case_of(const model::CrystalScene& scene, const parallel::Team& team,
                                 CrystalSink* root_sink, std::size_t index, int owner,
                                 const CaseAlone* mine) {
   Packed head;
@@ -302,7 +302,7 @@ CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::T
   team.broadcast(head.values, owner);
   team.broadcast(why, owner);
   team.broadcast(error, owner);
-  const io::CrystalCase& c = scene.cases[index];
+  const model::CrystalCase& c = scene.cases[index];
   if (!error.empty()) parallel::stop_every_rank(team, case_failure(c, error), owner);
   CrystalCaseResult result{c.name, {}, why.empty() ? "" : case_failure(c, why)};
   Unpacked(head.values).get(result.summary);
@@ -317,7 +317,7 @@ CrystalCaseResult write_case_of(const io::CrystalScene& scene, const parallel::T
   return result;
 }
 
-std::vector<CrystalCaseResult> run_cases_over_ranks(const io::CrystalScene& scene,
+std::vector<CrystalCaseResult> run_cases_over_ranks(const model::CrystalScene& scene,
                                                     const parallel::Team& team,
                                                     CrystalSink* root_sink,
                                                     const CrystalRunOptions& options) {
@@ -361,11 +361,11 @@ std::vector<CrystalCaseResult> run_cases_over_ranks(const io::CrystalScene& scen
 
 }  // namespace
 
-bool shares_grains(const io::CrystalScene& scene, const parallel::Team& team) {
+bool shares_grains(const model::CrystalScene& scene, const parallel::Team& team) {
   return team.size() > 1 && scene.cases.size() < static_cast<std::size_t>(team.size());
 }
 
-std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
+std::vector<CrystalCaseResult> run_crystal_scene_on_team(const model::CrystalScene& scene,
                                                          const parallel::Team& team,
                                                          CrystalSink* root_sink,
                                                          const CrystalRunOptions& options,
@@ -382,7 +382,8 @@ std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene&
   return run_crystal_scene(scene, shared, over_ranks);
 }
 
-std::vector<CrystalCaseResult> run_crystal_scene(const io::CrystalScene& scene, CrystalSink& sink,
+std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene,
+                                                 CrystalSink& sink,
                                                  const CrystalRunOptions& options) {
   std::vector<CrystalCaseResult> results;
   for (std::size_t k = 0; k < scene.cases.size(); ++k) {

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "packing.hpp"
-#include "subslip/io/h5_writer.hpp"
+#include "subslip/driver/sink_error.hpp"
 
 namespace subslip::driver {
 
@@ -131,16 +131,17 @@ CollectiveCrystalSink::CollectiveCrystalSink(const parallel::Team& team, Crystal
     : team_(team), own_(own_sink) {}
 
 // Runs `work` on every rank, then agrees: when it threw anywhere, every rank throws the error
-// of the lowest rank it failed on (an io::h5::Error as one, so that the command line reports
-// it as the failed write it is). Collective.
+// of the lowest rank it failed on (a SinkWriteError as one, so that the command line reports it
+// as the failed write it is). Collective.
 template <class Work>
 void CollectiveCrystalSink::together(Work&& work) const {
-  std::string action, reason;
-  bool h5_error = false, failed = false;
+  std::string what, action, reason;
+  bool write_error = false, failed = false;
   try {
     work();
-  } catch (const io::h5::Error& e) {
-    failed = h5_error = true;
+  } catch (const SinkWriteError& e) {
+    failed = write_error = true;
+    what = e.what();
     action = e.action;
     reason = e.reason;
   } catch (const std::exception& e) {
@@ -151,11 +152,14 @@ void CollectiveCrystalSink::together(Work&& work) const {
   team_.min(first);
   if (first[0] == team_.size()) return;
   const int owner = static_cast<int>(first[0]);
-  std::vector<double> kind{h5_error ? 1.0 : 0.0};
+  std::vector<double> kind{write_error ? 1.0 : 0.0};
   team_.broadcast(kind, owner);
   team_.broadcast(action, owner);
   team_.broadcast(reason, owner);
-  if (kind[0] != 0.0) throw io::h5::Error(action, reason);
+  if (kind[0] != 0.0) {
+    team_.broadcast(what, owner);
+    throw SinkWriteError(what, action, reason);
+  }
   parallel::stop_every_rank(team_, action, owner);
 }
 

@@ -9,6 +9,7 @@
 #include <system_error>
 
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace subslip::io {
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace subslip::io {
 

@@ -17,6 +17,7 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/slip_systems.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/io/orientation_file.hpp"
 
 namespace subslip::io {
@@ -286,114 +287,34 @@ std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node
   return out;
 }
 
-// An orientation as the doubles a rank sends another (bit for bit: q, g, weight) and back.
-constexpr std::size_t kOrientationValues = 14;
-void pack(const crystal::Orientation& o, std::vector<double>& out) {
-  out.insert(out.end(), {o.q.w, o.q.x, o.q.y, o.q.z});
-  out.insert(out.end(), o.g.data(), o.g.data() + 9);
-  out.push_back(o.weight);
-}
-std::vector<crystal::Orientation> unpacked(std::span<const double> values) {
-  std::vector<crystal::Orientation> out(values.size() / kOrientationValues);
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    const double* v = values.data() + kOrientationValues * k;
-    out[k].q = {v[0], v[1], v[2], v[3]};
-    std::copy(v + 4, v + 13, out[k].g.data());
-    out[k].weight = v[13];
-  }
-  return out;
-}
-
-// Rank 0's second pass over the file: each rank's block, sent to it in rank order (its own
-// kept); every rank gets exactly one message, whatever happens. Returns rank 0's block; sets
-// `complete` when the file gave `total` orientations again without a problem.
-std::vector<double> send_file_blocks(const CheckedNode& node, const parallel::Team& team,
-                                     std::size_t total, bool& complete) {
-  std::vector<double> buffer, own;
-  int rank = 0;
-  const auto finished = [&] {
-    return buffer.size() == kOrientationValues * parallel::block_of(total, rank, team.size()).count;
-  };
-  const auto hand_over = [&] {
-    if (rank == 0)
-      own = std::move(buffer);
-    else
-      team.send(buffer, rank);
-    buffer.clear();
-    ++rank;
-  };
-  while (rank < team.size() && finished()) hand_over();
-  std::size_t read = 0;
-  complete = true;
-  try {
-    OrientationSource again;
-    read = visit_orientation_file(node, again, [&](const crystal::Orientation& o) {
-      if (rank >= team.size()) return;  // (more than the first pass read: the file changed)
-      pack(o, buffer);
-      while (rank < team.size() && finished()) hand_over();
-    });
-  } catch (const InputError&) {
-    complete = false;
-  }
-  while (rank < team.size()) hand_over();  // (what is left, if the file changed)
-  complete = complete && read == total;
-  return own;
-}
-
 // This rank's block of the orientations in the file `node` names, read by rank 0 alone
-// (OrientationSharing); `block` what the whole file gives.
+// (driver::OrientationSharing); `block` what the whole file gives.
 std::vector<crystal::Orientation> read_shared_file(const CheckedNode& node,
                                                    OrientationSource& source,
-                                                   const OrientationSharing& sharing,
+                                                   const driver::OrientationSharing& sharing,
                                                    std::optional<OrientationBlock>& block) {
-  const parallel::Team& team = *sharing.team;
-  std::vector<double> whole(3, 0.0);  // count, weight sum, largest |Euler angle|
-  std::string digest;
-  parallel::on_root(
-      team,
-      [&] {
-        OrientationDigest d;
-        double sum = 0.0;
-        const std::size_t n =
-            visit_orientation_file(node, source, [&](const crystal::Orientation& o) {
-              d.add(o);
-              sum += o.weight;
-            });
-        if (!std::isfinite(sum)) node.fail("the orientation weights sum to more than 1.8e308");
-        whole = {static_cast<double>(n), sum, source.largest_euler_deg};
-        digest = d.text();
-      },
-      sharing.exit_code_of);
-  team.broadcast(whole, 0);
-  team.broadcast(digest, 0);
-  const auto total = static_cast<std::size_t>(whole[0]);
-  source = {"file", resolve_relative(node.as_string(), node.file()).string(), whole[2]};
-  block = OrientationBlock{parallel::block_of(total, team.rank(), team.size()).offset, total,
-                           whole[1], digest};
-  bool complete = true;
-  const std::vector<double> mine =
-      team.is_root() ? send_file_blocks(node, team, total, complete) : team.receive(0);
-  parallel::on_root(
-      team,
-      [&] {
-        if (!complete)
-          node.fail("the orientation file " + source.description +
-                    " changed while it was read; run again");
-      },
-      sharing.exit_code_of);
-  return unpacked(mine);
-}
-
-// Cuts a set every rank made alike to this rank's block; `block` what the whole set gives.
-void keep_own_block(std::vector<crystal::Orientation>& grains, const parallel::Team& team,
-                    std::optional<OrientationBlock>& block) {
-  double sum = 0.0;
-  for (const auto& g : grains) sum += g.weight;
-  const parallel::Block mine = parallel::block_of(grains.size(), team.rank(), team.size());
-  block = OrientationBlock{mine.offset, grains.size(), sum, orientations_digest(grains)};
-  const auto first = grains.begin() + static_cast<std::ptrdiff_t>(mine.offset);
-  grains =
-      std::vector<crystal::Orientation>(first, first + static_cast<std::ptrdiff_t>(mine.count));
+  const std::string path = resolve_relative(node.as_string(), node.file()).string();
+  driver::RootOrientationReader reader;
+  reader.first_pass = [&](const driver::OrientationVisitor& each) {
+    return visit_orientation_file(node, source, each);
+  };
+  reader.noted = [&] { return source.largest_euler_deg; };
+  reader.second_pass = [&](const driver::OrientationVisitor& each) -> std::optional<std::size_t> {
+    try {
+      OrientationSource again;
+      return visit_orientation_file(node, again, each);
+    } catch (const InputError&) {
+      return std::nullopt;
+    }
+  };
+  reader.fail_weights = [&] { node.fail("the orientation weights sum to more than 1.8e308"); };
+  reader.fail_changed = [&] {
+    node.fail("the orientation file " + path + " changed while it was read; run again");
+  };
+  driver::SharedOrientations shared = driver::share_root_orientations(sharing, reader);
+  source = {"file", path, shared.noted};
+  block = shared.block;
+  return std::move(shared.mine);
 }
 
 std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
@@ -439,10 +360,10 @@ std::vector<crystal::Orientation> generated(const CheckedNode& node, bool compon
   return crystal::generate_orientations(request);
 }
 
-// `sharing`: this rank keeps only its block (OrientationSharing), and `block` says so.
+// `sharing`: this rank keeps only its block (driver::OrientationSharing), and `block` says so.
 std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
                                                      OrientationSource& source,
-                                                     const OrientationSharing* sharing,
+                                                     const driver::OrientationSharing* sharing,
                                                      std::optional<OrientationBlock>& block) {
   node.allow_keys({"file", "euler_deg", "random", "component"});
   const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
@@ -460,7 +381,7 @@ std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
   double total = 0.0;
   for (const auto& g : grains) total += g.weight;
   if (!std::isfinite(total)) value.fail("the orientation weights sum to more than 1.8e308");
-  if (sharing != nullptr) keep_own_block(grains, *sharing->team, block);
+  if (sharing != nullptr) block = driver::keep_own_block(grains, *sharing->team);
   return grains;
 }
 
@@ -735,7 +656,8 @@ void check_top_level(const CheckedNode& root) {
   root.get_choice("scene", {"crystal"});
 }
 
-CrystalCase parse_case(SweepCase swept, const Units& units, const OrientationSharing* sharing) {
+CrystalCase parse_case(SweepCase swept, const Units& units,
+                       const driver::OrientationSharing* sharing) {
   const CheckedNode root = swept.document.root();
   check_top_level(root);
   CrystalCase c;
@@ -755,53 +677,16 @@ CrystalCase parse_case(SweepCase swept, const Units& units, const OrientationSha
 
 }  // namespace
 
-std::string_view to_string(MacroField f) {
-  switch (f) {
-    case MacroField::time:
-      return "time";
-    case MacroField::L:
-      return "L";
-    case MacroField::F:
-      return "F";
-    case MacroField::strain:
-      return "strain";
-    case MacroField::stress:
-      return "stress";
-    case MacroField::segment:
-      return "segment";
-  }
-  return "?";
-}
-
-std::string_view to_string(GrainField f) {
-  switch (f) {
-    case GrainField::stress:
-      return "stress";
-    case GrainField::orientation:
-      return "orientation";
-    case GrainField::slip:
-      return "slip";
-    case GrainField::slip_rate:
-      return "slip_rate";
-    case GrainField::crss:
-      return "crss";
-    case GrainField::r:
-      return "r";
-    case GrainField::r_s:
-      return "r_s";
-  }
-  return "?";
-}
-
 CrystalScene load_crystal_scene(const std::filesystem::path& path) {
   return parse_crystal_scene(YamlDocument::from_file(path));
 }
 
 CrystalScene parse_crystal_scene(const YamlDocument& document) {
-  return parse_crystal_scene(document, OrientationSharing{});
+  return parse_crystal_scene(document, driver::OrientationSharing{});
 }
 
-CrystalScene parse_crystal_scene(const YamlDocument& document, const OrientationSharing& sharing) {
+CrystalScene parse_crystal_scene(const YamlDocument& document,
+                                 const driver::OrientationSharing& sharing) {
   const CheckedNode root = document.root();
   check_top_level(root);
   CrystalScene scene;
@@ -814,44 +699,11 @@ CrystalScene parse_crystal_scene(const YamlDocument& document, const Orientation
   const bool blocks = sharing.team != nullptr && sharing.team->size() > 1 &&
                       expand_sweep(document, kCrystalSweepable).size() <
                           static_cast<std::size_t>(sharing.team->size());
-  const OrientationSharing* share = blocks ? &sharing : nullptr;
+  const driver::OrientationSharing* share = blocks ? &sharing : nullptr;
   scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units, share](SweepCase swept) {
     return parse_case(std::move(swept), units, share);
   });
   return scene;
-}
-
-void OrientationDigest::add(const crystal::Orientation& o) {
-  const auto mix = [this](double x) {
-    unsigned char bytes[sizeof x];
-    std::memcpy(bytes, &x, sizeof x);
-    for (unsigned char b : bytes) hash_ = (hash_ ^ b) * 1099511628211ull;
-  };
-  for (double v : {o.q.w, o.q.x, o.q.y, o.q.z, o.weight}) mix(v);
-}
-
-std::string OrientationDigest::text() const {
-  char text[40];
-  std::snprintf(text, sizeof text, "fnv1a64:%016llx", static_cast<unsigned long long>(hash_));
-  return text;
-}
-
-std::string orientations_digest(const std::vector<crystal::Orientation>& orientations) {
-  OrientationDigest d;
-  for (const auto& o : orientations) d.add(o);
-  return d.text();
-}
-
-std::string CrystalCase::orientations_digest() const {
-  return orientation_block ? orientation_block->digest : io::orientations_digest(orientations);
-}
-
-std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units) {
-  return {{"stress", units.stress}, {"time", units.time}};
-}
-
-std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments) {
-  return count_output_states(segments);
 }
 
 }  // namespace subslip::io

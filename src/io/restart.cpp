@@ -5,6 +5,7 @@
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/result_file.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace subslip::io {
 

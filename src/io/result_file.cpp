@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 
 namespace subslip::io {
 

@@ -12,6 +12,7 @@
 
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/text_layout.hpp"
 
 namespace subslip::io::post {

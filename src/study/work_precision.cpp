@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "subslip/integrators/cvode_peer.hpp"
+#include "subslip/study/cvode_peer.hpp"
 
 namespace subslip::study {
 

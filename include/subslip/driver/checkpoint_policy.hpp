@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <optional>
 
-#include "subslip/io/crystal_scene.hpp"
+#include "subslip/model/crystal_case.hpp"
 
 namespace subslip::driver {
 
@@ -23,13 +23,13 @@ inline constexpr double kDefaultCheckpointSeconds = 60.0;
 
 // The policy of a case: `command_line` (--checkpoint-every N, N increments, 0 none) if given,
 // else the scene's output.checkpoint_every, else every kDefaultCheckpointSeconds.
-CheckpointPolicy checkpoint_policy(const io::CrystalCase& c, std::optional<long> command_line);
+CheckpointPolicy checkpoint_policy(const model::CrystalCase& c, std::optional<long> command_line);
 
 // Grain values in a checkpoint of case `c` (grains x values per grain).
-std::size_t checkpoint_values(const io::CrystalCase& c);
+std::size_t checkpoint_values(const model::CrystalCase& c);
 
 // The largest checkpoint of the scene's cases that write checkpoints (grain values); 0: none.
 // One store serves every case of a run, so it is sized for this.
-std::size_t checkpoint_capacity(const io::CrystalScene& scene, std::optional<long> command_line);
+std::size_t checkpoint_capacity(const model::CrystalScene& scene, std::optional<long> command_line);
 
 }  // namespace subslip::driver

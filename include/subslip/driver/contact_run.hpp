@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "subslip/driver/contact_sink.hpp"
-#include "subslip/io/contact_scene.hpp"
+#include "subslip/model/contact_case.hpp"
 #include "subslip/parallel/team.hpp"
 
 namespace subslip::driver {
@@ -20,7 +20,7 @@ class SummaryTracker {
  public:
   void add(const contact::ContactState& s);
   // Completes the summary with the run's statistics and the analytical steady state.
-  ContactSummary result(const io::ContactCase& c, const contact::RunStats& stats) const;
+  ContactSummary result(const model::ContactCase& c, const contact::RunStats& stats) const;
 
  private:
   double peak_ = -1.0, slip_at_peak_ = ContactSummary::kNone;
@@ -28,26 +28,27 @@ class SummaryTracker {
 };
 
 // The steady f_t/f_n of the case's law at the last sliding segment's speed (NaN if none slides).
-double steady_ratio_analytical(const io::ContactCase& c);
+double steady_ratio_analytical(const model::ContactCase& c);
 
 struct ContactRunOptions {
   int threads = 0;  // cases run in parallel on this many threads (0: OpenMP's default)
   // Called (serially, in case order) as each case is written or found ended.
-  std::function<void(std::size_t index, const io::ContactCase&, const ContactCaseResult&)>
+  std::function<void(std::size_t index, const model::ContactCase&, const ContactCaseResult&)>
       on_case_done;
 };
 
 // Runs the cases of `scene` into `sink`. A case that fails numerically (contact::StepFailure)
 // keeps the states it reached, is ended with fail_case and gets a result with `failure` set;
 // the other cases still run. Other errors (the sink's) are thrown.
-std::vector<ContactCaseResult> run_contact_scene(const io::ContactScene& scene, ContactSink& sink,
+std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene,
+                                                 ContactSink& sink,
                                                  const ContactRunOptions& options = {});
 
 // The cases of `scene` over the ranks of `team` (every rank calls it; `root_sink`: the result
 // file's sink on the root, null elsewhere): round by round each rank computes `threads` cases
 // with its threads (options.threads, or OpenMP's), and the root writes the round's cases in case
 // order, so the file is the serial run's. Results on every rank (the summaries on the root).
-std::vector<ContactCaseResult> run_contact_scene_on_team(const io::ContactScene& scene,
+std::vector<ContactCaseResult> run_contact_scene_on_team(const model::ContactScene& scene,
                                                          const parallel::Team& team,
                                                          ContactSink* root_sink,
                                                          const ContactRunOptions& options = {});

@@ -15,7 +15,7 @@
 
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/driver/crystal_sink.hpp"
-#include "subslip/io/crystal_scene.hpp"
+#include "subslip/model/crystal_case.hpp"
 #include "subslip/parallel/team.hpp"
 
 namespace subslip::driver {
@@ -37,7 +37,7 @@ struct CrystalRunOptions {
   // --checkpoint-every: overrides every case's checkpoint_policy (driver/checkpoint_policy.hpp).
   std::optional<long> checkpoint_every;
   // Called as each case ends or is found ended by an earlier session.
-  std::function<void(std::size_t index, const io::CrystalCase&, const CrystalCaseResult&)>
+  std::function<void(std::size_t index, const model::CrystalCase&, const CrystalCaseResult&)>
       on_case_done;
   // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
   // restart continues from (work done before this session), and completed cases it skips.
@@ -61,7 +61,7 @@ struct CrystalRunOptions {
 // (TeamCrystalSink), or, with `own_sinks`, every rank passes its own sink in `root_sink` and
 // the ranks write one file together (CollectiveCrystalSink: parallel HDF5). The results are
 // the same on every rank, and equal the serial run's.
-std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene& scene,
+std::vector<CrystalCaseResult> run_crystal_scene_on_team(const model::CrystalScene& scene,
                                                          const parallel::Team& team,
                                                          CrystalSink* root_sink,
                                                          const CrystalRunOptions& options = {},
@@ -69,7 +69,7 @@ std::vector<CrystalCaseResult> run_crystal_scene_on_team(const io::CrystalScene&
 
 // Whether run_crystal_scene_on_team shares the grains of each case among the ranks of `team`
 // (fewer cases than ranks), rather than giving each rank whole cases.
-bool shares_grains(const io::CrystalScene& scene, const parallel::Team& team);
+bool shares_grains(const model::CrystalScene& scene, const parallel::Team& team);
 
 // The run stopped on request (CrystalRunOptions::stop_requested) after an increment of the
 // running case; `checkpointed`: a checkpoint of that increment was written, from which
@@ -84,7 +84,8 @@ struct RunStopped : std::runtime_error {
 // it, the others start. A case that fails numerically (crystal::CrystalStepFailure) is ended
 // with fail_case and gets a result with `failure` set; the other cases still run. Other errors
 // (the sink's) are thrown.
-std::vector<CrystalCaseResult> run_crystal_scene(const io::CrystalScene& scene, CrystalSink& sink,
+std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scene,
+                                                 CrystalSink& sink,
                                                  const CrystalRunOptions& options = {});
 
 }  // namespace subslip::driver

@@ -42,7 +42,7 @@ class TeamCrystalSink final : public CrystalSink {
 // everything else. Every method is called by every rank in the same order; this makes what
 // they store the same where it could differ (a summary's timings are the root's) and agrees
 // on failure: when the sink throws on any rank, every rank throws, the lowest failing rank's
-// error (an io::h5::Error stays one, on every rank), so no rank waits in a collective write.
+// error (a SinkWriteError stays one, on every rank), so no rank waits in a collective write.
 class CollectiveCrystalSink final : public CrystalSink {
  public:
   CollectiveCrystalSink(const parallel::Team& team, CrystalSink& own_sink);

@@ -7,6 +7,7 @@
 
 #include "subslip/driver/case_status.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
 

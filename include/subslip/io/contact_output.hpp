@@ -20,6 +20,7 @@
 #include "subslip/driver/contact_sink.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/run_size.hpp"
 
 namespace subslip::io {

@@ -1,60 +1,27 @@
 // Contact scene files (`scene: contact`): one frictional contact point driven through a
 // prescribed sliding history, possibly swept over parameters. The format is documented in
-// docs/scenes.md; this is its only parser.
+// docs/scenes.md; this is its only parser, and what it makes is the run model of
+// model/contact_case.hpp.
 #pragma once
 
 #include <array>
-#include <cstddef>
 #include <filesystem>
-#include <string>
 #include <string_view>
-#include <vector>
 
-#include "subslip/contact/contact_point.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/model/contact_case.hpp"
 
 namespace subslip::io {
 
-// The time series a contact run can write, in output order.
-enum class ContactField {
-  time,
-  slip,
-  slip_path,
-  traction,
-  ratio,
-  mu,
-  r,
-  r_s,
-  vp_slip,
-  vp_rate,
-  segment,
-};
-inline constexpr std::array<ContactField, 11> kAllContactFields = {
-    ContactField::time,    ContactField::slip,    ContactField::slip_path, ContactField::traction,
-    ContactField::ratio,   ContactField::mu,      ContactField::r,         ContactField::r_s,
-    ContactField::vp_slip, ContactField::vp_rate, ContactField::segment};
-std::string_view to_string(ContactField f);
-
-// One case of a contact scene (the whole scene when it has no sweep).
-struct ContactCase {
-  std::string name;                      // "base", or built from the sweep overrides
-  std::vector<SweepOverride> overrides;  // this case's swept values
-  contact::ContactModel model;
-  std::vector<contact::Segment> segments;
-  contact::IntegratorOptions integrator;
-  std::vector<ContactField> fields;      // the requested output fields, in kAllContactFields order
-  std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
-};
-
-struct ContactScene {
-  std::string file;   // as given
-  std::string text;   // the YAML text, verbatim
-  std::string title;  // "" when the scene has none
-  Units units;
-  std::vector<ContactCase> cases;  // in sweep order (first swept key slowest)
-};
+using model::ContactCase;
+using model::ContactField;
+using model::ContactScene;
+using model::kAllContactFields;
+using model::last_sliding_speed;
+using model::output_count;
+using model::to_string;
 
 // Top-level keys a sweep may reach into.
 inline constexpr std::array<std::string_view, 6> kContactSweepable = {
@@ -64,10 +31,5 @@ inline constexpr std::array<std::string_view, 6> kContactSweepable = {
 // key path.
 ContactScene load_contact_scene(const std::filesystem::path& path);
 ContactScene parse_contact_scene(const YamlDocument& document);
-
-// The speed |v| of the last segment that slides; 0 when none does.
-double last_sliding_speed(const std::vector<contact::Segment>& segments);
-// The number of states run_history reports for `segments` (the initial state included).
-std::size_t output_count(const std::vector<contact::Segment>& segments);
 
 }  // namespace subslip::io

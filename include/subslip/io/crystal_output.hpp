@@ -25,6 +25,7 @@
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/io/result_protocol.hpp"
 #include "subslip/io/run_size.hpp"
 #include "subslip/parallel/team.hpp"
 

@@ -1,108 +1,36 @@
 // Crystal scene files (`scene: crystal`): a crystal phase (slip systems, elasticity, the
 // subloading-overstress law on every slip system), a set of grain orientations, and a loading
 // history of velocity gradients under DAMASK-style mixed control, run as a Taylor aggregate.
-// The format is documented in docs/scenes.md ("Crystal scenes"); this is its only parser.
+// The format is documented in docs/scenes.md ("Crystal scenes"); this is its only parser, and
+// what it makes is the run model of model/crystal_case.hpp.
 #pragma once
 
 #include <array>
-#include <cstddef>
-#include <cstdint>
 #include <filesystem>
-#include <optional>
-#include <string>
 #include <string_view>
-#include <vector>
 
-#include "subslip/crystal/aggregate.hpp"
-#include "subslip/crystal/phase_builder.hpp"
-#include "subslip/crystal/rotation.hpp"
+#include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
 #include "subslip/io/yaml_checked.hpp"
-#include "subslip/parallel/team.hpp"
+#include "subslip/model/crystal_case.hpp"
 
 namespace subslip::io {
 
-// Aggregate (macroscopic) time series, in output order.
-enum class MacroField { time, L, F, strain, stress, segment };
-inline constexpr std::array<MacroField, 6> kAllMacroFields = {
-    MacroField::time,   MacroField::L,      MacroField::F,
-    MacroField::strain, MacroField::stress, MacroField::segment};
-std::string_view to_string(MacroField f);
-
-// Per-grain time series, in output order.
-enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s };
-inline constexpr std::array<GrainField, 7> kAllGrainFields = {
-    GrainField::stress, GrainField::orientation, GrainField::slip, GrainField::slip_rate,
-    GrainField::crss,   GrainField::r,           GrainField::r_s};
-std::string_view to_string(GrainField f);
-
-struct CrystalOutputSelection {
-  std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
-  std::vector<GrainField> grains;  // in kAllGrainFields order; empty: no /grains group
-  int checkpoint_every = -1;       // output.checkpoint_every: increments, 0 none, -1 not given
-  // output.grains_at: for every output row (the initial state first), whether it has per-grain
-  // rows; empty: every row has them.
-  std::vector<bool> grain_rows;
-};
-
-// How the orientations were given, for the case attributes.
-struct OrientationSource {
-  std::string kind;                 // file | euler_deg | random | component
-  std::string description;          // the file path as resolved, or the request
-  double largest_euler_deg = -1.0;  // the largest |Euler angle| given; -1: not Euler angles
-};
-
-// A digest of a set of orientations, in order (quaternion and weight of each, FNV-1a 64 bit):
-// "fnv1a64:<16 hex digits>". A restart checks that its orientations are those of the run.
-class OrientationDigest {
- public:
-  void add(const crystal::Orientation& o);
-  std::string text() const;
-
- private:
-  std::uint64_t hash_ = 14695981039346656037ull;
-};
-std::string orientations_digest(const std::vector<crystal::Orientation>& orientations);
-
-// What the whole set of a case's orientations gives, where a process holds only its block of
-// them (MPI ranks sharing the grains: share_orientations below).
-struct OrientationBlock {
-  std::size_t offset = 0;   // the grain index of the first orientation held
-  std::size_t total = 0;    // every grain of the case
-  double weight_sum = 0.0;  // of every grain's weight, summed in grain order
-  std::string digest;       // orientations_digest of every grain
-};
-
-// One case of a crystal scene (the whole scene when it has no sweep).
-struct CrystalCase {
-  std::string name;                      // "base", or built from the sweep overrides
-  std::vector<SweepOverride> overrides;  // this case's swept values
-  crystal::PhaseDescription phase;
-  std::string elasticity_type;  // cubic | hexagonal | isotropic (for the attributes)
-  // Every grain's orientation, or only this process's block of them when `orientation_block`
-  // is set (grain_count() is then the case's).
-  std::vector<crystal::Orientation> orientations;
-  std::optional<OrientationBlock> orientation_block;
-  OrientationSource orientation_source;
-  std::vector<crystal::LoadSegment> segments;
-  crystal::AggregateOptions options;
-  CrystalOutputSelection output;
-  std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
-
-  std::size_t grain_count() const {
-    return orientation_block ? orientation_block->total : orientations.size();
-  }
-  std::string orientations_digest() const;  // of every grain of the case
-};
-
-struct CrystalScene {
-  std::string file;   // as given
-  std::string text;   // the YAML text, verbatim
-  std::string title;  // "" when the scene has none
-  Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
-  std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
-};
+using model::crystal_output_count;
+using model::crystal_units;
+using model::CrystalCase;
+using model::CrystalOutputSelection;
+using model::CrystalScene;
+using model::GrainField;
+using model::kAllGrainFields;
+using model::kAllMacroFields;
+using model::MacroField;
+using model::OrientationBlock;
+using model::OrientationDigest;
+using model::orientations_digest;
+using model::OrientationSource;
+using model::to_string;
 
 // Top-level keys a sweep may reach into.
 inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
@@ -113,23 +41,10 @@ inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
 CrystalScene load_crystal_scene(const std::filesystem::path& path);
 CrystalScene parse_crystal_scene(const YamlDocument& document);
 
-// MPI ranks that will share the grains of each case (parallel::block_of) and write them into
-// the result file together: with fewer cases than ranks, each rank keeps only its block of each
-// case's orientations (CrystalCase::orientation_block). An orientation file is then read by
-// rank 0 alone, twice, streaming (the checks, the count, the digest and the weight sum; then
-// each rank's block, sent to it), so that no process holds the whole file; generated and inline
-// sets are made on every rank and cut to its block. A problem in the file is reported by rank 0
-// (the others stop with `exit_code_of` of it: parallel::on_root). Collective.
-struct OrientationSharing {
-  const parallel::Team* team = nullptr;
-  parallel::ExitCodeOf exit_code_of = nullptr;
-};
-CrystalScene parse_crystal_scene(const YamlDocument& document, const OrientationSharing& sharing);
-
-// The unit pairs of a crystal result file's /units group: ("stress", ...), ("time", ...).
-std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units);
-
-// The number of states the aggregate reports for `segments` (the initial state included).
-std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments);
+// The same for MPI ranks that will share the grains of each case: each keeps only its block of
+// each case's orientations, an orientation file read by rank 0 alone (driver/
+// orientation_sharing.hpp says how). Collective.
+CrystalScene parse_crystal_scene(const YamlDocument& document,
+                                 const driver::OrientationSharing& sharing);
 
 }  // namespace subslip::io

@@ -56,19 +56,19 @@
 #include <utility>
 #include <vector>
 
+#include "subslip/driver/sink_error.hpp"
+
 namespace subslip::io::h5 {
 
 // A failed HDF5 call. what(): "HDF5: ACTION: REASON"; `action` says what was attempted and on
 // which object ("write rows 0..255 of dataset /cases/base/time"), `reason` is the operating
 // system's (errno: "No space left on device") when HDF5 recorded one, else HDF5's own words.
-struct Error : std::runtime_error {
-  explicit Error(const std::string& message) : std::runtime_error(message), action(message) {}
-  Error(std::string what_failed, std::string why)
-      : std::runtime_error("HDF5: " + what_failed + (why.empty() ? "" : ": " + why)),
-        action(std::move(what_failed)),
-        reason(std::move(why)) {}
-  std::string action;
-  std::string reason;
+// A sink's failed write (driver::SinkWriteError), which the drivers pass on between ranks.
+struct Error : driver::SinkWriteError {
+  explicit Error(const std::string& message) : driver::SinkWriteError(message, message, "") {}
+  Error(const std::string& what_failed, const std::string& why)
+      : driver::SinkWriteError("HDF5: " + what_failed + (why.empty() ? "" : ": " + why),
+                               what_failed, why) {}
 };
 
 // HDF5's own error stack is not printed (errors become Error); with `on`, every failed call
@@ -176,6 +176,8 @@ class Dataset : public Object {
   // Overwrite the whole dataset in place (size = number of elements); see Group::create_fixed.
   void write(std::span<const double> values) const;
   void write(std::span<const long long> values) const;
+  // Overwrite element `index` of a 1-D integer dataset in place.
+  void write_element(std::size_t index, long long value) const;
   // Overwrite the first values.size() elements of a 1-D float64 dataset in place.
   void write_prefix(std::span<const double> values) const;
   // This process's part of a float64 dataset: the rows [first, first + n) of its first axis,
@@ -363,71 +365,6 @@ class WritePacer {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-// /progress: how far each case of a run got, written in place as the run goes (so a killed
-// run's file says which rows are valid). `rows` [cases] int64: the valid rows of every series
-// of the case; `state` [cases] int64: CaseState. Cases in /cases `names` order.
-enum class CaseState : long long { not_started = 0, running = 1, completed = 2, failed = 3 };
-// With `grain_rows` (crystal runs), also `grain_rows` [cases] int64: the valid rows of the
-// case's per-grain series (grains/...), which may be fewer than `rows` (output.grains_at).
-class CaseProgress {
- public:
-  static CaseProgress create(const Group& root, std::size_t cases, bool grain_rows = false);
-  static CaseProgress open(const Group& root);  // throws Error when the file has none
-  std::size_t size() const { return rows_.size(); }
-  long long rows(std::size_t index) const { return rows_[index]; }
-  // The valid per-grain rows (rows() when the file does not count them apart).
-  long long grain_rows(std::size_t index) const {
-    return grain_rows_.empty() ? rows_[index] : grain_rows_[index];
-  }
-  CaseState state(std::size_t index) const { return static_cast<CaseState>(state_[index]); }
-  void set_rows(std::size_t index, std::size_t rows);
-  void set_grain_rows(std::size_t index, std::size_t rows);  // (no-op without grain_rows)
-  void set_state(std::size_t index, CaseState state);
-
- private:
-  CaseProgress(Dataset rows, Dataset state, std::vector<long long> r, std::vector<long long> s);
-  void write_element(const Dataset& d, std::size_t index, long long value) const;
-  Dataset rows_ds_, state_ds_;
-  std::optional<Dataset> grain_rows_ds_;
-  std::vector<long long> rows_, state_, grain_rows_;
-};
-
-// A case group's `failed` attribute: reserved at layout time (this many bytes, UTF-8), written
-// when the case stops on a numerical failure; empty while it has not.
-inline constexpr std::size_t kFailureMessageBytes = 1024;
-// The case's failure message ("" when it did not fail, or has no `failed` attribute).
-std::string failure_message(const Group& case_group);
-
-// The part of a result file every scene kind shares.
-struct ResultHeader {
-  std::string scene_kind;  // "contact", "crystal", ...
-  std::string scene_file;  // as given on the command line
-  std::string scene_text;  // the YAML text, verbatim
-  std::string title;
-  std::vector<std::pair<std::string, std::string>> units;  // ("stress", "MPa"), ...
-  // Further root attributes (name, text) that say how the results were computed, e.g. the
-  // crystal solver's SIMD kernels.
-  std::vector<std::pair<std::string, std::string>> computed_with;
-};
-
-// Root attributes format = "subslip", format_version, program_version, build (SUBSLIP_BUILD:
-// "portable" or "native"), the header's computed_with, scene_kind,
-// scene_file, title, created (ISO-8601 UTC), run_id (new_run_id), completed = 0, finished = 0,
-// layout_complete = 0, write_error (reserved, empty: see mark_write_failed); dataset
-// /scene; group /units with one string attribute per unit. Flushes.
-void write_result_header(File& file, const ResultHeader& header);
-// Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes
-// values only (a restart refuses a file whose layout is not complete).
-void mark_layout_complete(File& file);
-// Sets completed = 1 and flushes.
-void mark_completed(File& file);
-// After a failed write: records `message` in the root's reserved `write_error` attribute (in
-// place, so that it has a chance on a full disk) and flushes; never throws. False when that
-// did not work either.
-bool mark_write_failed(File& file, std::string_view message) noexcept;
-// Sets completed = 0, empties write_error and flushes (a restart, before it changes anything).
-void mark_running(File& file);
-
 // The rows to keep of an extendible dataset (a Series) at `path` ("/cases/base/time") when a
 // file is copied by write_exact_copy; nullopt: every row of its extent.
 using RowsToKeep = std::function<std::optional<std::size_t>(const std::string& path)>;
@@ -442,22 +379,5 @@ void write_exact_copy(const File& source, const File& target, const RowsToKeep& 
 // fsync of the file and of its directory (after a rename into it), so that what was written
 // survives a crash of the machine too. Throws Error naming the file.
 void sync_to_disk(const std::filesystem::path& file);
-
-// A random identifier of a run (16 hex digits), stored in the result as `run_id` and in its
-// restart file, which must name the same run.
-std::string new_run_id();
-
-// The `components` attribute of every second-order tensor dataset of a result file: the two
-// trailing axes are the tensor's row and column.
-inline constexpr const char* kTensorConvention =
-    "3x3 tensor: [..., i, j] is the component ij (i the row, j the column); symmetric tensors "
-    "are stored in full";
-
-// 3: every tensor [n, 3, 3] / [n, G, 3, 3] (components = kTensorConvention); per-grain rows
-// counted apart (grains/row, /progress/grain_rows: output.grains_at); a finished file is
-// rewritten with exactly its rows (`finished` = 1); checkpoints in a separate restart file.
-// 2: the whole layout is written before the run (summary attributes as placeholders, `failed`
-// a fixed-length string, series keep their reservation, checkpoints in /checkpoint).
-inline constexpr int kFormatVersion = 3;
 
 }  // namespace subslip::io::h5

@@ -49,8 +49,8 @@ std::vector<crystal::Orientation> read_orientations(std::istream& in, const std:
                                                     double* largest_euler_deg = nullptr);
 
 // Streaming: `each` is called with every orientation in file order and nothing is kept (a file
-// of more orientations than one process should hold: io::share_orientations); the same checks
-// and messages. Returns how many were read.
+// of more orientations than one process should hold: driver::share_root_orientations); the same
+// checks and messages. Returns how many were read.
 using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
 std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
                                   double* largest_euler_deg = nullptr);

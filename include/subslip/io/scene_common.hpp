@@ -1,5 +1,6 @@
-// Pieces every scene kind shares: the `scene:` kind, the `units:` block, unit strings and the
-// stepping of loading segments.
+// Pieces every scene parser shares: the `scene:` kind, the `units:` block, values read in the
+// scene's units and the stepping of loading segments (the units and values themselves are the
+// run model's: model/units.hpp, model/case_common.hpp).
 #pragma once
 
 #include <cstddef>
@@ -12,50 +13,13 @@
 
 #include "subslip/io/units.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/model/case_common.hpp"
 
 namespace subslip::io {
 
-// The unit system of a scene (its `units` block): every value is computed and every output
-// written in it. A bare number in the scene is in these units; a number written with a unit
-// ("168.4 GPa", "60 min", "1 mm/min") is converted into them when the scene is read.
-struct Units {
-  std::string stress = "MPa";  // Pa | kPa | MPa | GPa
-  std::string length = "mm";   // m | cm | mm | um | nm; empty for a scene kind without lengths
-  std::string time = "min";    // s | ms | min | h
-
-  // The unit of this system for a quantity of dimension `d`: {stress/length, 10^3, "MPa/mm"}.
-  // "1" for the dimensionless; a dimension with a length needs `length`.
-  Unit unit(Dimension d) const;
-
-  std::string velocity() const { return length + "/" + time; }         // sliding speed
-  std::string per_length() const { return "1/" + length; }             // kappa, u_tilde
-  std::string per_time() const { return "1/" + time; }                 // xi
-  std::string time_per_length() const { return time + "/" + length; }  // eta_v
-  std::string stiffness() const { return stress + "/" + length; }      // alpha_n, alpha_t
-  // (name, unit) pairs, for the /units group of a result file.
-  std::vector<std::pair<std::string, std::string>> entries() const;
-};
-
-inline constexpr std::string_view kDimensionless = "1";
-
-// A value whose magnitude the plausibility warnings check (scene_warnings.hpp): what it is,
-// its value in the scene's units, and where it was written.
-enum class Magnitude {
-  elastic_constant,  // C11 ... C44, E, G of a crystal phase [stress]
-  tau0,              // a reference stress of slip systems [stress]
-  normal_traction,   // f_n of a contact, initial or ramped to [stress]
-  sliding_speed,     // a non-zero sliding speed [length/time]
-  strain_rate,       // a non-zero prescribed velocity-gradient component [1/time]
-  duration,          // a segment duration as written [time]
-};
-
-struct WrittenValue {
-  Magnitude kind;
-  double value = 0.0;                 // in the scene's units
-  std::string key;                    // the key path
-  int line = 0;                       // 1-based line in the scene file
-  std::optional<double> bare_number;  // the number as written, when it was written without a unit
-};
+using model::count_output_states;
+using model::Magnitude;
+using model::WrittenValue;
 
 // The record of `value` (in the scene's units) read from `node`.
 WrittenValue written_value(const CheckedNode& node, Magnitude kind, double value);
@@ -110,24 +74,6 @@ Units parse_units_without_length(const CheckedNode& node);
 // `growth`) and the smallest increment must not underflow (reported at `increments`).
 void check_increment_lengths(const CheckedNode& segment, double duration, int increments,
                              double growth);
-
-// How many states a loading history writes: the initial one, then every `output_every`-th
-// increment of each segment and always its last, or one per output time when the segment
-// lists them (for any segment type with `increments`, `output_every` and output times).
-template <class Segment>
-std::size_t count_output_states(const std::vector<Segment>& segments) {
-  std::size_t n = 1;  // the initial state
-  for (const auto& s : segments) {
-    if (s.output_at_times) {
-      n += s.output_times.size();
-      continue;
-    }
-    const auto inc = static_cast<std::size_t>(s.increments);
-    const auto every = static_cast<std::size_t>(s.output_every);
-    n += inc / every + (inc % every != 0 ? 1 : 0);
-  }
-  return n;
-}
 
 // The `order` of an `integrator` block (1: backward Euler's own estimate, 2 .. 4: extrapolated;
 // integrators/extrapolation.hpp), given its adaptive tolerance (0: fixed increments, where an

@@ -22,14 +22,11 @@
 #include <vector>
 
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/model/case_common.hpp"
 
 namespace subslip::io {
 
-struct SweepOverride {
-  std::string path;              // as written in the sweep block
-  std::string value;             // the value's text (flow style for non-scalars)
-  std::optional<double> number;  // the value when it is a number
-};
+using model::SweepOverride;
 
 struct SweepCase {
   std::string name;  // "speed=10,eta_v=950": each path from its last key on ("L[0][1]=10"

@@ -1,11 +1,13 @@
-#include "subslip/io/units.hpp"
+#include "subslip/model/units.hpp"
 
 #include <array>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
-namespace subslip::io {
+namespace subslip::model {
 
 namespace {
 
@@ -212,4 +214,30 @@ double to_si(double value, Scale from) {
   return convert(value, from, Scale{});
 }
 
-}  // namespace subslip::io
+std::vector<std::pair<std::string, std::string>> Units::entries() const {
+  return {{"stress", stress}, {"length", length}, {"time", time}};
+}
+
+Unit Units::unit(Dimension d) const {
+  Unit out{d, {}, "1"};
+  if (d == dimension::none) return out;
+  std::string num, den;
+  const std::array<std::pair<int, const std::string*>, 3> bases = {
+      {{d.stress, &stress}, {d.length, &length}, {d.time, &time}}};
+  for (const auto& [exponent, name] : bases) {
+    if (exponent == 0) continue;
+    const auto base = base_unit(*name);
+    if (!base) throw std::logic_error("Units::unit: no unit for " + describe(d));
+    std::string& side = exponent > 0 ? num : den;
+    if (!side.empty()) side += '*';
+    side += *name;
+    if (std::abs(exponent) != 1) side.append("^").append(std::to_string(std::abs(exponent)));
+    out.scale.pow10 += exponent * base->scale.pow10;
+    out.scale.pow60 += exponent * base->scale.pow60;
+  }
+  out.name = num.empty() ? "1" : num;
+  if (!den.empty()) out.name.append("/").append(den);
+  return out;
+}
+
+}  // namespace subslip::model

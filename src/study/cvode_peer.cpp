@@ -1,6 +1,6 @@
 // Compiled in every build: whether the CVODE peer is there, and what its entry points do when it
-// is not (the implementations are in integrators/cvode/, compiled only with SUNDIALS).
-#include "subslip/integrators/cvode_peer.hpp"
+// is not (the implementations are in study/cvode/, compiled only with SUNDIALS).
+#include "subslip/study/cvode_peer.hpp"
 
 namespace subslip::cvode {
 

@@ -1,6 +1,6 @@
 // What the contact and crystal CVODE peers share: an owning wrapper of one CVODE BDF solver
 // (context, vector, linear solver), the output-point walk over a segment, the counters, and the
-// subloading-ratio variable z. Private to src/integrators/cvode/ (compiled only with SUNDIALS).
+// subloading-ratio variable z. Private to src/study/cvode/ (compiled only with SUNDIALS).
 #pragma once
 
 #include <cvode/cvode.h>
@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "subslip/integrators/cvode_peer.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/study/cvode_peer.hpp"
 
 namespace subslip::cvode::detail {
 

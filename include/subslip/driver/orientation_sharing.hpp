@@ -1,0 +1,65 @@
+// How MPI ranks that share the grains of a crystal case come to hold only their blocks of its
+// orientations (parallel::block_of), so that no process holds the whole set. The parser
+// (io/crystal_scene.hpp) says where a set comes from; this decides who reads it and who gets
+// which block.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "subslip/crystal/rotation.hpp"
+#include "subslip/model/crystal_case.hpp"
+#include "subslip/parallel/team.hpp"
+
+namespace subslip::driver {
+
+// MPI ranks that will share the grains of each case (parallel::block_of) and write them into
+// the result file together: with fewer cases than ranks, each rank keeps only its block of each
+// case's orientations (model::CrystalCase::orientation_block). An orientation file is then read
+// by rank 0 alone, twice, streaming (the checks, the count, the digest and the weight sum; then
+// each rank's block, sent to it: share_root_orientations), so that no process holds the whole
+// file; generated and inline sets are made on every rank and cut to its block (keep_own_block).
+// A problem in the file is reported by rank 0 (the others stop with `exit_code_of` of it:
+// parallel::on_root). Collective.
+struct OrientationSharing {
+  const parallel::Team* team = nullptr;
+  parallel::ExitCodeOf exit_code_of = nullptr;
+};
+
+// Cuts `grains`, a set every rank made alike, to this rank's block; what the whole set gives.
+model::OrientationBlock keep_own_block(std::vector<crystal::Orientation>& grains,
+                                       const parallel::Team& team);
+
+using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
+
+// A set of orientations only rank 0 reads (an orientation file). Every function is called on
+// rank 0 only.
+struct RootOrientationReader {
+  // The first pass: visits every orientation in order and returns how many; what it throws
+  // stops every rank (rank 0 reports it).
+  std::function<std::size_t(const OrientationVisitor&)> first_pass;
+  // After the first pass: a number every rank learns with the count (the largest |Euler angle|).
+  std::function<double()> noted;
+  // The second pass: the same, or nullopt when the set cannot be read again.
+  std::function<std::optional<std::size_t>(const OrientationVisitor&)> second_pass;
+  // Throw the error that stops every rank: weights that sum past the largest double; a set the
+  // second pass did not find as the first did (it changed while it was read).
+  std::function<void()> fail_weights;
+  std::function<void()> fail_changed;
+};
+
+struct SharedOrientations {
+  std::vector<crystal::Orientation> mine;  // this rank's block
+  model::OrientationBlock block;           // what the whole set gives
+  double noted = 0.0;                      // RootOrientationReader::noted, on every rank
+};
+
+// The set `reader` reads on rank 0, each rank's block sent to it (rank 0 reads it twice: first
+// the count, the weight sum and the digest, which every rank learns; then the blocks, in rank
+// order, so that rank 0 never holds more than one block). Collective.
+SharedOrientations share_root_orientations(const OrientationSharing& sharing,
+                                           const RootOrientationReader& reader);
+
+}  // namespace subslip::driver

@@ -1,0 +1,111 @@
+// The run model of a crystal scene (`scene: crystal`): its cases, each a crystal phase, a set of
+// grain orientations (or this rank's block of them), a loading history under mixed control,
+// the integrator's options and the output it asks for. io/crystal_scene.hpp makes one from a
+// scene file; driver/crystal_run.hpp runs it.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/phase_builder.hpp"
+#include "subslip/crystal/rotation.hpp"
+#include "subslip/model/case_common.hpp"
+#include "subslip/model/units.hpp"
+
+namespace subslip::model {
+
+// Aggregate (macroscopic) time series, in output order.
+enum class MacroField { time, L, F, strain, stress, segment };
+inline constexpr std::array<MacroField, 6> kAllMacroFields = {
+    MacroField::time,   MacroField::L,      MacroField::F,
+    MacroField::strain, MacroField::stress, MacroField::segment};
+std::string_view to_string(MacroField f);
+
+// Per-grain time series, in output order.
+enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s };
+inline constexpr std::array<GrainField, 7> kAllGrainFields = {
+    GrainField::stress, GrainField::orientation, GrainField::slip, GrainField::slip_rate,
+    GrainField::crss,   GrainField::r,           GrainField::r_s};
+std::string_view to_string(GrainField f);
+
+struct CrystalOutputSelection {
+  std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
+  std::vector<GrainField> grains;  // in kAllGrainFields order; empty: no /grains group
+  int checkpoint_every = -1;       // output.checkpoint_every: increments, 0 none, -1 not given
+  // output.grains_at: for every output row (the initial state first), whether it has per-grain
+  // rows; empty: every row has them.
+  std::vector<bool> grain_rows;
+};
+
+// How the orientations were given, for the case attributes.
+struct OrientationSource {
+  std::string kind;                 // file | euler_deg | random | component
+  std::string description;          // the file path as resolved, or the request
+  double largest_euler_deg = -1.0;  // the largest |Euler angle| given; -1: not Euler angles
+};
+
+// A digest of a set of orientations, in order (quaternion and weight of each, FNV-1a 64 bit):
+// "fnv1a64:<16 hex digits>". A restart checks that its orientations are those of the run.
+class OrientationDigest {
+ public:
+  void add(const crystal::Orientation& o);
+  std::string text() const;
+
+ private:
+  std::uint64_t hash_ = 14695981039346656037ull;
+};
+std::string orientations_digest(const std::vector<crystal::Orientation>& orientations);
+
+// What the whole set of a case's orientations gives, where a process holds only its block of
+// them (MPI ranks sharing the grains: driver/orientation_sharing.hpp).
+struct OrientationBlock {
+  std::size_t offset = 0;   // the grain index of the first orientation held
+  std::size_t total = 0;    // every grain of the case
+  double weight_sum = 0.0;  // of every grain's weight, summed in grain order
+  std::string digest;       // orientations_digest of every grain
+};
+
+// One case of a crystal scene (the whole scene when it has no sweep).
+struct CrystalCase {
+  std::string name;                      // "base", or built from the sweep overrides
+  std::vector<SweepOverride> overrides;  // this case's swept values
+  crystal::PhaseDescription phase;
+  std::string elasticity_type;  // cubic | hexagonal | isotropic (for the attributes)
+  // Every grain's orientation, or only this process's block of them when `orientation_block`
+  // is set (grain_count() is then the case's).
+  std::vector<crystal::Orientation> orientations;
+  std::optional<OrientationBlock> orientation_block;
+  OrientationSource orientation_source;
+  std::vector<crystal::LoadSegment> segments;
+  crystal::AggregateOptions options;
+  CrystalOutputSelection output;
+  std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
+
+  std::size_t grain_count() const {
+    return orientation_block ? orientation_block->total : orientations.size();
+  }
+  std::string orientations_digest() const;  // of every grain of the case
+};
+
+struct CrystalScene {
+  std::string file;   // as given
+  std::string text;   // the YAML text, verbatim
+  std::string title;  // "" when the scene has none
+  Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
+  std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
+};
+
+// The unit pairs of a crystal result file's /units group: ("stress", ...), ("time", ...).
+std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units);
+
+// The number of states the aggregate reports for `segments` (the initial state included).
+std::size_t crystal_output_count(const std::vector<crystal::LoadSegment>& segments);
+
+}  // namespace subslip::model

@@ -1,0 +1,150 @@
+#include "subslip/io/run_output.hpp"
+
+#include <limits>
+#include <string>
+#include <system_error>
+
+namespace fs = std::filesystem;
+
+namespace subslip::io {
+
+namespace {
+
+// Before any work: the result (and checkpoints) must fit in the free space of the output's file
+// system and the largest case in memory. A restart's file is laid out already: memory only.
+void check_fits(const OutputRequest& request, const YamlDocument& document, const RunSize& size) {
+  const fs::path& out = request.path;
+  io::Capacity capacity = io::capacity_for(out);
+  if (request.restart) capacity.disk_bytes = std::numeric_limits<double>::infinity();
+  io::check_run_fits(document, size, capacity, out);
+}
+
+// A result path naming one of the run's input files would replace it (with --force) by its own
+// result: refused, --force or not.
+void refuse_output_over_inputs(const fs::path& out, const std::vector<fs::path>& inputs) {
+  for (const auto& in : inputs) {
+    std::error_code ec;  // (a path that does not exist is no input file)
+    if (fs::equivalent(out, in, ec)) {
+      throw io::h5::OutputPathError(out.string() + ": is the input file " + in.string() +
+                                    " of this run; choose another output path (-o)");
+    }
+  }
+}
+
+// The restart file of a new run's result (checkpoints): a restart file left by an interrupted
+// run is replaced only with --force; anything else at that path is never replaced.
+void check_restart_path(const fs::path& out, bool force) {
+  const fs::path restart = io::restart_file_for(out);
+  std::error_code ec;
+  if (!fs::exists(restart, ec)) return;
+  if (!io::is_restart_file(restart)) {
+    throw io::h5::OutputPathError(restart.string() +
+                                  ": exists and is not a subslip restart file, but the "
+                                  "checkpoints of " +
+                                  out.string() + " go there; move it away or choose another -o");
+  }
+  if (!force) {
+    throw io::h5::OutputPathError(restart.string() +
+                                  ": already exists (the checkpoints of an "
+                                  "interrupted run of " +
+                                  out.string() + "); continue that run with --restart " +
+                                  out.string() + ", or use --force to start anew");
+  }
+}
+
+}  // namespace
+
+long long rows_in(const fs::path& file) {
+  try {
+    const io::h5::File f = io::h5::File::open_read(file);
+    const auto progress = io::h5::CaseProgress::open(f.root());
+    long long rows = 0;
+    for (std::size_t k = 0; k < progress.size(); ++k) rows += progress.rows(k);
+    return rows;
+  } catch (const io::h5::Error&) {
+    return 0;
+  }
+}
+
+void RunOutput::finish_collective_run(const std::optional<driver::SinkWriteError>& failure) {
+  if (failure) {
+    file = io::h5::File::open_write(path);  // (write_failure records the error in it)
+    throw std::runtime_error(write_failure(*failure));
+  }
+  finish();
+}
+
+void RunOutput::finish() {
+  if (!io::every_case_ended(path)) return;
+  std::string why;
+  try {
+    io::finish_result(path);
+  } catch (const io::h5::Error& e) {
+    why = e.action + (e.reason.empty() ? "" : ": " + e.reason);
+  } catch (const fs::filesystem_error& e) {
+    why = e.what();
+  }
+  if (!why.empty()) {
+    const std::string what = path.string() + ": cannot write the finished file (" + why + ")";
+    {
+      io::h5::File working = io::h5::File::open_write(path);
+      io::h5::mark_write_failed(working, "the run ended but " + what);
+      working.close_quietly();
+    }
+    throw std::runtime_error(what + "; every row is in the working file " + path.string() +
+                             " (/progress counts them); free space and finish it with "
+                             "--restart " +
+                             path.string());
+  }
+  std::error_code ec;
+  if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
+}
+
+std::string RunOutput::write_failure(const driver::SinkWriteError& e) {
+  const std::string what =
+      path.string() + ": cannot " + e.action + (e.reason.empty() ? "" : ": " + e.reason);
+  const bool recorded = io::h5::mark_write_failed(file, "the run stopped: " + what);
+  file.close_quietly();
+  std::error_code ec;
+  if (!restart() && fs::exists(partial, ec)) {
+    fs::remove(partial, ec);
+    return what + "; the result's layout was not complete, so " + partial.string() + " was removed";
+  }
+  const long long rows = rows_in(path);
+  if (!restart() && rows == 0) {
+    fs::remove(path, ec);
+    return what + "; no output step had been written, so the file was removed";
+  }
+  return what + "; the rows written before (" + std::to_string(rows) +
+         ") stay readable and the file is marked incomplete (completed = 0" +
+         (recorded ? ", write_error" : "") + "); free space and continue with --restart " +
+         path.string();
+}
+
+RunOutput open_output(const OutputRequest& request, const YamlDocument& document,
+                      const std::vector<std::string>& case_names, const RestartInfo* restart,
+                      const std::vector<fs::path>& inputs, const RunSize& size, bool checkpoints) {
+  const fs::path& out = request.path;
+  if (restart != nullptr) {
+    io::check_restart_cases(out, *restart, case_names);
+    check_fits(request, document, size);
+    return {out, {}, io::h5::File::open_write(out), request.keep_restart};
+  }
+  refuse_output_over_inputs(out, inputs);
+  if (checkpoints) refuse_output_over_inputs(io::restart_file_for(out), inputs);
+  check_fits(request, document, size);  // before check_output_path creates directories
+  io::h5::check_output_path(out, request.force);
+  if (checkpoints) check_restart_path(out, request.force);
+  fs::path partial = out;
+  partial += ".partial";
+  try {
+    return {out, partial, io::h5::File::create(partial, true), request.keep_restart};
+  } catch (const io::h5::Error& e) {
+    std::error_code ec;
+    fs::remove(partial, ec);
+    throw std::runtime_error(out.string() + ": cannot " + e.action +
+                             (e.reason.empty() ? "" : ": " + e.reason));
+  }
+}
+
+}  // namespace subslip::io
