@@ -1,4 +1,4 @@
-// subslip_extreme_report: runs the stiff and extreme case set (inputs/extreme/*.yaml, issue 4)
+// subslip_extreme_report: runs the stiff and extreme case set (inputs/extreme/*.yaml)
 // and prints Markdown:
 //
 //  * one table per scene file, one row per case: outcome (ran to the end, or the failure

@@ -1,4 +1,4 @@
-// subslip_mpi_scaling: a Taylor aggregate over MPI ranks (issue 18, docs/scaling.md): the time
+// subslip_mpi_scaling: a Taylor aggregate over MPI ranks (docs/scaling.md): the time
 // per increment for strong scaling (a fixed aggregate) or weak scaling (fixed grains per rank),
 // the cost of the collectives every increment needs (the exact-sum allreduce of the stress
 // average, of stress and tangent under mixed control, the collective write of one output

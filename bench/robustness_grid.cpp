@@ -1,4 +1,4 @@
-// subslip_robustness_grid: the robustness grid of the implicit grain step (issue 14), a report.
+// subslip_robustness_grid: the robustness grid of the implicit grain step, a report.
 //
 // For each lattice of `subslip bench` (the same phases), random grains under tension and simple
 // shear with L fully prescribed, one implicit step of each strain step from a virgin and from a
@@ -106,7 +106,7 @@ void write_csv(const std::string& path, const GridResult& r, const RobustnessGri
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Robustness grid of the implicit grain step (issue 14)"};
+  CLI::App app{"Robustness grid of the implicit grain step"};
   RobustnessGrid grid;
   int threads = omp_get_max_threads();
   std::string csv;

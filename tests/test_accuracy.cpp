@@ -451,7 +451,7 @@ TEST(AccuracyCrystal, FixedStepErrorsFallAtFirstOrder) {
 // The extrapolated integrator's tolerance bounds every system's r (docs/integrators.md), and its
 // global error on r, ln(CRSS) and r_s (the split of slip is determined here) follows it: at
 // order 2 the max error over the path
-// is within 0.1 ... 10 times the tolerance (issue 17), measured against a reference recomputed
+// is within 0.1 ... 10 times the tolerance, measured against a reference recomputed
 // at each run's own times (no interpolation) that resolves it.
 TEST(AccuracyCrystal, ExtrapolatedErrorFollowsTheToleranceOnEveryGrainsState) {
   const SingleThread one;
@@ -720,7 +720,7 @@ loading:
 // estimate on the split drove the order-2 reference at 1e-9 into steps of 1e-15 s, where the
 // grain solve failed. On the resolved shears the reference runs and resolves the order-2 runs
 // at 1e-5 and 1e-6 (its 10x looser companion within 0.1 of their error), and their max error on
-// every grain's stress is 0.1 ... 10 times the tolerance (issue 17).
+// every grain's stress is 0.1 ... 10 times the tolerance.
 TEST(AccuracyOutput, NearlyRateIndependentGrainFollowsTheToleranceOnItsStress) {
   const fs::path dir = scratch("rate_independent_edge");
   fs::create_directories(dir);

@@ -1,4 +1,4 @@
-// Bad input, one row per class (issue 5): every broken scene or orientation file must give one
+// Bad input, one row per class: every broken scene or orientation file must give one
 // InputError "FILE:LINE: KEY: MESSAGE" naming the file, the line and the key at fault, and the
 // executable must exit with code 2 before it creates or touches a result file.
 //

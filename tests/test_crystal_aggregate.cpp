@@ -206,7 +206,7 @@ TEST(CrystalTaylor, RandomFccTaylorFactor) {
 // subloading ratio saturates, r_s -> 1 within a slip of ~0.1) to a true strain of 1 under the
 // Taylor (iso-strain) condition L = 1e-3/s diag(1, -1/2, -1/2): a perfectly plastic aggregate,
 // which the step on the yield polytope (src/crystal/vertex_grain_step.cpp) takes; the slip
-// Newton stopped such runs at a strain of ~0.2 (issue 14). Tolerances: the Taylor factor M =
+// Newton stopped such runs at a strain of ~0.2. Tolerances: the Taylor factor M =
 // von Mises stress / tau_c of 200 random grains carries a sampling uncertainty of ~0.3/sqrt(200)
 // ~ 0.02 (0.7 %), and at 20 % the subloading rounding of the vertices is spent (r_s within 1e-3
 // of 1 on every slipping system), so M(0.2) is 3.067 within 3 %; the texture of tension (grains

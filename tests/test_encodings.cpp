@@ -1,4 +1,4 @@
-// Text encodings of the files subslip reads (issue 15): a byte-order mark is accepted wherever
+// Text encodings of the files subslip reads: a byte-order mark is accepted wherever
 // text is read; UTF-16 and UTF-32 with a mark are converted to UTF-8 (what /scene stores);
 // Latin-1 bytes, NUL bytes and other binary content are refused naming file, line and byte.
 #include <gtest/gtest.h>

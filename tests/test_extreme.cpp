@@ -1,4 +1,4 @@
-// The stiff and extreme case set of issue 4 (inputs/extreme/*.yaml) through the
+// The stiff and extreme case set (inputs/extreme/*.yaml) through the
 // library: every shipped case runs to the end without NaN or Inf and keeps 0 <=
 // r_s <= r < r_hat at every output; where the law has an analytical limit the
 // runs reach it (steady sliding law::steady_state, Schmid saturation, the
@@ -280,7 +280,7 @@ TEST(ExtremeScenes, EveryContactCaseRunsToTheEndAdmissibly) {
 }
 
 // Crystal cases that do not run to the end with the current drivers, each a
-// finding reported with issue 4 (docs/extreme_cases.md, "Findings"): mixed
+// finding (docs/extreme_cases.md, "Findings"): mixed
 // control whose Newton update on the free components of L has no line search
 // (aggregate.cpp try_step) at G/tau0 = 1e5 with strain steps of 1e-2 and at the
 // switch from loading to a hold, a grain Newton that stalls there, and the

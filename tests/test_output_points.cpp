@@ -1,4 +1,4 @@
-// Output at chosen points (issue 16): `output.at` names times, loading strains or sliding
+// Output at chosen points: `output.at` names times, loading strains or sliding
 // distances (a list, or a linear or logarithmic spacing); fixed increments are split and
 // adaptive steps shortened so that a step ends on every point, and the rows are exactly there
 // (no interpolation); per-grain rows at the coarser `output.grains_at`; bad input is one error

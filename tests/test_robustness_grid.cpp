@@ -1,4 +1,4 @@
-// The robustness grid of issue 14 on a small sample: the first 20 grains of the report's 500
+// The robustness grid on a small sample: the first 20 grains of the report's 500
 // (bench/robustness_grid.cpp runs the full grid from the same definition, study::RobustnessGrid).
 // Every lattice (with its bench phase and with the power overstress), both loadings, both starts,
 // every strain step from 1e-4 to 3e-1: the implicit grain step must converge on every grain, and

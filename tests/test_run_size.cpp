@@ -1,4 +1,4 @@
-// The size check before a run (issue 15): the result file (checkpoints included) and the memory
+// The size check before a run: the result file (checkpoints included) and the memory
 // of a scene are estimated from its layout, and a scene that cannot fit in the free space of the
 // output's file system or in memory is refused naming the key and line, before any work.
 #include <gtest/gtest.h>

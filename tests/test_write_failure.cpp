@@ -1,4 +1,4 @@
-// Write failures of the result file (issue 15). A file-size limit or a full disk ends `subslip
+// Write failures of the result file. A file-size limit or a full disk ends `subslip
 // run` with one line naming the output file, what was being written and the system's reason,
 // exit status 1 (no crash, no HDF5 error stack unless --verbose); the rows written before stay
 // readable, the file says it did not complete and can be continued with --restart; a file that

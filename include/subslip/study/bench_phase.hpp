@@ -1,5 +1,5 @@
 // The phases of the speed and robustness measurements of the crystal kernel (`subslip bench` and
-// bench/robustness_grid.cpp, issue 14): one law and one set of elastic constants per lattice, so
+// bench/robustness_grid.cpp): one law and one set of elastic constants per lattice, so
 // that both measure the same material.
 #pragma once
 

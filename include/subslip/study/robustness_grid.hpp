@@ -1,4 +1,4 @@
-// The robustness grid of the implicit grain step (issue 14): random grains of each bench lattice,
+// The robustness grid of the implicit grain step: random grains of each bench lattice,
 // two loadings with the velocity gradient L fully prescribed, one implicit step of each of a
 // ladder of strain steps, from a virgin and from a prestrained state. What is counted per cell:
 // failed solves, Newton iterations per solve, and committed states outside the admissible set.

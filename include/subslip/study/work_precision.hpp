@@ -391,7 +391,7 @@ double cheapest_time(const StudyResult& study, Integrator integrator, double err
 // The integrators that have at least one successful point, in ladder order.
 std::vector<Integrator> measured_integrators(const StudyResult& study);
 
-// How one integrator's ladder behaved (issue 17): the order it showed and, for a tolerance
+// How one integrator's ladder behaved: the order it showed and, for a tolerance
 // (adaptive, CVODE), how the error it reached compares with the one asked for. Fitted over its
 // successful points whose max error is above the reference's resolution (10 x the larger of
 // self_convergence and interpolation_error, or 10 x the point's own reference_error, where the
