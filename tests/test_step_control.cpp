@@ -1,7 +1,8 @@
 // The adaptive step clock (integrators/step_control.hpp) and the extrapolation tableau
 // (integrators/extrapolation.hpp). The clock: the noise floor of the error estimate. A true
-// local error falls as dt^2 when a rejected step is retried shorter; an estimate that stays put while the step shrinks by 1e3 is round-off, and the clock stops
-// there with a message naming the tolerance, instead of crawling down to dt ~ 1e-20.
+// local error falls as dt^2 when a rejected step is retried shorter; an estimate that stays put
+// while the step shrinks by 1e3 is round-off, and the clock stops there with a message naming
+// the tolerance, instead of crawling down to dt ~ 1e-20.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
