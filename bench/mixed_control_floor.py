@@ -5,7 +5,9 @@
                      [--scene inputs/default.yaml] [--workdir DIR] [--stress-tolerance T]
                      [--profiles PRESCRIBED MIXED]
 
-Runs the scene twice under valgrind's callgrind, one thread: as it is (mixed control: L33
+Valgrind runs no AVX-512: on such a machine give it a subslip configured with
+-DSUBSLIP_GRAIN_STEP_ISA=all (docs/build.md). Runs the scene twice under valgrind's callgrind,
+one thread: as it is (mixed control: L33
 prescribed, the lateral and shear stresses held) and with its velocity gradient fully
 prescribed (L = diag(-1/2, -1/2, 1) L33, no stress condition: the same grains, increments and
 tolerances). From the two profiles it prints, in instructions per grain and increment:

@@ -55,9 +55,8 @@ TEST(MaterialPoint, ContactPointAlongAPathEqualsTheContactDriverBitwise) {
   for (const ct::Segment& seg : contact_path()) {
     double t = 0.0;
     for (double dt : ct::increment_lengths(seg)) {
-      const pt::ContactStep step{seg.velocity * dt,
-                                 ct::normal_traction_at(seg, p.stiffness, kNormalTraction, t + dt),
-                                 dt};
+      const pt::ContactStep step{
+          seg.velocity * dt, ct::normal_traction_at(seg, p.stiffness, kNormalTraction, t + dt), dt};
       const pt::ContactUpdate u = point.update(api.back(), step);
       ASSERT_TRUE(u.report.ok) << u.report.why;
       api.push_back(u.state);
@@ -84,12 +83,11 @@ TEST(MaterialPoint, ContactPointAlongAPathEqualsTheContactDriverBitwise) {
 TEST(MaterialPoint, ContactTangentIsTheDerivativeOfTheUpdate) {
   const pt::ContactPoint point(contact_parameters());
   pt::ContactState s = point.initial_state(kNormalTraction, {});
-  for (int k = 0; k < 20; ++k)
-    s = point.update(s, {{1e-5, 0.0}, kNormalTraction, 0.01}).state;
+  for (int k = 0; k < 20; ++k) s = point.update(s, {{1e-5, 0.0}, kNormalTraction, 0.01}).state;
   for (const pt::ContactStep& step : {pt::ContactStep{{2e-6, 3e-6}, 0.95, 0.01},
-                                     pt::ContactStep{{1e-6, 0.0}, kNormalTraction, 0.01},
-                                     pt::ContactStep{{-2e-9, 0.0}, kNormalTraction, 0.01},
-                                     pt::ContactStep{{-5e-9, 0.0}, kNormalTraction, 0.01}}) {
+                                      pt::ContactStep{{1e-6, 0.0}, kNormalTraction, 0.01},
+                                      pt::ContactStep{{-2e-9, 0.0}, kNormalTraction, 0.01},
+                                      pt::ContactStep{{-5e-9, 0.0}, kNormalTraction, 0.01}}) {
     const pt::ContactUpdate u = point.update(s, step);
     ASSERT_TRUE(u.report.ok);
     for (int j = 0; j < 3; ++j) {
@@ -106,8 +104,10 @@ TEST(MaterialPoint, ContactTangentIsTheDerivativeOfTheUpdate) {
           (point.update(s, plus).state.traction_t - point.update(s, minus).state.traction_t) /
           (2.0 * h);
       const double scale = j < 2 ? contact_parameters().stiffness.alpha_t : 1.0;
-      EXPECT_NEAR(u.tangent(0, j), d(0), 1e-5 * scale) << "column " << j << ", " << step.slip.transpose();
-      EXPECT_NEAR(u.tangent(1, j), d(1), 1e-5 * scale) << "column " << j << ", " << step.slip.transpose();
+      EXPECT_NEAR(u.tangent(0, j), d(0), 1e-5 * scale)
+          << "column " << j << ", " << step.slip.transpose();
+      EXPECT_NEAR(u.tangent(1, j), d(1), 1e-5 * scale)
+          << "column " << j << ", " << step.slip.transpose();
     }
   }
 }
@@ -146,7 +146,8 @@ TEST(MaterialPoint, BadContactParametersAndStepsAreRefusedByName) {
                std::invalid_argument);
 }
 
-// ---- grains --------------------------------------------------------------------------------------
+// ---- grains
+// --------------------------------------------------------------------------------------
 
 pt::GrainParameters fcc() {
   pt::GrainParameters d;
@@ -216,24 +217,32 @@ std::vector<double> stress_row(const pt::Mandel6& m) {
   return {t(0, 0), t(1, 1), t(2, 2), t(1, 2), t(0, 2), t(0, 1)};
 }
 
+// Calls step(L, dt, k) for every increment k = 1, 2, ... of grain_path(); returns the count + 1.
+template <class Step>
+std::size_t along_grain_path(Step&& step) {
+  std::size_t k = 1;
+  for (const cr::LoadSegment& seg : grain_path())
+    for (double dt : cr::increment_lengths(seg.duration, seg.increments, seg.growth))
+      step(seg.velocity_gradient, dt, k++);
+  return k;
+}
+
 TEST(MaterialPoint, GrainAlongAPathEqualsTheSingleCrystalDriverBitwise) {
   const auto grains = orientations(1);
   const DriverRecord driver = run_aggregate(grains);
   const pt::GrainPoint grain(fcc());
   pt::GrainState s = grain.initial_state(grains[0]);
-  std::size_t k = 1;
-  for (const cr::LoadSegment& seg : grain_path())
-    for (double dt : cr::increment_lengths(seg.duration, seg.increments, seg.growth)) {
-      const pt::GrainUpdate u = grain.update(s, seg.velocity_gradient, dt);
-      ASSERT_TRUE(u.report.ok) << u.report.why;
-      s = u.state;
-      ASSERT_LT(k, driver.grain_stress.size());
-      EXPECT_EQ(stress_row(u.stress), driver.grain_stress[k]) << "increment " << k;
-      EXPECT_EQ(std::vector<double>(s.slip.data(), s.slip.data() + s.slip.size()), driver.slip[k])
-          << "increment " << k;
-      ++k;
-    }
-  EXPECT_EQ(k, driver.grain_stress.size());
+  const std::size_t outputs =
+      along_grain_path([&](const Eigen::Matrix3d& l, double dt, std::size_t k) {
+        const pt::GrainUpdate u = grain.update(s, l, dt);
+        ASSERT_TRUE(u.report.ok) << u.report.why;
+        s = u.state;
+        ASSERT_LT(k, driver.grain_stress.size());
+        EXPECT_EQ(stress_row(u.stress), driver.grain_stress[k]) << "increment " << k;
+        EXPECT_EQ(std::vector<double>(s.slip.data(), s.slip.data() + s.slip.size()), driver.slip[k])
+            << "increment " << k;
+      });
+  EXPECT_EQ(outputs, driver.grain_stress.size());
 }
 
 TEST(MaterialPoint, TaylorPointAlongAPathEqualsTheTaylorAggregateBitwise) {
@@ -241,17 +250,15 @@ TEST(MaterialPoint, TaylorPointAlongAPathEqualsTheTaylorAggregateBitwise) {
   const DriverRecord driver = run_aggregate(grains);
   const pt::TaylorPoint taylor(fcc(), grains);
   pt::TaylorState s = taylor.initial_state();
-  std::size_t k = 1;
-  for (const cr::LoadSegment& seg : grain_path())
-    for (double dt : cr::increment_lengths(seg.duration, seg.increments, seg.growth)) {
-      const pt::TaylorUpdate u = taylor.update(s, seg.velocity_gradient, dt);
-      ASSERT_TRUE(u.report.ok) << u.report.why;
-      s = u.state;
-      ASSERT_LT(k, driver.macro_stress.size());
-      EXPECT_EQ(cr::symmetric_from_mandel(u.stress), driver.macro_stress[k]) << "increment " << k;
-      ++k;
-    }
-  EXPECT_EQ(k, driver.macro_stress.size());
+  const std::size_t outputs =
+      along_grain_path([&](const Eigen::Matrix3d& l, double dt, std::size_t k) {
+        const pt::TaylorUpdate u = taylor.update(s, l, dt);
+        ASSERT_TRUE(u.report.ok) << u.report.why;
+        s = u.state;
+        ASSERT_LT(k, driver.macro_stress.size());
+        EXPECT_EQ(cr::symmetric_from_mandel(u.stress), driver.macro_stress[k]) << "increment " << k;
+      });
+  EXPECT_EQ(outputs, driver.macro_stress.size());
 }
 
 // d sigma / d (D dt) against central differences of the update in each Mandel direction, after

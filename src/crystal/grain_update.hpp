@@ -92,13 +92,11 @@ GrainStepReport implicit_step_from(const Phase<N>& ph, const GrainState<N>& s0, 
 // over dt, then from the committed rates.
 template <int N>
 GrainStepReport cold_implicit_step(const Phase<N>& ph, const GrainState<N>& s0,
-                                   const RateHistory<N>& history, double trend_step,
-                                   const Mat3& L, double dt, const GrainStepOptions& opt,
-                                   GrainState<N>& s1, Tangent* tangent,
-                                   SlipTangent<N>* slip_tangent = nullptr) {
+                                   const RateHistory<N>& history, double trend_step, const Mat3& L,
+                                   double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                   Tangent* tangent, SlipTangent<N>* slip_tangent = nullptr) {
   const typename SlipTypes<N>::VecN start = continued_rates(s0, history, trend_step, dt);
-  return implicit_step_from(ph, s0, L, dt, opt, start, start != s0.rate, s1, tangent,
-                            slip_tangent);
+  return implicit_step_from(ph, s0, L, dt, opt, start, start != s0.rate, s1, tangent, slip_tangent);
 }
 
 }  // namespace subslip::crystal

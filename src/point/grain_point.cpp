@@ -178,7 +178,8 @@ void GrainPoint::update(std::span<const GrainState> states,
                         std::span<const Eigen::Matrix3d> velocity_gradients, double dt,
                         std::span<GrainUpdate> out) const {
   if (states.size() != velocity_gradients.size() || states.size() != out.size())
-    throw std::invalid_argument("grain batch: states, velocity gradients and results differ in size");
+    throw std::invalid_argument(
+        "grain batch: states, velocity gradients and results differ in size");
   for (const GrainState& s : states) model_->check(s);
   const long n = static_cast<long>(states.size());
   // Each grain's update is a function of its own inputs: bitwise the same at any thread count.
