@@ -15,6 +15,8 @@
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/law_block.hpp"
+#include "subslip/law/parameter_table.hpp"
 
 namespace subslip::io {
 
@@ -152,32 +154,25 @@ std::vector<std::string> per_system_names(const std::vector<crystal::SlipGroupSe
 void write_law_parameters(const h5::Group& g, const CrystalCase& c, const Units& u) {
   const auto s = system_settings(c);
   const std::string_view one = kDimensionless;
-  const std::string per_time = "1/" + u.time;
   set_with_unit(g, "tau0", per_system(s, [](const auto& x) { return x.tau0; }), u.stress);
   set_with_unit(g, "initial_mu", per_system(s, [](const auto& x) { return x.initial_mu; }), one);
-  set_with_unit(g, "mu_s", per_system(s, [](const auto& x) { return x.law.friction.mu_s; }), one);
-  set_with_unit(g, "mu_k", per_system(s, [](const auto& x) { return x.law.friction.mu_k; }), one);
-  set_with_unit(g, "kappa", per_system(s, [](const auto& x) { return x.law.friction.kappa; }), one);
-  set_with_unit(g, "xi", per_system(s, [](const auto& x) { return x.law.friction.xi; }), per_time);
-  g.set_attribute("subloading_function", per_system_names(s, [](const auto& x) {
-                    return law::to_string(x.law.subloading.function);
-                  }));
-  set_with_unit(g, "u_tilde", per_system(s, [](const auto& x) { return x.law.subloading.u_tilde; }),
-                one);
-  g.set_attribute("overstress_form", per_system_names(s, [](const auto& x) {
-                    return law::to_string(x.law.overstress.form);
-                  }));
-  // NaN for rate-independent systems, which have no overstress constants.
-  auto overstress = [](double law::Overstress::*member) {
-    return [member](const crystal::SlipGroupSettings& x) {
-      return x.law.overstress.form == law::OverstressForm::rate_independent
-                 ? std::nan("")
-                 : x.law.overstress.*member;
-    };
-  };
-  set_with_unit(g, "eta_v", per_system(s, overstress(&law::Overstress::eta_v)), u.time);
-  set_with_unit(g, "n", per_system(s, overstress(&law::Overstress::n)), one);
-  set_with_unit(g, "r_hat", per_system(s, overstress(&law::Overstress::r_hat)), one);
+  for (const auto& b : law::kLawBlocks) {
+    if (b.choice) {
+      g.set_attribute(std::string(b.choice_attribute),
+                      per_system_names(s, [&b](const auto& x) { return b.choice(x.law); }));
+    }
+    for (const auto& k : law::kLawParameters) {
+      if (k.block != b.block) continue;
+      // NaN for rate-independent systems, which have no overstress constants.
+      set_with_unit(g, std::string(k.name), per_system(s, [&k](const auto& x) {
+                      return k.rate_dependent_only &&
+                                     x.law.overstress.form == law::OverstressForm::rate_independent
+                                 ? std::nan("")
+                                 : k.value(x.law);
+                    }),
+                    law_unit_name(k.unit, true, u));
+    }
+  }
 }
 
 std::string_view latent_kind(const crystal::LatentHardening& l) {
