@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "subslip/crystal/grain_field_values.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/io/case_group.hpp"
@@ -77,43 +79,27 @@ FieldSpec macro_spec(MacroField f, const Units& u) {
   return {{}, h5::Type::float64, one, "", ""};
 }
 
+// From the field table (crystal/grain_fields_table.hpp): shape, unit, description, components.
 FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
-  const std::string one(kDimensionless);
-  const std::string per_system = "one value per slip system, in the order of slip_systems";
-  switch (f) {
-    case GrainField::stress:
-      return {kTensorShape, h5::Type::float64, u.stress,
-              "Cauchy stress of each grain, sample frame", kTensorComponents};
-    case GrainField::orientation:
-      return {{4},
-              h5::Type::float64,
-              one,
-              "orientation of each grain (passive, Rowenhorst P=-1, w>=0; maps sample to crystal)",
-              "w x y z"};
-    case GrainField::slip:
-      return {{slip_count}, h5::Type::float64, one, "accumulated signed slip", per_system};
-    case GrainField::slip_rate:
-      return {{slip_count},
-              h5::Type::float64,
-              "1/" + u.time,
-              "signed slip rate over the last increment",
-              per_system};
-    case GrainField::crss:
-      return {{slip_count},
-              h5::Type::float64,
-              u.stress,
-              "critical resolved shear stress mu tau0",
-              per_system};
-    case GrainField::r:
-      return {{slip_count},
-              h5::Type::float64,
-              one,
-              "dynamic loading ratio r = |tau| / (mu f_n)",
-              per_system};
-    case GrainField::r_s:
-      return {{slip_count}, h5::Type::float64, one, "subloading ratio r_s", per_system};
+  const crystal::GrainFieldInfo& field = crystal::info(f);
+  std::vector<std::size_t> shape;
+  std::string components(field.components);
+  switch (field.stored) {
+    case crystal::GrainFieldShape::tensor:
+      shape = kTensorShape;
+      components = kTensorComponents;
+      break;
+    case crystal::GrainFieldShape::quaternion:
+      shape = {4};
+      break;
+    case crystal::GrainFieldShape::per_system:
+      shape = {slip_count};
+      break;
   }
-  return {{}, h5::Type::float64, one, "", ""};
+  std::string unit(kDimensionless);
+  if (field.unit == crystal::GrainFieldUnit::stress) unit = u.stress;
+  if (field.unit == crystal::GrainFieldUnit::per_time) unit = "1/" + u.time;
+  return {shape, h5::Type::float64, unit, std::string(field.description), components};
 }
 
 std::array<double, 9> row_major(const Mat3& m) {
@@ -327,20 +313,8 @@ void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matr
       }
       return;
     }
-    case GrainField::slip:
-      g.slip(out.data());
-      return;
-    case GrainField::slip_rate:
-      g.slip_rate(out.data());
-      return;
-    case GrainField::crss:
-      g.crss(out.data());
-      return;
-    case GrainField::r:
-      g.ratio(out.data());
-      return;
-    case GrainField::r_s:
-      g.subloading_ratio(out.data());
+    default:  // one value per slip system, as the aggregate gives it
+      crystal::give(g, f, out.data());
       return;
   }
 }
