@@ -24,11 +24,11 @@ from .tensors import (LayoutError, to_matrices, von_mises_strain,  # noqa: E402
 from .texture import (cubic_family, hexagonal_family, inverse_pole_figure_points,  # noqa: E402
                       pole_families, pole_figure_points, quaternion_to_matrix)
 from .derived import loading_component  # noqa: E402
-from .csv_export import exact_number  # noqa: E402
+from .csv_export import MissingBinary, exact_number  # noqa: E402
 
 __all__ = [
     "open", "Result", "Case", "CASE_STATES", "NotAResult", "MissingData", "MissingDependency",
     "LayoutError", "to_matrices", "von_mises_stress", "von_mises_strain", "quaternion_to_matrix",
     "cubic_family", "hexagonal_family", "pole_families", "pole_figure_points",
-    "inverse_pole_figure_points", "loading_component", "exact_number",
+    "inverse_pole_figure_points", "loading_component", "exact_number", "MissingBinary",
 ]

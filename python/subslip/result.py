@@ -19,9 +19,8 @@ from ._deps import require
 h5py = require("h5py")
 
 CASE_STATES = {0: "not_started", 1: "running", 2: "completed", 3: "failed"}
-# What a crystal scene's `output` block may ask for (docs/scenes.md), for hints.
-OUTPUT_FIELDS = {"macro": ("time", "L", "F", "strain", "stress", "segment"),
-                 "grains": ("stress", "orientation", "slip", "slip_rate", "crss", "r", "r_s")}
+# The output fields themselves are not listed here: the file names them (its datasets, with
+# their units and descriptions), and a call that needs one says so (Case._need).
 
 
 class NotAResult(ValueError):
@@ -311,16 +310,16 @@ class Case:
 
     def grain_weights(self):
         """Volume fractions (G,) summing to 1 (grains/weight, written with every grain field)."""
-        w = self.raw(self._need("grains/weight"))
+        w = self.raw(self._need("grains/weight", field=False))
         return w / np.sum(w)
 
     def slip_system_labels(self):
-        d = self.dataset(self._need("grains/slip_systems"))
+        d = self.dataset(self._need("grains/slip_systems", field=False))
         return [str(s) for s in decoded(d.attrs.get("labels", []))]
 
     def schmid_tensors(self):
         """sym(s (x) m) of every slip system, lattice frame (N, 3, 3)."""
-        return derived.schmid_tensors(self.raw(self._need("grains/slip_systems")))
+        return derived.schmid_tensors(self.raw(self._need("grains/slip_systems", field=False)))
 
     def slip_activity(self):
         """Grain-weighted mean |slip rate| per slip system (n, N), unit of grains/slip_rate."""
@@ -390,16 +389,17 @@ class Case:
 
     # ------------------------------------------------------------ helpers
 
-    def _need(self, path):
-        """`path`, or MissingData naming the scene's output setting that writes it."""
+    def _need(self, path, field=True):
+        """`path`, or MissingData naming the scene's output setting that writes it; `field`:
+        the path is an output field of its own (else it comes with any grain field)."""
         if path not in self:
-            raise MissingData(self._missing(path))
+            raise MissingData(self._missing(path, field))
         return path
 
-    def _missing(self, path):
-        group, _, field = path.rpartition("/")
-        if field in OUTPUT_FIELDS.get(group, ()):
-            hint = f"; ask the scene for it: output: {{{group}: [{field}]}}"
+    def _missing(self, path, field=True):
+        group, _, name = path.rpartition("/")
+        if field and group in ("macro", "grains"):
+            hint = f"; ask the scene for it: output: {{{group}: [{name}]}}"
         elif group == "grains":  # weight, slip_systems: written with any grain field
             hint = "; ask the scene for grain fields: output: {grains: [...]}"
         else:

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/grain_field_values.hpp"
 #include "subslip/driver/crystal_sink.hpp"
 #include "subslip/parallel/team.hpp"
 
@@ -126,7 +127,7 @@ class Unpacked {
 };
 
 // The per-grain fields of one state, as arrays (crystal::GrainFields row layout), in the order
-// stress, orientation, slip, slip rate, CRSS, r, r_s: one flat block of values() numbers.
+// of the field table (crystal/grain_fields_table.hpp): one flat block of values() numbers.
 class FieldArrays final : public crystal::GrainFields {
  public:
   FieldArrays(int grains, int slips) : grains_(grains), slips_(slips) {
@@ -135,41 +136,48 @@ class FieldArrays final : public crystal::GrainFields {
   // Every field of `fields`.
   explicit FieldArrays(const crystal::GrainFields& fields)
       : FieldArrays(fields.grain_count(), fields.slip_count()) {
-    fields.stress(at(0));
-    fields.orientation(at(1));
-    fields.slip(at(2));
-    fields.slip_rate(at(3));
-    fields.crss(at(4));
-    fields.ratio(at(5));
-    fields.subloading_ratio(at(6));
+    for (crystal::GrainField f : crystal::kAllGrainFields) crystal::give(fields, f, at(f));
   }
   // Values per grain over all fields.
-  std::size_t width() const { return 15 + 5 * static_cast<std::size_t>(slips_); }
+  std::size_t width() const {
+    std::size_t w = 0;
+    for (crystal::GrainField f : crystal::kAllGrainFields) w += field_width(f);
+    return w;
+  }
+  // Values per grain of one field.
+  std::size_t field_width(crystal::GrainField f) const {
+    return crystal::given_width(f, static_cast<std::size_t>(slips_));
+  }
   std::vector<double>& values() { return values_; }
   const std::vector<double>& values() const { return values_; }
 
   int grain_count() const override { return grains_; }
   int slip_count() const override { return slips_; }
-  void stress(double* out) const override { copy(0, out); }
-  void orientation(double* out) const override { copy(1, out); }
-  void slip(double* out) const override { copy(2, out); }
-  void slip_rate(double* out) const override { copy(3, out); }
-  void crss(double* out) const override { copy(4, out); }
-  void ratio(double* out) const override { copy(5, out); }
-  void subloading_ratio(double* out) const override { copy(6, out); }
+  void stress(double* out) const override { copy(crystal::GrainField::stress, out); }
+  void orientation(double* out) const override { copy(crystal::GrainField::orientation, out); }
+  void slip(double* out) const override { copy(crystal::GrainField::slip, out); }
+  void slip_rate(double* out) const override { copy(crystal::GrainField::slip_rate, out); }
+  void crss(double* out) const override { copy(crystal::GrainField::crss, out); }
+  void ratio(double* out) const override { copy(crystal::GrainField::r, out); }
+  void subloading_ratio(double* out) const override { copy(crystal::GrainField::r_s, out); }
 
  private:
-  // Where field k starts, and its values per grain.
-  std::size_t offset(int k) const {
-    const auto n = static_cast<std::size_t>(slips_), g = static_cast<std::size_t>(grains_);
-    return k == 0 ? 0 : k == 1 ? 6 * g : 15 * g + static_cast<std::size_t>(k - 2) * n * g;
+  // Where field f starts: the fields before it, each grains x its width.
+  std::size_t offset(crystal::GrainField f) const {
+    std::size_t o = 0;
+    for (crystal::GrainField e : crystal::kAllGrainFields) {
+      if (e == f) break;
+      o += field_width(e) * static_cast<std::size_t>(grains_);
+    }
+    return o;
   }
-  std::size_t size(int k) const {
-    const auto g = static_cast<std::size_t>(grains_);
-    return k == 0 ? 6 * g : k == 1 ? 9 * g : static_cast<std::size_t>(slips_) * g;
+  std::size_t size(crystal::GrainField f) const {
+    return field_width(f) * static_cast<std::size_t>(grains_);
   }
-  double* at(int k) { return values_.data() + offset(k); }
-  void copy(int k, double* out) const { std::copy_n(values_.data() + offset(k), size(k), out); }
+  double* at(crystal::GrainField f) { return values_.data() + offset(f); }
+  void copy(crystal::GrainField f, double* out) const {
+    std::copy_n(values_.data() + offset(f), size(f), out);
+  }
   int grains_, slips_;
   std::vector<double> values_;
 };
@@ -181,10 +189,9 @@ inline FieldArrays gathered_fields(const parallel::Team& team, const crystal::Gr
   const FieldArrays block(mine);
   const int slips = mine.slip_count();
   FieldArrays all(team.is_root() ? static_cast<int>(total) : 0, slips);
-  const auto n = static_cast<std::size_t>(slips);
-  const std::size_t widths[7] = {6, 9, n, n, n, n, n};
   std::size_t from = 0, to = 0;
-  for (std::size_t width : widths) {
+  for (crystal::GrainField f : crystal::kAllGrainFields) {
+    const std::size_t width = block.field_width(f);
     const std::size_t mine_count = static_cast<std::size_t>(block.grain_count()) * width;
     const std::size_t all_count = team.is_root() ? total * width : 0;
     team.gather_rows(std::span<const double>(block.values()).subspan(from, mine_count),

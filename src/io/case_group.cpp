@@ -3,6 +3,9 @@
 #include <string>
 #include <vector>
 
+#include "subslip/io/law_block.hpp"
+#include "subslip/law/parameter_table.hpp"
+
 namespace subslip::io {
 
 namespace {
@@ -30,14 +33,11 @@ bool has(const std::vector<std::string>& keys, std::string_view key) {
   return false;
 }
 
-// The law's constants: the same keys in both kinds, with slip dimensionless for crystals.
+// The law's constants (law/parameter_table.hpp): the same keys in both kinds, with slip
+// dimensionless for crystals; "" for function and form, which are names.
 std::string law_unit(SceneKind kind, const std::string& key, const Units& u) {
-  const bool crystal = kind == SceneKind::crystal;
-  if (key == "mu_s" || key == "mu_k" || key == "n" || key == "r_hat") return "1";
-  if (key == "kappa" || key == "u_tilde") return crystal ? "1" : u.per_length();
-  if (key == "xi") return u.per_time();
-  if (key == "eta_v") return crystal ? u.time : u.time_per_length();
-  return "";  // function, form: names
+  const law::LawParameterInfo* c = law::find_law_parameter(key);
+  return c ? law_unit_name(c->unit, kind == SceneKind::crystal, u) : std::string();
 }
 
 std::string contact_unit(const std::vector<std::string>& keys, const Units& u) {

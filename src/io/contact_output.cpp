@@ -5,6 +5,8 @@
 #include <utility>
 
 #include "subslip/io/case_group.hpp"
+#include "subslip/io/law_block.hpp"
+#include "subslip/law/parameter_table.hpp"
 
 namespace subslip::io {
 
@@ -64,17 +66,16 @@ std::size_t chunk_rows_for(const ContactCase& c) {
 void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) {
   const auto& p = c.model.law;
   const std::string_view one = kDimensionless;
-  set_with_unit(g, "mu_s", p.friction.mu_s, one);
-  set_with_unit(g, "mu_k", p.friction.mu_k, one);
-  set_with_unit(g, "kappa", p.friction.kappa, u.per_length());
-  set_with_unit(g, "xi", p.friction.xi, u.per_time());
-  g.set_attribute("subloading_function", law::to_string(p.subloading.function));
-  set_with_unit(g, "u_tilde", p.subloading.u_tilde, u.per_length());
-  g.set_attribute("overstress_form", law::to_string(p.overstress.form));
-  if (p.overstress.form != law::OverstressForm::rate_independent) {
-    set_with_unit(g, "eta_v", p.overstress.eta_v, u.time_per_length());
-    set_with_unit(g, "n", p.overstress.n, one);
-    set_with_unit(g, "r_hat", p.overstress.r_hat, one);
+  // The law's constants from its table: each block's choice, then its numbers (a
+  // rate-independent contact has no overstress constants).
+  for (const auto& b : law::kLawBlocks) {
+    if (b.choice) g.set_attribute(std::string(b.choice_attribute), b.choice(p));
+    for (const auto& k : law::kLawParameters) {
+      if (k.block != b.block) continue;
+      if (k.rate_dependent_only && p.overstress.form == law::OverstressForm::rate_independent)
+        continue;
+      set_with_unit(g, std::string(k.name), k.value(p), law_unit_name(k.unit, false, u));
+    }
   }
   set_with_unit(g, "alpha_n", c.model.stiffness.alpha_n, u.stiffness());
   set_with_unit(g, "alpha_t", c.model.stiffness.alpha_t, u.stiffness());

@@ -10,11 +10,15 @@
 #include <stdexcept>
 #include <utility>
 
+#include "subslip/crystal/grain_field_values.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/checkpoint.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/law_block.hpp"
+#include "subslip/law/parameter_table.hpp"
 
 namespace subslip::io {
 
@@ -75,43 +79,27 @@ FieldSpec macro_spec(MacroField f, const Units& u) {
   return {{}, h5::Type::float64, one, "", ""};
 }
 
+// From the field table (crystal/grain_fields_table.hpp): shape, unit, description, components.
 FieldSpec grain_spec(GrainField f, const Units& u, std::size_t slip_count) {
-  const std::string one(kDimensionless);
-  const std::string per_system = "one value per slip system, in the order of slip_systems";
-  switch (f) {
-    case GrainField::stress:
-      return {kTensorShape, h5::Type::float64, u.stress,
-              "Cauchy stress of each grain, sample frame", kTensorComponents};
-    case GrainField::orientation:
-      return {{4},
-              h5::Type::float64,
-              one,
-              "orientation of each grain (passive, Rowenhorst P=-1, w>=0; maps sample to crystal)",
-              "w x y z"};
-    case GrainField::slip:
-      return {{slip_count}, h5::Type::float64, one, "accumulated signed slip", per_system};
-    case GrainField::slip_rate:
-      return {{slip_count},
-              h5::Type::float64,
-              "1/" + u.time,
-              "signed slip rate over the last increment",
-              per_system};
-    case GrainField::crss:
-      return {{slip_count},
-              h5::Type::float64,
-              u.stress,
-              "critical resolved shear stress mu tau0",
-              per_system};
-    case GrainField::r:
-      return {{slip_count},
-              h5::Type::float64,
-              one,
-              "dynamic loading ratio r = |tau| / (mu f_n)",
-              per_system};
-    case GrainField::r_s:
-      return {{slip_count}, h5::Type::float64, one, "subloading ratio r_s", per_system};
+  const crystal::GrainFieldInfo& field = crystal::info(f);
+  std::vector<std::size_t> shape;
+  std::string components(field.components);
+  switch (field.stored) {
+    case crystal::GrainFieldShape::tensor:
+      shape = kTensorShape;
+      components = kTensorComponents;
+      break;
+    case crystal::GrainFieldShape::quaternion:
+      shape = {4};
+      break;
+    case crystal::GrainFieldShape::per_system:
+      shape = {slip_count};
+      break;
   }
-  return {{}, h5::Type::float64, one, "", ""};
+  std::string unit(kDimensionless);
+  if (field.unit == crystal::GrainFieldUnit::stress) unit = u.stress;
+  if (field.unit == crystal::GrainFieldUnit::per_time) unit = "1/" + u.time;
+  return {shape, h5::Type::float64, unit, std::string(field.description), components};
 }
 
 std::array<double, 9> row_major(const Mat3& m) {
@@ -152,32 +140,25 @@ std::vector<std::string> per_system_names(const std::vector<crystal::SlipGroupSe
 void write_law_parameters(const h5::Group& g, const CrystalCase& c, const Units& u) {
   const auto s = system_settings(c);
   const std::string_view one = kDimensionless;
-  const std::string per_time = "1/" + u.time;
   set_with_unit(g, "tau0", per_system(s, [](const auto& x) { return x.tau0; }), u.stress);
   set_with_unit(g, "initial_mu", per_system(s, [](const auto& x) { return x.initial_mu; }), one);
-  set_with_unit(g, "mu_s", per_system(s, [](const auto& x) { return x.law.friction.mu_s; }), one);
-  set_with_unit(g, "mu_k", per_system(s, [](const auto& x) { return x.law.friction.mu_k; }), one);
-  set_with_unit(g, "kappa", per_system(s, [](const auto& x) { return x.law.friction.kappa; }), one);
-  set_with_unit(g, "xi", per_system(s, [](const auto& x) { return x.law.friction.xi; }), per_time);
-  g.set_attribute("subloading_function", per_system_names(s, [](const auto& x) {
-                    return law::to_string(x.law.subloading.function);
-                  }));
-  set_with_unit(g, "u_tilde", per_system(s, [](const auto& x) { return x.law.subloading.u_tilde; }),
-                one);
-  g.set_attribute("overstress_form", per_system_names(s, [](const auto& x) {
-                    return law::to_string(x.law.overstress.form);
-                  }));
-  // NaN for rate-independent systems, which have no overstress constants.
-  auto overstress = [](double law::Overstress::*member) {
-    return [member](const crystal::SlipGroupSettings& x) {
-      return x.law.overstress.form == law::OverstressForm::rate_independent
-                 ? std::nan("")
-                 : x.law.overstress.*member;
-    };
-  };
-  set_with_unit(g, "eta_v", per_system(s, overstress(&law::Overstress::eta_v)), u.time);
-  set_with_unit(g, "n", per_system(s, overstress(&law::Overstress::n)), one);
-  set_with_unit(g, "r_hat", per_system(s, overstress(&law::Overstress::r_hat)), one);
+  for (const auto& b : law::kLawBlocks) {
+    if (b.choice) {
+      g.set_attribute(std::string(b.choice_attribute),
+                      per_system_names(s, [&b](const auto& x) { return b.choice(x.law); }));
+    }
+    for (const auto& k : law::kLawParameters) {
+      if (k.block != b.block) continue;
+      // NaN for rate-independent systems, which have no overstress constants.
+      set_with_unit(g, std::string(k.name), per_system(s, [&k](const auto& x) {
+                      return k.rate_dependent_only &&
+                                     x.law.overstress.form == law::OverstressForm::rate_independent
+                                 ? std::nan("")
+                                 : k.value(x.law);
+                    }),
+                    law_unit_name(k.unit, true, u));
+    }
+  }
 }
 
 std::string_view latent_kind(const crystal::LatentHardening& l) {
@@ -332,20 +313,8 @@ void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matr
       }
       return;
     }
-    case GrainField::slip:
-      g.slip(out.data());
-      return;
-    case GrainField::slip_rate:
-      g.slip_rate(out.data());
-      return;
-    case GrainField::crss:
-      g.crss(out.data());
-      return;
-    case GrainField::r:
-      g.ratio(out.data());
-      return;
-    case GrainField::r_s:
-      g.subloading_ratio(out.data());
+    default:  // one value per slip system, as the aggregate gives it
+      crystal::give(g, f, out.data());
       return;
   }
 }

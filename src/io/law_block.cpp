@@ -1,5 +1,9 @@
 #include "subslip/io/law_block.hpp"
 
+#include <span>
+#include <string>
+#include <vector>
+
 namespace subslip::io {
 
 namespace {
@@ -27,48 +31,99 @@ void read_block(const CheckedNode& node, std::string_view key, bool partial, Rea
   }
 }
 
-void parse_friction(const CheckedNode& node, law::FrictionCoefficientEvolution& f, bool partial,
+const Unit& unit_of(const LawUnits& units, law::ParameterUnit kind) {
+  static const Unit one{dimension::none, {}, "1"};
+  switch (kind) {
+    case law::ParameterUnit::per_slip:
+      return units.per_slip;
+    case law::ParameterUnit::per_time:
+      return units.per_time;
+    case law::ParameterUnit::time_per_slip:
+      return units.time_per_slip;
+    case law::ParameterUnit::none:
+      break;
+  }
+  return one;
+}
+
+Range range_of(law::ParameterBound bound) {
+  switch (bound) {
+    case law::ParameterBound::non_negative:
+      return Range::non_negative();
+    case law::ParameterBound::above_one:
+      return Range::greater_than(1.0);
+    case law::ParameterBound::positive:
+      break;
+  }
+  return Range::positive();
+}
+
+const law::LawBlockInfo& block_info(law::LawBlock block) {
+  for (const auto& b : law::kLawBlocks) {
+    if (b.block == block) return b;
+  }
+  return law::kLawBlocks.front();
+}
+
+// The keys a block takes: its choice, then its constants in table order.
+void allow_block_keys(const CheckedNode& node, law::LawBlock block) {
+  std::vector<std::string_view> keys;
+  if (!block_info(block).choice_key.empty()) keys.push_back(block_info(block).choice_key);
+  for (const auto& p : law::kLawParameters) {
+    if (p.block == block) keys.push_back(p.name);
+  }
+  node.allow_keys(std::span<const std::string_view>(keys));
+}
+
+// Reads every constant of `block` (each inherited when partial and not given).
+void read_constants(const CheckedNode& node, law::LawBlock block, law::LawParameters& p,
+                    bool partial, const LawUnits& units) {
+  for (const auto& c : law::kLawParameters) {
+    if (c.block != block) continue;
+    c.ref(p) = read_number(node, c.name, c.value(p), partial, range_of(c.bound),
+                           unit_of(units, c.unit));
+  }
+}
+
+void parse_friction(const CheckedNode& node, law::LawParameters& p, bool partial,
                     const LawUnits& units) {
-  node.allow_keys({"mu_s", "mu_k", "kappa", "xi"});
-  f.mu_s = read_number(node, "mu_s", f.mu_s, partial, Range::positive());
-  f.mu_k = read_number(node, "mu_k", f.mu_k, partial, Range::positive());
-  f.kappa = read_number(node, "kappa", f.kappa, partial, Range::non_negative(), units.per_slip);
-  f.xi = read_number(node, "xi", f.xi, partial, Range::non_negative(), units.per_time);
+  allow_block_keys(node, law::LawBlock::friction);
+  read_constants(node, law::LawBlock::friction, p, partial, units);
 }
 
-void parse_subloading(const CheckedNode& node, law::SubloadingEvolution& s, bool partial,
+void parse_subloading(const CheckedNode& node, law::LawParameters& p, bool partial,
                       const LawUnits& units) {
-  node.allow_keys({"function", "u_tilde"});
+  allow_block_keys(node, law::LawBlock::subloading);
   if (auto f = node.optional("function")) {
-    s.function = f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
-                                                 {"neg_log", SubloadingFunction::neg_log},
-                                                 {"reciprocal", SubloadingFunction::reciprocal}});
+    p.subloading.function =
+        f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
+                                        {"neg_log", SubloadingFunction::neg_log},
+                                        {"reciprocal", SubloadingFunction::reciprocal}});
   }
-  s.u_tilde = read_number(node, "u_tilde", s.u_tilde, partial, Range::positive(), units.per_slip);
+  read_constants(node, law::LawBlock::subloading, p, partial, units);
 }
 
-void parse_overstress(const CheckedNode& node, law::Overstress& o, bool partial,
+void parse_overstress(const CheckedNode& node, law::LawParameters& p, bool partial,
                       const LawUnits& units) {
-  node.allow_keys({"form", "eta_v", "n", "r_hat"});
-  const OverstressForm inherited_form = o.form;
+  allow_block_keys(node, law::LawBlock::overstress);
+  const OverstressForm inherited_form = p.overstress.form;
   if (auto f = node.optional("form")) {
-    o.form = f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
-                                         {"power", OverstressForm::power},
-                                         {"rate_independent", OverstressForm::rate_independent}});
+    p.overstress.form =
+        f->as_enum<OverstressForm>({{"exponential", OverstressForm::exponential},
+                                    {"power", OverstressForm::power},
+                                    {"rate_independent", OverstressForm::rate_independent}});
   }
-  if (o.form == OverstressForm::rate_independent) {
+  if (p.overstress.form == OverstressForm::rate_independent) {
     // Silently ignoring them would let a reader believe they act.
-    for (const char* unused : {"eta_v", "n", "r_hat"}) {
-      if (auto v = node.optional(unused))
-        v->fail("not used by the rate_independent form; remove it");
+    for (const auto& c : law::kLawParameters) {
+      if (!c.rate_dependent_only) continue;
+      if (auto v = node.optional(c.name)) v->fail("not used by the rate_independent form; remove it");
     }
     return;
   }
   // A rate-dependent form over an inherited rate-independent one has nothing to inherit.
   const bool own = !partial || inherited_form == OverstressForm::rate_independent;
-  o.eta_v = read_number(node, "eta_v", o.eta_v, !own, Range::positive(), units.time_per_slip);
-  o.n = read_number(node, "n", o.n, !own, Range::positive());
-  o.r_hat = read_number(node, "r_hat", o.r_hat, !own, Range::greater_than(1.0));
+  read_constants(node, law::LawBlock::overstress, p, !own, units);
 }
 
 }  // namespace
@@ -83,15 +138,29 @@ LawUnits crystal_law_units(const Units& units) {
           units.unit(dimension::time)};
 }
 
+std::string law_unit_name(law::ParameterUnit kind, bool crystal, const Units& units) {
+  switch (kind) {
+    case law::ParameterUnit::per_slip:
+      return crystal ? std::string(kDimensionless) : units.per_length();
+    case law::ParameterUnit::per_time:
+      return units.per_time();
+    case law::ParameterUnit::time_per_slip:
+      return crystal ? units.time : units.time_per_length();
+    case law::ParameterUnit::none:
+      break;
+  }
+  return std::string(kDimensionless);
+}
+
 law::LawParameters parse_law_block(const CheckedNode& node, const LawUnits& units,
                                    law::LawParameters base, bool partial) {
   node.allow_keys({"friction", "subloading", "overstress"});
   read_block(node, "friction", partial,
-             [&](const CheckedNode& n) { parse_friction(n, base.friction, partial, units); });
+             [&](const CheckedNode& n) { parse_friction(n, base, partial, units); });
   read_block(node, "subloading", partial,
-             [&](const CheckedNode& n) { parse_subloading(n, base.subloading, partial, units); });
+             [&](const CheckedNode& n) { parse_subloading(n, base, partial, units); });
   read_block(node, "overstress", partial,
-             [&](const CheckedNode& n) { parse_overstress(n, base.overstress, partial, units); });
+             [&](const CheckedNode& n) { parse_overstress(n, base, partial, units); });
   return base;
 }
 

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/io/orientation_file.hpp"
 
@@ -304,8 +305,11 @@ void check_crystal_case(Collector& w, const CrystalCase& c, const Units& units, 
   if (!c.output.grains.empty()) {
     std::size_t values = 0;
     const std::size_t n = systems.size();
+    // The values that determine each field: a symmetric tensor (the stress) counts its 6.
     for (GrainField f : c.output.grains)
-      values += f == GrainField::stress ? 6 : f == GrainField::orientation ? 4 : n;
+      values += crystal::info(f).stored == crystal::GrainFieldShape::tensor
+                    ? 6
+                    : crystal::stored_width(f, n);
     const double bytes = 8.0 * static_cast<double>(values) * static_cast<double>(c.grain_count()) *
                          static_cast<double>(crystal_output_count(c.segments));
     if (bytes > limits.output_bytes) {

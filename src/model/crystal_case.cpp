@@ -23,26 +23,6 @@ std::string_view to_string(MacroField f) {
   return "?";
 }
 
-std::string_view to_string(GrainField f) {
-  switch (f) {
-    case GrainField::stress:
-      return "stress";
-    case GrainField::orientation:
-      return "orientation";
-    case GrainField::slip:
-      return "slip";
-    case GrainField::slip_rate:
-      return "slip_rate";
-    case GrainField::crss:
-      return "crss";
-    case GrainField::r:
-      return "r";
-    case GrainField::r_s:
-      return "r_s";
-  }
-  return "?";
-}
-
 void OrientationDigest::add(const crystal::Orientation& o) {
   const auto mix = [this](double x) {
     unsigned char bytes[sizeof x];

@@ -1,8 +1,11 @@
 // The `law:` block of a scene (friction, subloading, overstress), shared by every scene kind.
 #pragma once
 
+#include <string>
+
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/law/parameter_table.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 namespace subslip::io {
@@ -17,6 +20,10 @@ struct LawUnits {
 };
 LawUnits contact_law_units(const Units& units);
 LawUnits crystal_law_units(const Units& units);
+
+// The unit of a law constant of unit kind `kind` (law/parameter_table.hpp) as a result file
+// writes it: "1/mm", "min/mm" for a contact; "1", "s" for slip systems (`crystal`).
+std::string law_unit_name(law::ParameterUnit kind, bool crystal, const Units& units);
 
 // Reads a law block over `base`, each constant in `units` (a value written with a unit is
 // converted). A complete block (partial == false: a contact law or a phase

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/model/case_common.hpp"
@@ -28,12 +29,11 @@ inline constexpr std::array<MacroField, 6> kAllMacroFields = {
     MacroField::strain, MacroField::stress, MacroField::segment};
 std::string_view to_string(MacroField f);
 
-// Per-grain time series, in output order.
-enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s };
-inline constexpr std::array<GrainField, 7> kAllGrainFields = {
-    GrainField::stress, GrainField::orientation, GrainField::slip, GrainField::slip_rate,
-    GrainField::crss,   GrainField::r,           GrainField::r_s};
-std::string_view to_string(GrainField f);
+// Per-grain time series, in output order: names, widths, units and descriptions are those of
+// crystal/grain_fields_table.hpp.
+using crystal::GrainField;
+using crystal::kAllGrainFields;
+using crystal::to_string;
 
 struct CrystalOutputSelection {
   std::vector<MacroField> macro;   // in kAllMacroFields order; always has time
