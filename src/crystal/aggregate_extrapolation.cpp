@@ -1,0 +1,155 @@
+#include "aggregate_extrapolation.hpp"
+
+#include "subslip/crystal/rotation.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <limits>
+
+namespace subslip::crystal::aggregate_parts {
+
+Mat3 log_strain(const Mat3& f) {
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(f * f.transpose());
+  const Eigen::Vector3d log_values = eig.eigenvalues().array().log() * 0.5;
+  return eig.eigenvectors() * log_values.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+// trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
+// estimates in errors_, the restoring reports in reports_.
+template <int N>
+void Extrapolation<N>::combine(int order, GrainSweep<N>& grains) {
+  grains.forget_solve();  // its trial states are no longer the last solve's
+  const Phase<N>& phase = grains.phase();
+  std::vector<GrainState<N>>& trial = grains.trial();
+  std::vector<GrainStepReport>& reports = grains.reports();
+  const auto k = static_cast<size_t>(order);
+  const long n = static_cast<long>(grains.committed().size());
+#pragma omp parallel for schedule(static) if (n > 1)
+  for (long g = 0; g < n; ++g) {
+    const auto gi = static_cast<size_t>(g);
+    std::array<Vec6, integrators::kMaxExtrapolationOrder> stress;
+    std::array<VecN, integrators::kMaxExtrapolationOrder> mu, r_s, slip, rate;
+    std::array<Vec3, integrators::kMaxExtrapolationOrder> turn;
+    const GrainState<N>& finest = solutions_[k - 1][gi];
+    for (size_t j = 0; j < k; ++j) {
+      const GrainState<N>& s = solutions_[j][gi];
+      stress[j] = s.stress, mu[j] = s.mu, r_s[j] = s.r_s, slip[j] = s.slip, rate[j] = s.rate;
+      // Orientations are combined as rotation vectors relative to the finest one.
+      turn[j] = rotation_log(s.orientation * finest.orientation.transpose());
+    }
+    for (size_t j = k; j < turn.size(); ++j) {  // unused rows, kept finite
+      stress[j] = stress[0], mu[j] = mu[0], r_s[j] = r_s[0], slip[j] = slip[0];
+      rate[j] = rate[0], turn[j] = turn[0];
+    }
+    using integrators::extrapolate_implicit_euler;
+    const auto e_stress = extrapolate_implicit_euler(stress, order);
+    const auto e_mu = extrapolate_implicit_euler(mu, order);
+    const auto e_rs = extrapolate_implicit_euler(r_s, order);
+    GrainState<N>& out = trial[gi];
+    out.stress = e_stress.best;
+    out.mu = e_mu.best;
+    out.r_s = e_rs.best;
+    out.slip = extrapolate_implicit_euler(slip, order).best;
+    out.rate = extrapolate_implicit_euler(rate, order).best;
+    out.orientation =
+        rotation_exp(extrapolate_implicit_euler(turn, order).best) * finest.orientation;
+    reports[gi] = restore_extrapolated_state(phase, finest, out);
+    errors_[gi] = system_errors(phase, e_stress.best - e_stress.second, out.mu);
+    if (order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
+      const auto earlier = integrators::earlier_column_estimates(stress);
+      const VecN previous = system_errors(phase, earlier[0], out.mu);
+      const VecN before = system_errors(phase, earlier[1], out.mu);
+      VecN& error = errors_[gi];
+      for (int a = 0; a < phase.slip_count; ++a)
+        error(a) = integrators::guarded_estimate(error(a), previous(a), before(a));
+    }
+    if (switches_phase(phase, step_start_[gi], gi, order)) {
+      // A system switched between elastic and slipping inside the step: the solution has a
+      // kink there and no error expansion in powers of the step, so the estimate is backward
+      // Euler's own (one substep against two): such a step is shortened until that meets the
+      // tolerance.
+      const GrainState<N>& one = solutions_[0][gi];
+      const GrainState<N>& two = solutions_[1][gi];
+      errors_[gi] = errors_[gi].cwiseMax(system_errors(phase, one.stress - two.stress, out.mu));
+    }
+  }
+  combine_macro(order, grains);
+}
+
+// An error estimate per system from a difference of the stress: the resolved shear stress
+// over the CRSS, on what the grain's state determines. mu and r_s of each system are not in
+// it: they follow the system's own slip, and where several systems can carry the same strain
+// (a nearly rate-independent law at a vertex) the split of slip among them, and with it their
+// mu and r_s, is not determined to the precision a tolerance asks for. Where the split is
+// determined, a CRSS error of a slipping system shows in its resolved shear (it slips at
+// r ~ 1), and an idle system's CRSS hardens with the slipping systems' slip at their rates.
+template <int N>
+typename Extrapolation<N>::VecN Extrapolation<N>::system_errors(const Phase<N>& phase,
+                                                                const Vec6& stress,
+                                                                const VecN& mu_now) const {
+  const VecN crss = mu_now.cwiseProduct(phase.tau0);
+  return (phase.schmid.transpose() * stress).cwiseAbs().cwiseQuotient(crss);
+}
+
+// Whether a system of grain g switched between elastic and slipping in the step from `start`:
+// it slips (a non-zero rate) at the end of one of the `order` solutions and not at the start,
+// or the other way round.
+template <int N>
+bool Extrapolation<N>::switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g,
+                                      int order) const {
+  for (int j = 0; j < order; ++j) {
+    const VecN& rate = solutions_[static_cast<size_t>(j)][g].rate;
+    for (int a = 0; a < phase.slip_count; ++a)
+      if ((rate(a) != 0.0) != (start.rate(a) != 0.0)) return true;
+  }
+  return false;
+}
+
+// The macroscopic state of the combination: F and L extrapolated like the grains (with mixed
+// control they differ between the solutions), the strain from F, the stress averaged anew.
+template <int N>
+void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
+  const auto k = static_cast<size_t>(order);
+  std::array<Mat3, integrators::kMaxExtrapolationOrder> f, l, strain;
+  for (size_t j = 0; j < f.size(); ++j) {  // (unused rows: the finest, kept finite)
+    const MacroState& m = solution_macros_[std::min(j, k - 1)];
+    f[j] = m.deformation_gradient, l[j] = m.velocity_gradient, strain[j] = m.strain;
+  }
+  extrapolated_macro_ = solution_macros_[0];  // time and segment: the same in every solution
+  extrapolated_macro_.deformation_gradient = integrators::extrapolate_implicit_euler(f, order).best;
+  extrapolated_macro_.velocity_gradient = integrators::extrapolate_implicit_euler(l, order).best;
+  extrapolated_macro_.strain = grains.phase().kinematics == Kinematics::small_strain
+                                   ? integrators::extrapolate_implicit_euler(strain, order).best
+                                   : log_strain(extrapolated_macro_.deformation_gradient);
+  extrapolated_macro_.stress = symmetric_from_mandel(grains.average_stress(grains.trial()));
+}
+
+// What the extrapolated estimate resolves (as for the contact point): the grains' states are
+// exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
+// control, to the free stresses' tolerance over the smallest CRSS (mu no lower than the
+// smaller of mu_s and mu_k: the law moves it between them); the estimate's weights amplify
+// that (estimate_noise_gain).
+template <int N>
+double Extrapolation<N>::resolution(const Phase<N>& phase, const std::vector<FreeComponent>& fc,
+                                    const AggregateOptions& opt, const Mat3& macro_stress) {
+  constexpr double kEps = std::numeric_limits<double>::epsilon();
+  double largest_ratio = 1.0, smallest_mu = std::numeric_limits<double>::infinity();
+  for (const auto& law : phase.laws) {
+    const auto& p = law.parameters();
+    largest_ratio = std::max(largest_ratio, p.overstress.r_hat);
+    smallest_mu = std::min({smallest_mu, p.friction.mu_s, p.friction.mu_k});
+  }
+  double mixed = 0.0;
+  if (!fc.empty()) {
+    const double scale = std::max(macro_stress.cwiseAbs().maxCoeff(), phase.tau0.maxCoeff());
+    mixed = opt.stress_tolerance * scale / (smallest_mu * phase.tau0.minCoeff());
+  }
+  return integrators::estimate_noise_gain(opt.order) *
+         (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
+}
+
+#define SUBSLIP_INSTANTIATE_EXTRAPOLATION(N) template class Extrapolation<N>;
+
+SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_EXTRAPOLATION)
+
+}  // namespace subslip::crystal::aggregate_parts

@@ -1,0 +1,55 @@
+// The Taylor aggregate's extrapolated steps (AggregateOptions::order >= 2;
+// src/crystal/aggregate.cpp, integrators/extrapolation.hpp): the work space of one step's solutions
+// with 1 .. k backward Euler substeps, their combination into the grains' trial states and the
+// macroscopic state, and the combination's error estimate. Internal to the aggregate.
+#pragma once
+
+#include "grain_sweep.hpp"
+#include "subslip/crystal/free_components.hpp"
+#include "subslip/integrators/extrapolation.hpp"
+
+#include <array>
+#include <vector>
+
+namespace subslip::crystal::aggregate_parts {
+
+// The logarithmic strain of a deformation gradient.
+Mat3 log_strain(const Mat3& f);
+
+template <int N>
+class Extrapolation {
+ public:
+  using VecN = typename SlipTypes<N>::VecN;
+
+  explicit Extrapolation(size_t grains) : errors_(grains) {}
+
+  // The grains' states at the step's start, and the solution with j substeps (j = 1 .. k) with
+  // its macroscopic state.
+  std::vector<GrainState<N>>& start() { return step_start_; }
+  std::vector<GrainState<N>>& solution(int j) { return solutions_[static_cast<size_t>(j - 1)]; }
+  MacroState& solution_macro(int j) { return solution_macros_[static_cast<size_t>(j - 1)]; }
+  // The combined macroscopic state (combine).
+  const MacroState& macro() const { return extrapolated_macro_; }
+
+  void combine(int order, GrainSweep<N>& grains);
+  ErrorEstimate error(const GrainSweep<N>& grains) const {
+    return grains.worst_error([&](size_t g) { return errors_[g]; });
+  }
+  static double resolution(const Phase<N>& phase, const std::vector<FreeComponent>& fc,
+                           const AggregateOptions& opt, const Mat3& macro_stress);
+
+ private:
+  VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;
+  bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order) const;
+  void combine_macro(int order, const GrainSweep<N>& grains);
+
+  // The start state, the solutions with 1 .. k substeps, the combined macroscopic state and
+  // per-grain error estimates.
+  std::vector<GrainState<N>> step_start_;
+  std::array<std::vector<GrainState<N>>, integrators::kMaxExtrapolationOrder> solutions_;
+  std::array<MacroState, integrators::kMaxExtrapolationOrder> solution_macros_;
+  MacroState extrapolated_macro_;
+  std::vector<VecN> errors_;
+};
+
+}  // namespace subslip::crystal::aggregate_parts
