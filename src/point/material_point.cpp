@@ -116,9 +116,10 @@ TaylorUpdate TaylorPoint::update(const TaylorState& state, const Eigen::Matrix3d
   std::array<parallel::ExactSum, 6> stress;
   std::array<parallel::ExactSum, 36> tangent;
   out.state.grains.reserve(grains.size());
+  int iterations = 0;  // every grain's, the failing grain's report notwithstanding
   for (std::size_t g = 0; g < grains.size(); ++g) {
     const GrainUpdate& u = grains[g];
-    out.report.iterations += u.report.iterations;
+    iterations += u.report.iterations;
     if (!u.report.ok && out.report.ok) {
       out.report = u.report;
       out.report.grain = static_cast<int>(g);
@@ -130,6 +131,7 @@ TaylorUpdate TaylorPoint::update(const TaylorState& state, const Eigen::Matrix3d
         tangent[static_cast<std::size_t>(i)].add(weights_[g] * u.tangent.data()[i]);
     out.state.grains.push_back(u.state);
   }
+  out.report.iterations = iterations;
   if (!out.report.ok) {
     out.state = state;
     return out;
