@@ -37,16 +37,19 @@
 #include "subslip/crystal/crystal_kernel.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/law/subloading_friction.hpp"
+#include "subslip/material_point.hpp"
 #include "subslip/study/explicit_stability.hpp"
 
 namespace fs = std::filesystem;
 using namespace subslip;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 namespace cr = subslip::crystal;
 
 namespace {
@@ -204,7 +207,7 @@ CaseRun run_contact(const io::ContactCase& c, int split_by, double tolerance, in
   CaseRun out;
   const auto& p = c.model.law;
   out.scale = c.model.initial_normal_traction * p.friction.mu_s;
-  ct::IntegratorOptions opt = c.integrator;
+  hs::IntegratorOptions opt = c.integrator;
   if (tolerance >= 0.0) opt.tolerance = tolerance;
   if (opt.tolerance > 0.0) opt.order = order;
   const bool rate_dependent = p.overstress.form != law::OverstressForm::rate_independent;
@@ -212,7 +215,7 @@ CaseRun run_contact(const io::ContactCase& c, int split_by, double tolerance, in
   for (const auto& seg : c.segments) segment_start.push_back(segment_start.back() + seg.duration);
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    const ct::RunStats st = ct::run_history(
+    const hs::RunStats st = hs::run_history(
         c.model, split(c.segments, split_by), opt, [&](const ct::ContactState& s, int k) {
           if (out.violation.empty()) out.violation = contact_inadmissible(s, p);
           if (rate_dependent) out.min_gap = std::min(out.min_gap, p.overstress.r_hat - s.r);
@@ -769,7 +772,7 @@ FeRow contact_fe_row(double alpha) {
   seg.growth = 1.004;
   ct::ContactState steady;
   double lambda_path = 0.0;
-  ct::run_history(m, {seg}, ct::IntegratorOptions{}, [&](const ct::ContactState& s, int) {
+  hs::run_history(m, {seg}, hs::IntegratorOptions{}, [&](const ct::ContactState& s, int) {
     steady = s;
     if (s.law.mu > 0.0)
       lambda_path =
@@ -790,19 +793,19 @@ FeRow contact_fe_row(double alpha) {
     first.increments = 20000;
     first.growth = 1.0;
     double ref_end = 0.0;
-    ct::run_history(m, {first}, ct::IntegratorOptions{},
+    hs::run_history(m, {first}, hs::IntegratorOptions{},
                     [&](const ct::ContactState& s, int) { ref_end = s.traction_ratio(); });
     auto completes = [&](double dt) {
       ct::Segment fe = first;
       fe.increments = std::max(1, static_cast<int>(std::lround(first.duration / dt)));
-      ct::IntegratorOptions opt;
+      hs::IntegratorOptions opt;
       opt.method = ct::Method::forward_euler;
       opt.max_cutbacks = 0;
       double end = 0.0;
       try {
-        ct::run_history(m, {fe}, opt,
+        hs::run_history(m, {fe}, opt,
                         [&](const ct::ContactState& s, int) { end = s.traction_ratio(); });
-      } catch (const ct::StepFailure&) {
+      } catch (const hs::StepFailure&) {
         return false;
       }
       return std::abs(end - ref_end) < 1e-2 * ref_end;
@@ -813,7 +816,8 @@ FeRow contact_fe_row(double alpha) {
 }
 
 // One slip system s = e1, m = e2 in simple shear at L12 = gamma_dot, shear modulus G, tau0 = 1:
-// the crystal image of the contact (kernel calls only, Phase<1>).
+// the crystal image of the contact. The steady state is reached with point::GrainPoint; the
+// forward-Euler probe (study::forward_euler_damps_grain_perturbation) steps the same phase.
 FeRow crystal_fe_row(double g_over_tau0) {
   const double tau0 = 1.0, G = g_over_tau0 * tau0, rate = 1.0;
   law::LawParameters p;
@@ -821,22 +825,32 @@ FeRow crystal_fe_row(double g_over_tau0) {
   p.subloading = {law::SubloadingFunction::cot, 200.0};
   p.overstress = {law::OverstressForm::exponential, 1e-3, 16.0, 1.6};
   const law::SubloadingFrictionLaw lw(p);
-  cr::Phase<1> ph;
-  ph.kinematics = cr::Kinematics::small_strain;
-  ph.tau0 = cr::SlipTypes<1>::VecN::Constant(tau0);
-  ph.laws.assign(1, lw);
-  ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()}, cr::isotropic_from_G_nu(G, 0.3));
-  cr::GrainState<1> s;
-  s.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
+  cr::PhaseDescription d;
+  d.custom_systems = {{cr::Vec3::UnitX(), cr::Vec3::UnitY()}};
+  d.custom_settings = {p, tau0, 1.0};
+  d.stiffness = cr::isotropic_from_G_nu(G, 0.3);
+  d.kinematics = cr::Kinematics::small_strain;
+  const cr::Phase<1> ph = cr::build_phase<1>(d).phase;
+  point::GrainOptions grain_options;
+  grain_options.tangent = false;
+  grain_options.start = point::GrainStart::committed;  // from the last rates, one try
+  const point::GrainPoint grain(d, grain_options);
+  point::GrainState state = grain.initial_state(cr::Mat3::Identity());
   cr::Mat3 L = cr::Mat3::Zero();
   L(0, 1) = rate;
   // Implicit to the steady state: slip 1 in 1000 steps (r_s = 1 - e^-300).
-  cr::GrainStepOptions opt;
   for (int i = 0; i < 1000; ++i) {
-    cr::GrainState<1> next = s;
-    if (!cr::implicit_grain_step(ph, s, L, 1e-3, opt, next, nullptr).ok) break;
-    s = next;
+    point::GrainUpdate u = grain.update(state, L, 1e-3);
+    if (!u.report.ok) break;
+    state = std::move(u.state);
   }
+  cr::GrainState<1> s;
+  s.stress = state.stress;
+  s.orientation = state.orientation;
+  s.mu = state.mu;
+  s.r_s = state.r_s;
+  s.slip = state.slip;
+  s.rate = state.rate;
   const double r = cr::loading_ratio(ph, s)(0);
   const double a = ph.interaction(0, 0);
   const double lambda = lw.traction_relaxation_rate(a, r, s.r_s(0), s.mu(0), tau0);

@@ -17,6 +17,7 @@
 
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -81,7 +82,7 @@ void bench_contact(int reps, const std::string& path) {
   constexpr int inner = 20;
   auto none = [&] {
     for (int i = 0; i < inner; ++i)
-      contact::run_history(c.model, c.segments, c.integrator,
+      history::run_history(c.model, c.segments, c.integrator,
                            [](const contact::ContactState&, int) {});
   };
   auto written = [&](double ratio) {

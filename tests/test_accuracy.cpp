@@ -27,6 +27,7 @@
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/accuracy_output.hpp"
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/study/work_precision.hpp"
@@ -34,6 +35,7 @@
 namespace fs = std::filesystem;
 namespace law = subslip::law;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 namespace cr = subslip::crystal;
 namespace io = subslip::io;
 using namespace subslip::study;
@@ -88,7 +90,7 @@ ct::Segment slide(double speed, double distance, int increments, double growth,
 
 ContactProblem soft_contact(int increments = 200) {
   return ContactProblem(contact_model(1e3), {slide(1.0, 0.2, increments, 1.03, 10)},
-                        ct::IntegratorOptions{});
+                        hs::IntegratorOptions{});
 }
 
 StudyOptions quiet_options(double reference_factor) {
@@ -388,7 +390,7 @@ TEST(AccuracyContact, ExtrapolatedReferenceIsFarMoreAccurate) {
 TEST(AccuracyContact, CvodeConfirmsTheReferenceError) {
   if (!cvode_available()) GTEST_SKIP() << "built without CVODE";
   const ContactProblem problem(contact_model(1e6), {slide(1.0, 0.1, 200, 1.08, 10)},
-                               ct::IntegratorOptions{});
+                               hs::IntegratorOptions{});
   StudyOptions o = quiet_options(64.0);
   o.richardson = false;
   const StudyResult s = run_study(problem, o);
@@ -402,7 +404,7 @@ TEST(AccuracyContact, CvodeConfirmsTheReferenceError) {
 // a message; the study records it as a data point and goes on.
 TEST(AccuracyContact, UnstableForwardEulerIsADataPoint) {
   const ContactProblem problem(contact_model(1e6), {slide(1.0, 0.1, 100, 1.0, 10)},
-                               ct::IntegratorOptions{});
+                               hs::IntegratorOptions{});
   StudyOptions o = quiet_options(16.0);
   o.ladders = {{Integrator::forward_euler, {1}, false}, {Integrator::implicit, {1}, false}};
   const StudyResult s = run_study(problem, o);

@@ -27,6 +27,7 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
@@ -34,6 +35,7 @@
 
 namespace law = subslip::law;
 namespace contact = subslip::contact;
+namespace history = subslip::history;
 namespace crystal = subslip::crystal;
 
 namespace {
@@ -79,19 +81,19 @@ struct ContactRun {
   double peak_ratio = 0.0;
   double worst_gap = 1e300;  // min over outputs of r_hat - r
   bool all_admissible = true;
-  contact::RunStats stats;
+  history::RunStats stats;
 };
 
 ContactRun run_contact(const contact::ContactModel& m, const std::vector<contact::Segment>& segs,
                        double tolerance, int order = 1) {
-  contact::IntegratorOptions opt;
+  history::IntegratorOptions opt;
   opt.tolerance = tolerance;
   opt.order = order;
   ContactRun out;
   out.segment_ends.resize(segs.size());
   out.steps_per_segment.assign(segs.size(), 0);
   const double r_hat = m.law.overstress.r_hat;
-  out.stats = contact::run_history(m, segs, opt, [&](const contact::ContactState& s, int k) {
+  out.stats = history::run_history(m, segs, opt, [&](const contact::ContactState& s, int k) {
     if (k < 0) return;
     out.segment_ends[static_cast<size_t>(k)] = s;  // the last call of a segment is its end
     ++out.steps_per_segment[static_cast<size_t>(k)];
@@ -584,7 +586,7 @@ TEST(AdaptiveScene, ShippedAdaptiveSceneRunsEverySegmentInFewSteps) {
   std::vector<long> steps(c.segments.size(), 0);
   bool admissible = true;
   const double r_hat = c.model.law.overstress.r_hat;
-  contact::run_history(
+  history::run_history(
       c.model, c.segments, c.integrator, [&](const contact::ContactState& s, int k) {
         if (k >= 0) ++steps[static_cast<size_t>(k)];
         admissible = admissible && std::isfinite(s.r) && s.r < r_hat && s.law.r_s <= s.r;

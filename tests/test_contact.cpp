@@ -27,9 +27,11 @@
 #include "message_number.hpp"
 #include "paper_law.hpp"
 #include "subslip/contact/contact_point.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 using namespace subslip::contact;
+using namespace subslip::history;
 namespace law = subslip::law;
 
 namespace {

@@ -37,11 +37,13 @@
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/crystal/slip_systems.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 using namespace subslip::crystal;
 namespace law = subslip::law;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 
 namespace {
 
@@ -149,10 +151,10 @@ SlideTrace contact_slide(double alpha, double v, double length, int increments, 
   seg.normal_traction = kFn;
   seg.increments = increments;
   seg.growth = growth;
-  ct::IntegratorOptions opt;
+  hs::IntegratorOptions opt;
   opt.method = method;
   SlideTrace t;
-  ct::run_history(m, {seg}, opt, [&](const ct::ContactState& s, int) {
+  hs::run_history(m, {seg}, opt, [&](const ct::ContactState& s, int) {
     t.ratio.push_back(s.traction_ratio());
     t.slip.push_back(s.vp_slip);
     t.mu.push_back(s.law.mu);

@@ -26,11 +26,13 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/law/subloading_friction.hpp"
 #include "subslip/study/cvode_peer.hpp"
 
 namespace cv = subslip::cvode;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 namespace cr = subslip::crystal;
 namespace law = subslip::law;
 
@@ -110,7 +112,7 @@ std::vector<double> ratios_implicit(const ct::ContactModel& m, std::vector<ct::S
     s.output_every *= factor;
   }
   std::vector<double> out;
-  ct::run_history(m, segs, ct::IntegratorOptions{},
+  hs::run_history(m, segs, hs::IntegratorOptions{},
                   [&](const ct::ContactState& s, int) { out.push_back(s.traction_ratio()); });
   return out;
 }

@@ -40,6 +40,7 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/slip_systems.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/scene_common.hpp"
@@ -49,6 +50,7 @@
 namespace fs = std::filesystem;
 using namespace subslip;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 namespace cr = subslip::crystal;
 
 namespace {
@@ -101,15 +103,15 @@ std::vector<Seg> split(std::vector<Seg> segs, int k) {
 struct ContactTrace {
   std::vector<ct::ContactState> states;  // the initial state, then one per output
   std::vector<int> segment;
-  ct::RunStats stats;
+  hs::RunStats stats;
 };
 
 ContactTrace run_contact(const io::ContactCase& c, int k = 1, double tolerance = 0.0) {
-  ct::IntegratorOptions opt = c.integrator;
+  hs::IntegratorOptions opt = c.integrator;
   opt.tolerance = tolerance;
   ContactTrace t;
   t.stats =
-      ct::run_history(c.model, split(c.segments, k), opt, [&](const ct::ContactState& s, int seg) {
+      hs::run_history(c.model, split(c.segments, k), opt, [&](const ct::ContactState& s, int seg) {
         t.states.push_back(s);
         t.segment.push_back(seg);
       });
@@ -1047,7 +1049,7 @@ TEST(ExtremeContact, PowerFormN128SatisfiesTheFlowRuleInEveryIncrement) {
       fine[0].increments *= k;
       fine[0].growth = std::pow(fine[0].growth, 1.0 / k);
       ContactTrace all;
-      ct::run_history(c.model, fine, c.integrator, [&](const ct::ContactState& s, int seg) {
+      hs::run_history(c.model, fine, c.integrator, [&](const ct::ContactState& s, int seg) {
         all.states.push_back(s);
         all.segment.push_back(seg);
       });

@@ -17,6 +17,7 @@
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
@@ -56,7 +57,7 @@ struct Recorded {
 
 Recorded run_directly(const ContactCase& c) {
   Recorded r;
-  contact::run_history(c.model, c.segments, c.integrator,
+  history::run_history(c.model, c.segments, c.integrator,
                        [&](const contact::ContactState& s, int segment) {
                          r.states.push_back(s);
                          r.segments.push_back(segment);

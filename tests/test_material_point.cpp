@@ -8,11 +8,13 @@
 #include <cmath>
 #include <vector>
 
+#include "subslip/history/contact_history.hpp"
 #include "subslip/material_point.hpp"
 
 namespace pt = subslip::point;
 namespace cr = subslip::crystal;
 namespace ct = subslip::contact;
+namespace hs = subslip::history;
 
 namespace {
 
@@ -47,7 +49,7 @@ TEST(MaterialPoint, ContactPointAlongAPathEqualsTheContactDriverBitwise) {
   const pt::ContactParameters p = contact_parameters();
   const ct::ContactModel model{p.law, {}, p.stiffness, kNormalTraction};
   std::vector<ct::ContactState> driver;
-  ct::run_history(model, contact_path(), {},
+  hs::run_history(model, contact_path(), {},
                   [&](const ct::ContactState& s, int) { driver.push_back(s); });
 
   const pt::ContactPoint point(p);

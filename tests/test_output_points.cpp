@@ -17,6 +17,7 @@
 #include "scene_text.hpp"
 #include "scratch_dir.hpp"
 #include "subslip/driver/crystal_run.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/integrators/step_control.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
@@ -379,7 +380,7 @@ TEST(OutputPoints, ContactRowsAreAtTheDistancesAndTimes) {
             "1.0, 1.2, 1.5]}}\n",
         "c.yaml"));
     std::vector<contact::ContactState> rows;
-    contact::run_history(scene.cases[0].model, scene.cases[0].segments, scene.cases[0].integrator,
+    history::run_history(scene.cases[0].model, scene.cases[0].segments, scene.cases[0].integrator,
                          [&](const contact::ContactState& s, int) { rows.push_back(s); });
     ASSERT_EQ(rows.size(), distances.size() + 1);
     EXPECT_EQ(rows.size(), output_count(scene.cases[0].segments));
@@ -393,7 +394,7 @@ TEST(OutputPoints, ContactRowsAreAtTheDistancesAndTimes) {
     const ContactScene held = parse_contact_scene(YamlDocument::from_string(
         start + integrator + "output: {at: {time: {every: 2.0}}}\n", "c.yaml"));
     std::vector<double> times;
-    contact::run_history(held.cases[0].model, held.cases[0].segments, held.cases[0].integrator,
+    history::run_history(held.cases[0].model, held.cases[0].segments, held.cases[0].integrator,
                          [&](const contact::ContactState& s, int) { times.push_back(s.time); });
     EXPECT_EQ(times, (std::vector<double>{0, 2, 4, 6, 8, 10, 11}));
   }

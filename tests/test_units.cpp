@@ -19,6 +19,7 @@
 #include "single_thread.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/phase_builder.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/h5_writer.hpp"
@@ -407,7 +408,7 @@ ContactSeries run_contact(const ContactScene& scene) {
   ContactSeries out;
   out.columns.resize(13);
   const ContactCase& c = scene.cases.at(0);
-  contact::run_history(c.model, c.segments, c.integrator, [&](const contact::ContactState& s, int) {
+  history::run_history(c.model, c.segments, c.integrator, [&](const contact::ContactState& s, int) {
     const double row[13] = {to_si(s.time, time),
                             to_si(s.slip.x(), length),
                             to_si(s.slip.y(), length),

@@ -14,6 +14,7 @@
 
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/scene_warnings.hpp"
@@ -160,7 +161,7 @@ TEST(Warnings, ForwardEulerEstimateSeparatesStableFromUnstable) {
     const ContactScene scene = contact_scene(contact_text("1.0e3", method, distance));
     const ContactCase& c = scene.cases.at(0);
     peak = 0.0;
-    const auto stats = contact::run_history(
+    const auto stats = history::run_history(
         c.model, c.segments, c.integrator,
         [&](const contact::ContactState& s, int) { peak = std::max(peak, s.traction_ratio()); });
     return std::pair{stats.cutbacks, contact_scene_warnings(scene).size()};

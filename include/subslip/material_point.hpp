@@ -47,6 +47,11 @@ struct ContactParameters {
   law::LawParameters law;
   contact::ContactStiffness stiffness;  // alpha_n, alpha_t [stress/length]
   double residual_tolerance = 1e-12;    // on the flow rule, traction-ratio units
+  // The update: implicit (backward Euler of the flow rule with radial return) or forward Euler
+  // (paper section 2f, method 2), which refuses a step above its stability limit 2/lambda and
+  // has no consistent tangent (its tangent is zero).
+  contact::Method method = contact::Method::implicit;
+  bool tangent = true;  // compute the consistent tangent (implicit); without it, zero
 };
 
 using ContactState = contact::ContactState;
@@ -74,11 +79,15 @@ class ContactPoint {
   const ContactParameters& parameters() const { return parameters_; }
   // At rest under the normal traction f_n: no tangential traction, the law at `law_state`.
   ContactState initial_state(double normal_traction, const law::LawState& law_state) const;
-  // The implicit update (backward Euler of the flow rule, radial return).
+  // One update by ContactParameters::method.
   ContactUpdate update(const ContactState& state, const ContactStep& step) const;
   // Point k: states[k] over steps[k] into out[k] (the spans have one size).
   void update(std::span<const ContactState> states, std::span<const ContactStep> steps,
               std::span<ContactUpdate> out) const;
+  // The first way `state` leaves the law's admissible set, e.g. "r_s > r"; empty where it is
+  // admissible: finite, mu > 0, 0 <= r_s <= r < r_hat (r < r_hat for the rate-dependent forms).
+  std::string admissibility_violation(const ContactState& state) const;
+  const law::SubloadingFrictionLaw& law() const { return law_; }
 
  private:
   ContactParameters parameters_;

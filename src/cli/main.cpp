@@ -40,6 +40,7 @@
 #include "subslip/driver/crystal_run.hpp"
 #include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/driver/sink_error.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/contact_output.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -98,7 +99,7 @@ int exit_code_of(const std::exception_ptr& failure) {
     return 2;
   } catch (const io::h5::OutputPathError&) {
     return 2;
-  } catch (const contact::StepFailure&) {
+  } catch (const history::StepFailure&) {
     return 3;
   } catch (const crystal::CrystalStepFailure&) {
     return 3;
@@ -292,7 +293,7 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::Re
     std::printf("%s\n", cli::summary_text(contact_totals(results), wall, output->path).c_str());
   }
   for (const auto& r : results) {
-    if (!r.failure.empty()) throw contact::StepFailure(r.failure);
+    if (!r.failure.empty()) throw history::StepFailure(r.failure);
   }
   return 0;
 }

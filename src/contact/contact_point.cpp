@@ -1,12 +1,10 @@
 #include "subslip/contact/contact_point.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
 
-#include "subslip/integrators/extrapolation.hpp"
 #include "subslip/integrators/scalar_root.hpp"
 #include "subslip/integrators/step_control.hpp"
 
@@ -18,18 +16,6 @@ bool finite(const ContactState& s) {
   return std::isfinite(s.traction_t.x()) && std::isfinite(s.traction_t.y()) &&
          std::isfinite(s.traction_n) && std::isfinite(s.law.mu) && std::isfinite(s.law.r_s) &&
          std::isfinite(s.r) && std::isfinite(s.vp_slip);
-}
-
-// The admissible set every integrator must stay in: finite, mu > 0, 0 <= r_s <= r < r_hat.
-std::string inadmissible_reason(const law::SubloadingFrictionLaw& law, const ContactState& s) {
-  if (!finite(s)) return "non-finite state";
-  if (s.law.mu <= 0.0) return "mu <= 0";
-  if (s.law.r_s < 0.0) return "r_s < 0";
-  if (s.law.r_s > s.r) return "r_s > r";
-  if (!law.is_rate_independent() && s.r >= law.parameters().overstress.r_hat) return "r >= r_hat";
-  if (law.parameters().subloading.function == law::SubloadingFunction::cot && s.law.r_s >= 2.0)
-    return "r_s >= 2 (cot branch)";
-  return {};
 }
 
 // State with the kinematic part of the increment applied (time, slip, normal traction).
@@ -51,22 +37,6 @@ StepAttempt open_contact(const law::SubloadingFrictionLaw& law, ContactState s, 
   s.r = 0.0;
   s.vp_rate = 0.0;
   return {s, 0, true, {}};
-}
-
-// What a user needs to find a failed step: when, how far it was cut, why, and the state.
-std::string failure_message(const ContactState& s, int cutbacks, double dt,
-                            const std::string& why) {
-  std::ostringstream msg;
-  msg << "contact step failed at time " << s.time << " after " << cutbacks
-      << " cutbacks (dt = " << dt << "): " << why << "; state: mu = " << s.law.mu << ", r = " << s.r
-      << ", r_s = " << s.law.r_s << ", f_t = " << s.traction_t.norm() << ", f_n = " << s.traction_n;
-  return msg.str();
-}
-
-// The viscoplastic sliding velocity of a state, as a vector along its tangential traction.
-Vec2 sliding_velocity(const ContactState& s, double speed) {
-  const double ft = s.traction_t.norm();
-  return ft > 0.0 ? Vec2(s.traction_t * (speed / ft)) : Vec2::Zero();
 }
 
 // The lowest loading ratio r = |f_t|/(f_n mu) on the straight traction path of a step, from
@@ -95,6 +65,18 @@ PathMinimum lowest_ratio_on_path(const Vec2& f0, double fn0, const Vec2& f1, dou
 }
 
 }  // namespace
+
+// The admissible set every integrator must stay in: finite, mu > 0, 0 <= r_s <= r < r_hat.
+std::string admissibility_violation(const law::SubloadingFrictionLaw& law, const ContactState& s) {
+  if (!finite(s)) return "non-finite state";
+  if (s.law.mu <= 0.0) return "mu <= 0";
+  if (s.law.r_s < 0.0) return "r_s < 0";
+  if (s.law.r_s > s.r) return "r_s > r";
+  if (!law.is_rate_independent() && s.r >= law.parameters().overstress.r_hat) return "r >= r_hat";
+  if (law.parameters().subloading.function == law::SubloadingFunction::cot && s.law.r_s >= 2.0)
+    return "r_s >= 2 (cot branch)";
+  return {};
+}
 
 std::vector<double> increment_lengths(const Segment& seg) {
   std::vector<double> dt(static_cast<size_t>(seg.increments));
@@ -125,6 +107,22 @@ double traction_relaxation_rate(const law::SubloadingFrictionLaw& law, const Con
   return law.traction_relaxation_rate(c.alpha_t, s0.r, s0.law.r_s, s0.law.mu, s0.traction_n);
 }
 
+double rate_independent_slip(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                             const ContactState& s0, const Vec2& du_t, double fn1, double dt) {
+  const double ft0 = s0.traction_t.norm();
+  // Direction of the plastic sliding: the tangential traction (2.39).
+  const Vec2 t_f = ft0 > 0.0 ? Vec2(s0.traction_t / ft0) : Vec2::Zero();
+  // Plastic multiplier (2.44) with the normal traction rate taken from the prescribed normal.
+  const double fn0 = s0.traction_n;
+  const double mu = s0.law.mu, r = s0.law.r_s;
+  const double fn_rate = (fn1 - fn0) / dt;
+  const double v_t = t_f.dot(du_t) / dt;
+  const double numerator = (c.alpha_t * v_t - r * mu * fn_rate) / fn0 - law.creep_modulus(r, mu);
+  const double denominator = law.plastic_modulus(r, mu) + c.alpha_t / fn0;
+  return (fn0 > 0.0 && numerator > 0.0 && std::isfinite(denominator)) ? numerator / denominator * dt
+                                                                      : 0.0;
+}
+
 StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
                                const ContactState& s0, const Vec2& du_t, double fn1, double dt,
                                integrators::ExplicitStability stability) {
@@ -137,15 +135,7 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
 
   double ds;  // viscoplastic (or plastic) slip of the step
   if (law.is_rate_independent()) {
-    // Plastic multiplier (2.44) with the normal traction rate taken from the prescribed normal.
-    const double fn0 = s0.traction_n;
-    const double mu = s0.law.mu, r = s0.law.r_s;
-    const double fn_rate = (fn1 - fn0) / dt;
-    const double v_t = t_f.dot(du_t) / dt;
-    const double numerator = (c.alpha_t * v_t - r * mu * fn_rate) / fn0 - law.creep_modulus(r, mu);
-    const double denominator = law.plastic_modulus(r, mu) + c.alpha_t / fn0;
-    ds = (fn0 > 0.0 && numerator > 0.0 && std::isfinite(denominator)) ? numerator / denominator * dt
-                                                                      : 0.0;
+    ds = rate_independent_slip(law, c, s0, du_t, fn1, dt);
   } else {
     if (const double lambda = traction_relaxation_rate(law, c, s0);
         stability == integrators::ExplicitStability::refuse_unstable_steps &&
@@ -185,7 +175,7 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / dt;
   StepAttempt out{s, 0, true, {}};
-  out.why = inadmissible_reason(law, s);
+  out.why = admissibility_violation(law, s);
   out.ok = out.why.empty();
   return out;
 }
@@ -269,7 +259,7 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / slip_time;  // the end rate of the flow rule
   StepAttempt out{s, root.iterations, true, {}};
-  out.why = inadmissible_reason(law, s);
+  out.why = admissibility_violation(law, s);
   out.ok = out.why.empty();
   if (tangent && out.ok) {
     // f_t = t (ft_trial - alpha_t ds), t = trial / ft_trial, with ds(ft_trial, f_n) the root of
@@ -289,44 +279,6 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   return out;
 }
 
-ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                     const IntegratorOptions& opt, const ContactState& s0, const Segment& seg,
-                     double fn_start, double t_in_segment, double dt, StepStats& stats) {
-  // The increment is taken whole when possible; a failed piece is replaced by its two halves.
-  struct Piece {
-    double dt;
-    int depth;
-  };
-  std::vector<Piece> todo{{dt, 0}};
-  ContactState s = s0;
-  double t_local = t_in_segment;
-  stats = {};
-  stats.substeps = 0;
-  while (!todo.empty()) {
-    const Piece p = todo.back();
-    todo.pop_back();
-    const Vec2 du = seg.velocity * p.dt;
-    const double fn1 = normal_traction_at(seg, c, fn_start, t_local + p.dt);
-    StepAttempt a = opt.method == Method::implicit
-                        ? implicit_step(law, c, s, du, fn1, p.dt, opt.residual_tolerance)
-                        : forward_euler_step(law, c, s, du, fn1, p.dt);
-    stats.iterations += a.iterations;
-    if (a.ok) {
-      s = a.state;
-      t_local += p.dt;
-      ++stats.substeps;
-      continue;
-    }
-    if (p.depth >= opt.max_cutbacks) {
-      throw StepFailure(failure_message(s, p.depth, p.dt, a.why));
-    }
-    ++stats.cutbacks;
-    todo.push_back({0.5 * p.dt, p.depth + 1});
-    todo.push_back({0.5 * p.dt, p.depth + 1});
-  }
-  return s;
-}
-
 ContactState initial_state(const ContactModel& model) {
   ContactState s;
   s.law = model.initial_law_state;
@@ -334,258 +286,6 @@ ContactState initial_state(const ContactModel& model) {
   s.r = 0.0;
   s.law.r_s = std::min(s.law.r_s, s.r);
   return s;
-}
-
-namespace {
-
-// Local error of one implicit (backward Euler) step from s0 to s1: dt/2 |df_t/dt(end) -
-// df_t/dt(start)|, in units of the yield traction f_n mu (so in units of the loading ratio r).
-// The elastic part alpha_t v of the traction rate is constant within a segment, so only the
-// viscoplastic sliding velocity contributes.
-//
-// Where the start velocity comes from matters. For the rate-dependent forms it is the end
-// velocity ds/dt of the previous implicit step: the law's rate at s0 is the same quantity in
-// exact arithmetic, but near r_hat the rate is so steep in r that the flow-rule residual alone
-// (1e-12 in r) moves it by more than the change being measured, and steady sliding at impact
-// speed would crawl. For the rate-independent form the sliding velocity is set by this step's
-// loading (consistency), and the forward-Euler multiplier at s0 gives it.
-double local_error(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                   const ContactState& s0, const ContactState& s1, const Vec2& du_t, double fn1,
-                   double dt) {
-  const double yield = s1.traction_n * s1.law.mu;
-  if (!(yield > 0.0)) return 0.0;  // open contact: no traction, nothing to resolve
-  const double start_speed = law.is_rate_independent()
-                                 ? forward_euler_step(law, c, s0, du_t, fn1, dt).state.vp_rate
-                                 : s0.vp_rate;
-  const Vec2 change = sliding_velocity(s1, s1.vp_rate) - sliding_velocity(s0, start_speed);
-  return 0.5 * dt * c.alpha_t * change.norm() / yield;
-}
-
-// The state variables an extrapolated step combines; the rest (time, slip, f_n) is kinematics,
-// the same in every solution of the step.
-using Combined = Eigen::Matrix<double, 6, 1>;
-
-Combined combined_part(const ContactState& s) {
-  Combined v;
-  v << s.traction_t, s.law.mu, s.law.r_s, s.vp_slip, s.vp_rate;
-  return v;
-}
-
-// The extrapolated state: `kinematics` (the one-step solution) with the combined variables
-// `v`, r recomputed from them. The combination can leave the admissible set only at the order
-// of its error; where it does the constraint is restored (r_s <= r, r_s < 1 for the cot form,
-// which a step from r_s >= 1 cannot leave; rates >= 0), and r >= r_hat or mu <= 0 fail the step.
-StepAttempt extrapolated_state(const law::SubloadingFrictionLaw& law, ContactState kinematics,
-                               const Combined& v, const ContactState& finest) {
-  ContactState& s = kinematics;
-  s.traction_t = v.head<2>();
-  s.law.mu = v(2);
-  s.law.r_s = v(3);
-  s.vp_slip = v(4);
-  s.vp_rate = std::max(v(5), 0.0);
-  s.r =
-      s.traction_n > 0.0 && s.law.mu > 0.0 ? s.traction_t.norm() / (s.traction_n * s.law.mu) : 0.0;
-  if (!(s.law.r_s < 1.0) && finest.law.r_s < 1.0) s.law.r_s = finest.law.r_s;
-  s.law.r_s = std::clamp(s.law.r_s, 0.0, s.r);
-  StepAttempt out{s, 0, true, {}};
-  out.why = inadmissible_reason(law, s);
-  out.ok = out.why.empty();
-  return out;
-}
-
-// The extrapolated error estimate |best - second| (extrapolation.hpp) in units of the yield:
-// the traction over f_n mu, mu relative, and r_s.
-double extrapolation_error(const Combined& difference, const ContactState& s) {
-  const double yield = s.traction_n * s.law.mu;
-  const double traction = yield > 0.0 ? difference.head<2>().norm() / yield : 0.0;
-  return std::max({traction, std::abs(difference(2)) / s.law.mu, std::abs(difference(3))});
-}
-
-// Whether a step from s0 switched between sticking and sliding: one of its `order` solutions
-// ends in the other phase (`sliding`: whether each does).
-bool switches_phase(const ContactState& s0,
-                    const std::array<bool, integrators::kMaxExtrapolationOrder>& sliding,
-                    int order) {
-  const bool start = s0.vp_rate > 0.0;
-  return std::any_of(sliding.begin(), sliding.begin() + order, [&](bool b) { return b != start; });
-}
-
-struct ExtrapolatedStep {
-  StepAttempt attempt;
-  double error = 0.0;
-};
-
-// What the extrapolated estimate resolves: the states it combines are exact to a few ulps of
-// r (at most r_hat) and to the flow-rule tolerance (|dG/dr| >= 1: a residual delta leaves at
-// most delta in r), and the estimate's weights amplify that (estimate_noise_gain).
-double extrapolation_resolution(const law::SubloadingFrictionLaw& law,
-                                const IntegratorOptions& opt) {
-  constexpr double kEps = std::numeric_limits<double>::epsilon();
-  const double largest_ratio = std::max(1.0, law.parameters().overstress.r_hat);
-  return integrators::estimate_noise_gain(opt.order) *
-         (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
-}
-
-// One step of the extrapolated integrator from s0 at time t0 into the segment to t1: backward
-// Euler with 1, 2, .., order substeps, combined (integrators/extrapolation.hpp).
-ExtrapolatedStep extrapolated_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                                   const IntegratorOptions& opt, const Segment& seg,
-                                   double fn_start, const ContactState& s0, double t0, double t1) {
-  std::array<Combined, integrators::kMaxExtrapolationOrder> solutions;
-  ContactState one_step, finest;
-  int iterations = 0;
-  std::array<bool, integrators::kMaxExtrapolationOrder> sliding{};  // at the end, per solution
-  for (int j = 1; j <= opt.order; ++j) {
-    ContactState s = s0;
-    double t = t0;
-    for (int i = 1; i <= j; ++i) {
-      const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
-      const double h = end - t;
-      const StepAttempt a =
-          implicit_step(law, c, s, seg.velocity * h, normal_traction_at(seg, c, fn_start, end), h,
-                        opt.residual_tolerance);
-      iterations += a.iterations;
-      if (!a.ok) return {{s, iterations, false, a.why}, 0.0};
-      s = a.state;
-      t = end;
-    }
-    solutions[static_cast<size_t>(j - 1)] = combined_part(s);
-    sliding[static_cast<size_t>(j - 1)] = s.vp_rate > 0.0;
-    if (j == 1) one_step = s;
-    finest = s;
-  }
-  const auto e = integrators::extrapolate_implicit_euler(solutions, opt.order);
-  ExtrapolatedStep out{extrapolated_state(law, one_step, e.best, finest), 0.0};
-  out.attempt.iterations = iterations;
-  if (!out.attempt.ok) return out;
-  const ContactState& end = out.attempt.state;
-  out.error = extrapolation_error(e.best - e.second, end);
-  if (opt.order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
-    const auto earlier = integrators::earlier_column_estimates(solutions);
-    out.error = integrators::guarded_estimate(out.error, extrapolation_error(earlier[0], end),
-                                              extrapolation_error(earlier[1], end));
-  }
-  if (switches_phase(s0, sliding, opt.order)) {
-    // A switch between sticking and sliding inside the step: the solution has a kink there and
-    // no error expansion in powers of the step, so the estimate is backward Euler's own (one
-    // substep against two): a step with a switch is shortened until that meets the tolerance.
-    out.error =
-        std::max(out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state));
-  }
-  return out;
-}
-
-// One segment with adaptive steps. The first step is the segment's first increment; the step
-// then follows the error estimate, and a failed step (no convergence, inadmissible state) is
-// halved like a cutback.
-void run_segment_adaptive(const law::SubloadingFrictionLaw& law, const ContactModel& model,
-                          const IntegratorOptions& opt, const Segment& seg, int index,
-                          double t_start, ContactState& s, RunStats& stats,
-                          const OutputCallback& on_output) {
-  const ContactStiffness& c = model.stiffness;
-  const double fn_start = s.traction_n;
-  const bool extrapolated = opt.order >= 2;
-  const double resolution = extrapolated ? extrapolation_resolution(law, opt) : 0.0;
-  integrators::AdaptiveSegment clock(seg.duration, increment_lengths(seg).front(), opt.tolerance,
-                                     integrators::estimate_order(opt.order),
-                                     integrators::after_accepted_limits(opt.order));
-  if (seg.output_at_times) clock.set_stops(seg.output_times);
-  for (;;) {
-    const double h = clock.step();
-    StepAttempt a;
-    double error = 0.0;
-    if (extrapolated) {
-      ExtrapolatedStep e =
-          extrapolated_step(law, c, opt, seg, fn_start, s, clock.time(), clock.end_time());
-      a = std::move(e.attempt);
-      error = e.error;
-    } else {
-      const Vec2 du = seg.velocity * h;
-      const double fn1 = normal_traction_at(seg, c, fn_start, clock.end_time());
-      a = implicit_step(law, c, s, du, fn1, h, opt.residual_tolerance);
-      error = a.ok ? local_error(law, c, s, a.state, du, fn1, h) : 0.0;
-    }
-    stats.iterations += a.iterations;
-    if (!a.ok || !(error <= opt.tolerance)) {
-      a.ok ? ++stats.rejected : ++stats.cutbacks;
-      if (!clock.refuse(!a.ok, error, resolution)) {
-        std::string why = !a.ok ? a.why
-                          : clock.at_noise_floor()
-                              ? clock.noise_floor_message()
-                              : "local error estimate stays above the tolerance";
-        if (clock.below_time_resolution())
-          why = clock.time_resolution_message() + " (last attempt: " + why + ")";
-        throw StepFailure(failure_message(s, clock.refusals(), h, why));
-      }
-      continue;
-    }
-    const bool last = clock.last();
-    s = a.state;
-    const bool stop = clock.accept(error);
-    ++stats.increments;
-    ++stats.substeps;
-    if (seg.output_at_times) {
-      if (stop) {
-        s.time = t_start + clock.time();  // exactly the output time (the sum of steps rounds)
-        on_output(s, index);
-      }
-    } else if (last || clock.accepted() % seg.output_every == 0) {
-      on_output(s, index);
-    }
-    if (last) return;
-  }
-}
-
-}  // namespace
-
-RunStats run_history(const ContactModel& model, const std::vector<Segment>& segments,
-                     const IntegratorOptions& opt, const OutputCallback& on_output) {
-  const auto start = std::chrono::steady_clock::now();
-  const law::SubloadingFrictionLaw law(model.law);
-  RunStats stats;
-  ContactState s = initial_state(model);
-  on_output(s, -1);
-  const bool adaptive = opt.tolerance > 0.0 && opt.method == Method::implicit;
-  // Where each segment starts in time, from the durations (not the sum of the steps, which
-  // rounds): output times are that plus their time into the segment.
-  double t_start = 0.0;
-  for (size_t k = 0; k < segments.size(); t_start += segments[k++].duration) {
-    const Segment& seg = segments[k];
-    if (adaptive) {
-      run_segment_adaptive(law, model, opt, seg, static_cast<int>(k), t_start, s, stats, on_output);
-      continue;
-    }
-    const double fn_start = s.traction_n;
-    const auto dts = increment_lengths(seg);
-    const std::vector<double> none;
-    const auto steps =
-        integrators::fixed_steps(dts, seg.output_at_times ? seg.output_times : none, seg.duration);
-    double t_local = 0.0;
-    for (const integrators::FixedStep& step : steps) {
-      StepStats st;
-      s = advance(law, model.stiffness, opt, s, seg, fn_start, t_local, step.length, st);
-      t_local = step.end;  // (the running sum of the increments where none is split)
-      ++stats.increments;
-      stats.substeps += st.substeps;
-      stats.iterations += st.iterations;
-      stats.cutbacks += st.cutbacks;
-      if (seg.output_at_times) {
-        if (step.output_time) {
-          s.time = t_start + step.end;  // exactly the output time (the sum of steps rounds)
-          on_output(s, static_cast<int>(k));
-        }
-        continue;
-      }
-      const auto i = static_cast<size_t>(step.increment - 1);
-      const bool last = i + 1 == dts.size();
-      if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) {
-        on_output(s, static_cast<int>(k));
-      }
-    }
-  }
-  stats.wall_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return stats;
 }
 
 }  // namespace subslip::contact

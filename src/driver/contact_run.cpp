@@ -26,7 +26,7 @@ void SummaryTracker::add(const contact::ContactState& s) {
 }
 
 ContactSummary SummaryTracker::result(const model::ContactCase& c,
-                                      const contact::RunStats& stats) const {
+                                      const history::RunStats& stats) const {
   ContactSummary out;
   if (peak_ >= 0.0) {
     out.peak_ratio = peak_;
@@ -52,7 +52,7 @@ namespace {
 
 struct Recording {
   std::vector<ContactRow> rows;
-  contact::RunStats stats;
+  history::RunStats stats;
   std::string failure;       // a numerical failure (why): recorded, the case is written as failed
   std::exception_ptr error;  // anything else: rethrown when the case is written
 };
@@ -71,7 +71,7 @@ struct RunContext {
 
 // Ends a case that ran to its end (or failed for `why`).
 ContactCaseResult close_case(RunContext& run, std::size_t index, const SummaryTracker& tracker,
-                             const contact::RunStats& stats, const std::string& why) {
+                             const history::RunStats& stats, const std::string& why) {
   const model::ContactCase& c = run.scene.cases[index];
   ContactCaseResult result{c.name, tracker.result(c, stats), {}};
   if (why.empty()) {
@@ -88,15 +88,15 @@ ContactCaseResult stream_case(RunContext& run, std::size_t index) {
   const model::ContactCase& c = run.scene.cases[index];
   run.sink.begin_case(index);
   SummaryTracker tracker;
-  contact::RunStats stats;
+  history::RunStats stats;
   std::string failure;
   try {
-    stats = contact::run_history(c.model, c.segments, c.integrator,
+    stats = history::run_history(c.model, c.segments, c.integrator,
                                  [&](const contact::ContactState& s, int segment) {
                                    tracker.add(s);
                                    run.sink.write_state(s, segment);
                                  });
-  } catch (const contact::StepFailure& e) {
+  } catch (const history::StepFailure& e) {
     failure = e.what();
     stats = {};
   }
@@ -107,11 +107,11 @@ Recording record_case(const model::ContactCase& c) {
   Recording rec;
   rec.rows.reserve(model::output_count(c.segments));
   try {
-    rec.stats = contact::run_history(c.model, c.segments, c.integrator,
+    rec.stats = history::run_history(c.model, c.segments, c.integrator,
                                      [&](const contact::ContactState& s, int segment) {
                                        rec.rows.push_back({s, segment});
                                      });
-  } catch (const contact::StepFailure& e) {
+  } catch (const history::StepFailure& e) {
     rec.failure = e.what();
   } catch (...) {
     // Exceptions must not leave an OpenMP region; the writer rethrows it in case order.
@@ -208,7 +208,7 @@ ContactRow unpack_row(const double* v) {
 
 // A recording as the root receives it: the run's counters, then the rows.
 std::vector<double> message_of(const Recording& rec) {
-  const contact::RunStats& st = rec.stats;
+  const history::RunStats& st = rec.stats;
   std::vector<double> out{static_cast<double>(st.increments), static_cast<double>(st.substeps),
                           static_cast<double>(st.rejected),   static_cast<double>(st.iterations),
                           static_cast<double>(st.cutbacks),   st.wall_seconds};
@@ -219,7 +219,7 @@ std::vector<double> message_of(const Recording& rec) {
 
 Recording recording_of(const std::vector<double>& message, const std::string& failure) {
   Recording rec;
-  contact::RunStats& st = rec.stats;
+  history::RunStats& st = rec.stats;
   st.increments = static_cast<long>(message.at(0));
   st.substeps = static_cast<long>(message.at(1));
   st.rejected = static_cast<long>(message.at(2));

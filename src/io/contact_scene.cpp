@@ -1,5 +1,6 @@
 #include "subslip/io/contact_scene.hpp"
 
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/law_block.hpp"
 #include "subslip/io/output_points.hpp"
 
@@ -128,8 +129,8 @@ std::vector<contact::Segment> parse_loading(const CheckedNode& node,
   return segments;
 }
 
-contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& node) {
-  contact::IntegratorOptions opt;
+history::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& node) {
+  history::IntegratorOptions opt;
   if (!node) return opt;
   node->allow_keys({"method", "max_cutbacks", "residual_tolerance", "tolerance", "order"});
   if (auto m = node->optional("method")) {
@@ -138,8 +139,9 @@ contact::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
   }
   opt.max_cutbacks =
       node->get_int("max_cutbacks", opt.max_cutbacks, Range::in_closed_interval(0, 200));
-  opt.residual_tolerance =
-      node->get_double("residual_tolerance", opt.residual_tolerance, Range::positive());
+  // (0, 1) in traction-ratio units, as point::ContactPoint requires of its flow-rule tolerance.
+  opt.residual_tolerance = node->get_double("residual_tolerance", opt.residual_tolerance,
+                                            Range::in_open_interval(0.0, 1.0));
   if (auto tol = node->optional("tolerance")) {
     if (opt.method != contact::Method::implicit)
       tol->fail("adaptive stepping needs method: implicit");

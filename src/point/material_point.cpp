@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "subslip/parallel/exact_sum.hpp"
 
@@ -13,7 +14,8 @@ namespace subslip::point {
 
 namespace {
 
-void require(bool ok, const std::string& what) {
+// The message is a literal: checks on every update build no string unless they fail.
+void require(bool ok, const char* what) {
   if (!ok) throw std::invalid_argument(what);
 }
 
@@ -51,12 +53,20 @@ ContactUpdate ContactPoint::update(const ContactState& state, const ContactStep&
   check_contact_step(step);
   ContactUpdate out;
   contact::StepAttempt a =
-      contact::implicit_step(law_, parameters_.stiffness, state, step.slip, step.normal_traction,
-                             step.dt, parameters_.residual_tolerance, &out.tangent);
-  out.report = {a.ok, a.iterations, -1, -1, a.why};
+      parameters_.method == contact::Method::implicit
+          ? contact::implicit_step(law_, parameters_.stiffness, state, step.slip,
+                                   step.normal_traction, step.dt, parameters_.residual_tolerance,
+                                   parameters_.tangent ? &out.tangent : nullptr)
+          : contact::forward_euler_step(law_, parameters_.stiffness, state, step.slip,
+                                        step.normal_traction, step.dt);
+  out.report = {a.ok, a.iterations, -1, -1, std::move(a.why)};
   out.state = a.ok ? a.state : state;
   if (!a.ok) out.tangent.setZero();
   return out;
+}
+
+std::string ContactPoint::admissibility_violation(const ContactState& state) const {
+  return contact::admissibility_violation(law_, state);
 }
 
 void ContactPoint::update(std::span<const ContactState> states, std::span<const ContactStep> steps,
@@ -81,9 +91,9 @@ TaylorPoint::TaylorPoint(const GrainParameters& parameters,
       tangent_(options.tangent) {
   require(!orientations_.empty(), "Taylor point: no grains");
   if (weights_.empty()) weights_.assign(orientations_.size(), 1.0);
-  require(weights_.size() == orientations_.size(),
-          "Taylor point: " + std::to_string(weights_.size()) + " weights for " +
-              std::to_string(orientations_.size()) + " grains");
+  if (weights_.size() != orientations_.size())
+    throw std::invalid_argument("Taylor point: " + std::to_string(weights_.size()) +
+                                " weights for " + std::to_string(orientations_.size()) + " grains");
   // Normalised as the Taylor aggregate normalises them (an exact sum), so that the two average
   // the same numbers.
   parallel::ExactSum total;
@@ -104,9 +114,9 @@ TaylorState TaylorPoint::initial_state() const {
 
 TaylorUpdate TaylorPoint::update(const TaylorState& state, const Eigen::Matrix3d& velocity_gradient,
                                  double dt) const {
-  require(state.grains.size() == orientations_.size(),
-          "Taylor point: a state of " + std::to_string(state.grains.size()) + " grains for " +
-              std::to_string(orientations_.size()));
+  if (state.grains.size() != orientations_.size())
+    throw std::invalid_argument("Taylor point: a state of " + std::to_string(state.grains.size()) +
+                                " grains for " + std::to_string(orientations_.size()));
   const std::vector<Eigen::Matrix3d> gradients(state.grains.size(), velocity_gradient);
   std::vector<GrainUpdate> grains(state.grains.size());
   grain_.update(state.grains, gradients, dt, grains);

@@ -1,6 +1,7 @@
 // Compiled in every build: whether the CVODE peer is there, and what its entry points do when it
 // is not (the implementations are in study/cvode/, compiled only with SUNDIALS).
 #include "subslip/study/cvode_peer.hpp"
+#include "subslip/history/contact_history.hpp"
 
 namespace subslip::cvode {
 
@@ -24,9 +25,9 @@ namespace {
 }
 }  // namespace
 
-contact::RunStats run_contact_history(const contact::ContactModel&,
+history::RunStats run_contact_history(const contact::ContactModel&,
                                       const std::vector<contact::Segment>&, const CvodeOptions&,
-                                      const contact::OutputCallback&, CvodeStats*) {
+                                      const history::OutputCallback&, CvodeStats*) {
   not_built();
 }
 

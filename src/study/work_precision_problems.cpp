@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "subslip/history/contact_history.hpp"
 #include "subslip/study/cvode_peer.hpp"
 
 namespace subslip::study {
@@ -49,7 +50,7 @@ cvode::CvodeOptions cvode_options(const Setting& s, Report report) {
   return o;
 }
 
-RunCounters counters_of(const contact::RunStats& st) {
+RunCounters counters_of(const history::RunStats& st) {
   return {st.substeps, st.rejected, st.iterations, st.cutbacks};
 }
 
@@ -71,7 +72,7 @@ struct LastTime {
 // ---- contact
 
 ContactProblem::ContactProblem(contact::ContactModel model, std::vector<contact::Segment> segments,
-                               contact::IntegratorOptions options)
+                               history::IntegratorOptions options)
     : model_(std::move(model)), segments_(std::move(segments)), options_(options) {}
 
 bool ContactProblem::supports(Integrator integrator) const {
@@ -99,7 +100,7 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
     const double ratio = s.traction_ratio();
     seen(s.time, std::span<const double>(&ratio, 1), segment);
   };
-  contact::IntegratorOptions opt = options_;
+  history::IntegratorOptions opt = options_;
   opt.tolerance = 0.0;
   try {
     switch (setting.integrator) {
@@ -112,7 +113,7 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
         if (opt.method == contact::Method::forward_euler) opt.max_cutbacks = 0;
         const auto segments =
             refine(segments_, setting.value, setting.uniform, report == Report::every_step);
-        out.counters = counters_of(contact::run_history(model_, segments, opt, record));
+        out.counters = counters_of(history::run_history(model_, segments, opt, record));
         break;
       }
       case Integrator::implicit_adaptive:
@@ -123,7 +124,7 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
         opt.tolerance = setting.value;
         opt.order = extrapolation_order(setting.integrator);
         out.counters =
-            counters_of(contact::run_history(model_, outputs_for(segments_, report), opt, record));
+            counters_of(history::run_history(model_, outputs_for(segments_, report), opt, record));
         break;
       case Integrator::cvode:
         out.counters = counters_of(cvode::run_contact_history(
@@ -131,7 +132,7 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
         break;
     }
     out.ok = true;
-  } catch (const contact::StepFailure& e) {
+  } catch (const history::StepFailure& e) {
     out.failure = e.what();
   } catch (const cvode::CvodeFailure& e) {
     out.failure = e.what();

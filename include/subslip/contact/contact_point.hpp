@@ -1,5 +1,7 @@
-// One frictional contact point (paper section 2): traction, contact stiffness, prescribed
-// sliding history, and the step updates of the two integrators.
+// One frictional contact point (paper section 2): traction, contact stiffness, the description
+// of a prescribed sliding history, and the step updates of the two integrators. Driving a point
+// along a history (cutbacks, adaptive steps, output) is history/contact_history.hpp, which takes
+// every step through point::ContactPoint (material_point.hpp).
 //
 // Frame: the contact normal n is fixed (e3); the tangential plane is spanned by e1, e2. Normal
 // traction f_n is positive in compression (paper 2.13), normal sliding velocity v_n positive
@@ -7,8 +9,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <functional>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -64,31 +64,9 @@ struct ContactState {
   double traction_ratio() const { return traction_n > 0.0 ? traction_t.norm() / traction_n : 0.0; }
 };
 
+// The two updates of a contact point: forward Euler (paper section 2f, method 2) and the implicit
+// update (backward Euler of the flow rule with radial return).
 enum class Method { forward_euler, implicit };
-
-struct IntegratorOptions {
-  Method method = Method::implicit;
-  int max_cutbacks = 40;              // halvings of one increment before giving up
-  double residual_tolerance = 1e-12;  // implicit: |G| in traction-ratio units
-  // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated as
-  // dt/2 |rate of f_t at the end - at the start| in units of the yield traction f_n mu, is kept
-  // below `tolerance`; the step grows and shrinks with it. A segment's increments then only
-  // set its first step, and every accepted step is an increment (output_every applies).
-  double tolerance = 0.0;
-  // With a tolerance: 1 is backward Euler with the estimate above (its error follows the square
-  // root of the tolerance); 2 .. 4 is backward Euler extrapolated to that order
-  // (integrators/extrapolation.hpp: every step taken with 1, 2, .., order substeps and
-  // combined), whose estimate is the difference of its two best solutions in units of the yield
-  // traction (traction, mu relative, r_s) and whose error follows the tolerance.
-  int order = 1;
-};
-
-// Work done by one increment, for reporting.
-struct StepStats {
-  int iterations = 0;  // Newton iterations (implicit) or 0
-  int cutbacks = 0;    // halvings needed
-  int substeps = 1;    // sub-increments actually taken
-};
 
 // The outcome of one attempted update, without cut-back.
 struct StepAttempt {
@@ -119,15 +97,17 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
                           const ContactState& s0, const Vec2& du_t, double fn1, double dt,
                           double residual_tolerance, ContactTangent* tangent = nullptr);
 
-// Advances over one increment, halving it when an update fails (non-finite, out of the
-// admissible set r_s <= r < r_hat, or no convergence). Throws StepFailure when max_cutbacks
-// halvings do not help.
-struct StepFailure : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-ContactState advance(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                     const IntegratorOptions& opt, const ContactState& s0, const Segment& seg,
-                     double fn_start, double t_in_segment, double dt, StepStats& stats);
+// The plastic slip of a forward-Euler step of the rate-independent law from s0 (the multiplier
+// (2.44) times dt, with the normal traction rate of the prescribed f_n(n+1) = fn1 > 0); 0 where
+// the step does not load. forward_euler_step takes it; the adaptive history driver's error
+// estimate takes it as the sliding velocity a step starts with.
+double rate_independent_slip(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                             const ContactState& s0, const Vec2& du_t, double fn1, double dt);
+
+// The first way `s` leaves the admissible set every update must stay in ("non-finite state",
+// "mu <= 0", "r_s < 0", "r_s > r", "r >= r_hat" for the rate-dependent forms, "r_s >= 2 (cot
+// branch)"); empty where it is admissible.
+std::string admissibility_violation(const law::SubloadingFrictionLaw& law, const ContactState& s);
 
 // The normal traction at time t into a segment that started with fn_start.
 double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start, double t);
@@ -141,20 +121,5 @@ struct ContactModel {
 
 // The state before the first segment: no tangential traction, r = r_s = 0 unless given.
 ContactState initial_state(const ContactModel& model);
-
-struct RunStats {
-  long increments = 0;
-  long substeps = 0;
-  long rejected = 0;  // adaptive steps refused by the error estimate (redone smaller)
-  long iterations = 0;
-  long cutbacks = 0;
-  double wall_seconds = 0.0;
-};
-
-// Runs a whole history. `on_output(state, segment_index)` is called for the initial state and
-// then at every output increment.
-using OutputCallback = std::function<void(const ContactState&, int segment)>;
-RunStats run_history(const ContactModel& model, const std::vector<Segment>& segments,
-                     const IntegratorOptions& opt, const OutputCallback& on_output);
 
 }  // namespace subslip::contact

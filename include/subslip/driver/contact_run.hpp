@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "subslip/driver/contact_sink.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/model/contact_case.hpp"
 #include "subslip/parallel/team.hpp"
 
@@ -20,7 +21,7 @@ class SummaryTracker {
  public:
   void add(const contact::ContactState& s);
   // Completes the summary with the run's statistics and the analytical steady state.
-  ContactSummary result(const model::ContactCase& c, const contact::RunStats& stats) const;
+  ContactSummary result(const model::ContactCase& c, const history::RunStats& stats) const;
 
  private:
   double peak_ = -1.0, slip_at_peak_ = ContactSummary::kNone;
@@ -37,7 +38,7 @@ struct ContactRunOptions {
       on_case_done;
 };
 
-// Runs the cases of `scene` into `sink`. A case that fails numerically (contact::StepFailure)
+// Runs the cases of `scene` into `sink`. A case that fails numerically (history::StepFailure)
 // keeps the states it reached, is ended with fail_case and gets a result with `failure` set;
 // the other cases still run. Other errors (the sink's) are thrown.
 std::vector<ContactCaseResult> run_contact_scene(const model::ContactScene& scene,

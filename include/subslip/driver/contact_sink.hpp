@@ -10,6 +10,7 @@
 
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/driver/case_status.hpp"
+#include "subslip/history/contact_history.hpp"
 
 namespace subslip::driver {
 
@@ -21,13 +22,13 @@ struct ContactSummary {
   double final_ratio = kNone;
   double steady_ratio_analytical = kNone;  // steady state at the last sliding segment's speed
   double steady_speed = 0.0;               // that speed
-  contact::RunStats stats;
+  history::RunStats stats;
 };
 
 struct ContactCaseResult {
   std::string name;
   ContactSummary summary;
-  std::string failure;  // non-empty when the case stopped on a contact::StepFailure
+  std::string failure;  // non-empty when the case stopped on a history::StepFailure
 };
 
 // One output state of a contact case.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "subslip/contact/contact_point.hpp"
+#include "subslip/history/contact_history.hpp"
 #include "subslip/model/case_common.hpp"
 #include "subslip/model/units.hpp"
 
@@ -42,7 +43,7 @@ struct ContactCase {
   std::vector<SweepOverride> overrides;  // this case's swept values
   contact::ContactModel model;
   std::vector<contact::Segment> segments;
-  contact::IntegratorOptions integrator;
+  history::IntegratorOptions integrator;
   std::vector<ContactField> fields;      // the requested output fields, in kAllContactFields order
   std::vector<WrittenValue> magnitudes;  // for the plausibility warnings (scene_warnings.hpp)
 };

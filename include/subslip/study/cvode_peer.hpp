@@ -49,6 +49,7 @@
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/history/contact_history.hpp"
 
 namespace subslip::cvode {
 
@@ -115,14 +116,14 @@ struct CvodeFailure : std::runtime_error {
 
 // Runs a contact history with CVODE. on_output(state, segment) is called for the initial state
 // (segment -1) and at the end of every output increment of every segment: the same points as
-// contact::run_history (and, with report_every_step, after every CVODE step as well). The
+// history::run_history (and, with report_every_step, after every CVODE step as well). The
 // reported vp_rate is the instantaneous viscoplastic sliding rate phi at that point.
 // RunStats: increments as run_history counts them, substeps = CVODE steps, iterations =
 // nonlinear iterations, cutbacks = error-test + convergence failures.
-contact::RunStats run_contact_history(const contact::ContactModel& model,
+history::RunStats run_contact_history(const contact::ContactModel& model,
                                       const std::vector<contact::Segment>& segments,
                                       const CvodeOptions& options,
-                                      const contact::OutputCallback& on_output,
+                                      const history::OutputCallback& on_output,
                                       CvodeStats* cvode_stats = nullptr);
 
 // ----- crystal --------------------------------------------------------------------------------

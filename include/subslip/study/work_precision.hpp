@@ -37,6 +37,7 @@
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/history/contact_history.hpp"
 
 namespace subslip::study {
 
@@ -165,7 +166,7 @@ std::vector<crystal::LoadSegment> refine(std::vector<crystal::LoadSegment> segme
 class ContactProblem final : public Problem {
  public:
   ContactProblem(contact::ContactModel model, std::vector<contact::Segment> segments,
-                 contact::IntegratorOptions options);
+                 history::IntegratorOptions options);
   RunResult run(const Setting& setting, Report report, const PointObserver& observe,
                 const StopTimes& stops = {}) const override;
   bool supports(Integrator integrator) const override;
@@ -180,7 +181,7 @@ class ContactProblem final : public Problem {
  private:
   contact::ContactModel model_;
   std::vector<contact::Segment> segments_;
-  contact::IntegratorOptions options_;
+  history::IntegratorOptions options_;
 };
 
 // One crystal case (a Taylor aggregate, a single crystal being one grain); channel 0 is the

@@ -127,10 +127,10 @@ std::vector<double> absolute_tolerances(const contact::ContactModel& model,
 
 }  // namespace
 
-contact::RunStats run_contact_history(const contact::ContactModel& model,
+history::RunStats run_contact_history(const contact::ContactModel& model,
                                       const std::vector<contact::Segment>& segments,
                                       const CvodeOptions& options,
-                                      const contact::OutputCallback& on_output,
+                                      const history::OutputCallback& on_output,
                                       CvodeStats* cvode_stats) {
   const auto start = std::chrono::steady_clock::now();
   check_applicable(model, segments);
@@ -145,7 +145,7 @@ contact::RunStats run_contact_history(const contact::ContactModel& model,
   y[kZ] = ode.z_variable.z_of(s.law.r_s), y[kSlip] = s.vp_slip;
   on_output(s, -1);
 
-  contact::RunStats stats;
+  history::RunStats stats;
   CvodeStats cv;
   Vec2 slip_start = s.slip;
   double path_start = s.slip_path;
