@@ -2,10 +2,13 @@
 // a contact point, a grain and a Taylor point updated along a path give the drivers' results
 // bitwise (the contact history driver, the Taylor aggregate of one and of several grains), their
 // tangents are the derivatives of their updates (central differences), a batch gives each
-// point's single update, and bad parameters and states are refused by name.
+// point's single update, the contact point's forward-Euler update refuses a step above its
+// stability limit, its update without the tangent is the same update, and bad parameters and
+// states are refused by name.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "subslip/history/contact_history.hpp"
@@ -132,6 +135,57 @@ TEST(MaterialPoint, ContactBatchGivesEachPointsUpdate) {
     EXPECT_EQ(out[k].state.law.mu, one.state.law.mu);
     EXPECT_EQ(out[k].tangent, one.tangent);
   }
+}
+
+// The forward-Euler contact point (ContactParameters::method) refuses a step above its stability
+// limit 2/lambda, lambda = alpha_t phi_r / (f_n mu) at the step's start, naming it and returning
+// the start state, and takes one below it; it has no tangent. Without the tangent the implicit
+// update is the same update bitwise.
+TEST(MaterialPoint, ContactPointMethodAndTangentOptions) {
+  const pt::ContactPoint implicit(contact_parameters());
+  pt::ContactState s = implicit.initial_state(kNormalTraction, {});
+  const double v = 1e-3;  // [mm/s]
+  for (int k = 0; k < 40; ++k)
+    s = implicit.update(s, {{v * 0.05, 0.0}, kNormalTraction, 0.05}).state;
+  ASSERT_GT(s.vp_rate, 0.0);  // sliding: the flow rule's rate is stiff in r
+
+  pt::ContactParameters p = contact_parameters();
+  p.method = ct::Method::forward_euler;
+  const pt::ContactPoint explicit_point(p);
+  const double lambda = explicit_point.law().traction_relaxation_rate(
+      p.stiffness.alpha_t, s.r, s.law.r_s, s.law.mu, s.traction_n);
+  ASSERT_GT(lambda, 0.0);
+  const double unstable = 4.0 / lambda, stable = 0.5 / lambda;
+  const pt::ContactUpdate refused =
+      explicit_point.update(s, {{v * unstable, 0.0}, kNormalTraction, unstable});
+  EXPECT_FALSE(refused.report.ok);
+  EXPECT_NE(refused.report.why.find("stability limit"), std::string::npos) << refused.report.why;
+  EXPECT_EQ(refused.state.traction_t, s.traction_t);
+  EXPECT_EQ(refused.state.time, s.time);
+  // The implicit update takes that step.
+  EXPECT_TRUE(implicit.update(s, {{v * unstable, 0.0}, kNormalTraction, unstable}).report.ok);
+
+  const pt::ContactUpdate taken =
+      explicit_point.update(s, {{v * stable, 0.0}, kNormalTraction, stable});
+  ASSERT_TRUE(taken.report.ok) << taken.report.why;
+  EXPECT_EQ(taken.state.time, s.time + stable);
+  EXPECT_TRUE(taken.tangent.isZero(0.0));
+  const pt::ContactUpdate with_tangent =
+      implicit.update(s, {{v * stable, 0.0}, kNormalTraction, stable});
+  EXPECT_NE(taken.state.traction_t, with_tangent.state.traction_t);  // another update
+
+  pt::ContactParameters q = contact_parameters();
+  q.tangent = false;
+  const pt::ContactUpdate without_tangent =
+      pt::ContactPoint(q).update(s, {{v * stable, 0.0}, kNormalTraction, stable});
+  ASSERT_TRUE(without_tangent.report.ok);
+  EXPECT_FALSE(with_tangent.tangent.isZero(0.0));
+  EXPECT_TRUE(without_tangent.tangent.isZero(0.0));
+  EXPECT_EQ(without_tangent.state.traction_t, with_tangent.state.traction_t);
+  EXPECT_EQ(without_tangent.state.law.mu, with_tangent.state.law.mu);
+  EXPECT_EQ(without_tangent.state.law.r_s, with_tangent.state.law.r_s);
+  EXPECT_EQ(without_tangent.state.vp_slip, with_tangent.state.vp_slip);
+  EXPECT_EQ(without_tangent.report.iterations, with_tangent.report.iterations);
 }
 
 TEST(MaterialPoint, BadContactParametersAndStepsAreRefusedByName) {
