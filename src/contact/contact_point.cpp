@@ -410,17 +410,6 @@ bool switches_phase(const ContactState& s0,
   return std::any_of(sliding.begin(), sliding.begin() + order, [&](bool b) { return b != start; });
 }
 
-// Whether the tangential traction of one of the step's `order` solutions points against the
-// one it started from (turned by more than 90 degrees): it passed through or near zero, where
-// the sliding direction (that of the traction) jumps, a kink in the path that is no phase switch
-// (sliding before and after a reversal) and that no expansion in powers of the step crosses.
-bool reverses_traction(const ContactState& s0,
-                       const std::array<Combined, integrators::kMaxExtrapolationOrder>& solutions,
-                       int order) {
-  return std::any_of(solutions.begin(), solutions.begin() + order,
-                     [&](const Combined& v) { return s0.traction_t.dot(v.head<2>()) < 0.0; });
-}
-
 struct ExtrapolatedStep {
   StepAttempt attempt;
   double error = 0.0;
@@ -476,11 +465,10 @@ ExtrapolatedStep extrapolated_step(const law::SubloadingFrictionLaw& law, const 
     out.error = integrators::guarded_estimate(out.error, extrapolation_error(earlier[0], end),
                                               extrapolation_error(earlier[1], end));
   }
-  if (switches_phase(s0, sliding, opt.order) || reverses_traction(s0, solutions, opt.order)) {
-    // A switch between sticking and sliding, or a reversal of the traction, inside the step: the
-    // solution has a kink there and no error expansion in powers of the step, so the estimate is
-    // backward Euler's own (one substep against two): such a step is shortened until that meets
-    // the tolerance.
+  if (switches_phase(s0, sliding, opt.order)) {
+    // A switch between sticking and sliding inside the step: the solution has a kink there and
+    // no error expansion in powers of the step, so the estimate is backward Euler's own (one
+    // substep against two): a step with a switch is shortened until that meets the tolerance.
     out.error =
         std::max(out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state));
   }
