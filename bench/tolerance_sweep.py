@@ -89,14 +89,20 @@ def with_integrator(scene, tolerance, order, fields, at_times=None):
     return s
 
 
+RUN_SECONDS = 120.0  # --max-run-seconds
+
+
 def run(subslip, scene, workdir, tag):
     path = os.path.join(workdir, tag + ".yaml")
     with open(path, "w") as f:
         yaml.safe_dump(scene, f, sort_keys=False)
     h5 = os.path.join(workdir, tag + ".h5")
     start = time.perf_counter()
-    done = subprocess.run([subslip, "run", path, "-o", h5, "-f", "-q", "-j", "1"],
-                          capture_output=True, text=True)
+    try:
+        done = subprocess.run([subslip, "run", path, "-o", h5, "-f", "-q", "-j", "1"],
+                              capture_output=True, text=True, timeout=RUN_SECONDS)
+    except subprocess.TimeoutExpired:
+        return None, RUN_SECONDS, f"stopped after {RUN_SECONDS:g} s"
     seconds = time.perf_counter() - start
     if done.returncode != 0:
         return None, seconds, (done.stderr.strip().splitlines() or ["failed"])[-1]
@@ -208,6 +214,8 @@ def main():
     p.add_argument("--crystal-measure", choices=["state", "stress"], default="state")
     p.add_argument("--max-run-seconds", type=float, default=120.0)
     args = p.parse_args()
+    global RUN_SECONDS
+    RUN_SECONDS = args.max_run_seconds
     workdir = args.workdir or tempfile.mkdtemp(prefix="tolerance_sweep_")
     os.makedirs(workdir, exist_ok=True)
 
