@@ -566,6 +566,144 @@ TEST(AdaptiveScene, ForwardEulerWithAToleranceIsRefusedWithItsLine) {
             std::string::npos);
 }
 
+// A tolerance without an order is the integrator whose error follows the tolerance (order 2),
+// on contacts and crystals alike; backward Euler's own estimate stays available as `order: 1`,
+// and a run without a tolerance records order 1 (no estimate).
+TEST(AdaptiveScene, AToleranceWithoutAnOrderGetsTheIntegratorWhoseErrorFollowsIt) {
+  const auto contact_order = [](const std::string& integrator) {
+    return subslip::io::parse_contact_scene(
+               subslip::io::YamlDocument::from_string(kContactHead + integrator, "s.yaml"))
+        .cases[0]
+        .integrator.order;
+  };
+  EXPECT_EQ(contact_order("integrator: {tolerance: 1.0e-5}\n"), 2);
+  EXPECT_EQ(contact_order("integrator: {tolerance: 1.0e-5, order: 1}\n"), 1);
+  EXPECT_EQ(contact_order("integrator: {method: implicit}\n"), 1);
+  EXPECT_EQ(contact_order(""), 1);
+  const auto crystal_order = [](const std::string& integrator) {
+    return subslip::io::parse_crystal_scene(
+               subslip::io::YamlDocument::from_string(
+                   subslip::testing::copper_scene_start() + R"(orientations:
+  euler_deg: [[10, 20, 30]]
+loading:
+  - L: [[-0.5e-3, 0, 0], [0, -0.5e-3, 0], [0, 0, 1.0e-3]]
+    strain: 0.01
+    increments: 10
+)" + integrator,
+                   "c.yaml"))
+        .cases[0]
+        .options.order;
+  };
+  EXPECT_EQ(crystal_order("integrator: {method: implicit, tolerance: 1.0e-5}\n"), 2);
+  EXPECT_EQ(crystal_order("integrator: {method: implicit, tolerance: 1.0e-5, order: 1}\n"), 1);
+  EXPECT_EQ(crystal_order("integrator: {method: implicit}\n"), 1);
+}
+
+namespace {
+
+// The contact scene `law_and_contact` + `loading` + `integrator` parsed, its case run to the end:
+// "" when it gets there with every output finite and admissible, else why not. `end_ratio`: the
+// traction ratio of the last output.
+std::string run_contact_text(const std::string& text, double* end_ratio = nullptr) {
+  const auto scene =
+      subslip::io::parse_contact_scene(subslip::io::YamlDocument::from_string(text, "s.yaml"));
+  const auto& c = scene.cases.at(0);
+  const double r_hat = c.model.law.overstress.r_hat;
+  std::string inadmissible;
+  try {
+    contact::run_history(c.model, c.segments, c.integrator,
+                         [&](const contact::ContactState& s, int) {
+                           if (!(std::isfinite(s.r) && s.r < r_hat && s.law.r_s <= s.r))
+                             inadmissible = "inadmissible state at t = " + std::to_string(s.time);
+                           if (end_ratio) *end_ratio = s.traction_ratio();
+                         });
+  } catch (const contact::StepFailure& e) {
+    return e.what();
+  }
+  return inadmissible;
+}
+
+}  // namespace
+
+// A tolerance the estimate cannot resolve is refused with the smallest tolerance that it can
+// (what the extrapolated estimate resolves: the flow rule's residual tolerance 1e-9 here, times
+// the estimate's weights), and that tolerance, read from the message, runs to the end.
+TEST(AdaptiveScene, RefusedToleranceNamesTheSmallestThatRunsAndItRuns) {
+  const std::string scene = kContactHead.substr(0, kContactHead.find("\nloading:") + 1) + R"(loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.2}
+    increments: 1000
+    growth: 1.02
+)";
+  const auto with = [&](const std::string& tolerance) {
+    return scene + "integrator: {method: implicit, residual_tolerance: 1.0e-9, tolerance: " +
+           tolerance + "}\n";
+  };
+  const std::string refused = run_contact_text(with("1.0e-10"));
+  const std::string key = "use a tolerance of at least ";
+  const auto at = refused.find(key);
+  ASSERT_NE(at, std::string::npos) << "not refused at the estimate's resolution: " << refused;
+  std::size_t length = 0;
+  const double named = std::stod(refused.substr(at + key.size()), &length);
+  measured() << "refused 1e-10, named " << refused.substr(at + key.size(), length) << "\n";
+  EXPECT_GT(named, 1e-10);
+  EXPECT_LT(named, 1e-8);  // the resolution (2e-9), not a tolerance picked far above it
+  EXPECT_EQ(run_contact_text(with(refused.substr(at + key.size(), length))), "");
+}
+
+// Stiff contacts at tight tolerances with the default order (a tolerance, no `order`): the
+// power-overstress fit of figure 11b at 100 and 200 mm/min over 20 mm, and an exponential
+// overstress with n = 64, r_hat = 1.05, alpha_t = 1e8 MPa/mm at 1e5 mm/min over 2 mm, each at
+// 1e-8, 1e-9 and 1e-10: every run reaches the end, admissible, and the traction ratio at the end
+// agrees between 1e-9 and 1e-10 to 10 times 1e-9 of the yield ratio mu_s (the order-2 error
+// follows the tolerance; backward Euler's estimate at these tolerances stopped at its noise rule).
+TEST(AdaptiveContact, StiffCasesRunAtTightTolerancesWithTheDefaultOrder) {
+  const std::string units = "scene: contact\nunits: {stress: MPa, length: mm, time: min}\n";
+  const std::string power = units + R"(law:
+  friction:   {mu_s: 0.097, mu_k: 0.085, kappa: 1.0, xi: 0.005}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: power, eta_v: 950, n: 16, r_hat: 1.8}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
+loading:
+  - slide: {speed: SPEED, direction: [1, 0], distance: 20.0}
+    increments: 2000
+    growth: 1.0045
+)";
+  const std::string exponential = units + R"(law:
+  friction:   {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: exponential, eta_v: 950, n: 64, r_hat: 1.05}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e8, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1.0e5, direction: [1, 0], distance: 2.0}
+    increments: 1000
+    growth: 1.02
+)";
+  const auto at_speed = [&](const std::string& speed) {
+    std::string text = power;
+    return text.replace(text.find("SPEED"), 5, speed);
+  };
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"power, 100 mm/min", at_speed("100")},
+      {"power, 200 mm/min", at_speed("200")},
+      {"exponential n = 64, 1e5 mm/min", exponential}};
+  constexpr double kMuS = 0.097;
+  for (const auto& [name, text] : cases) {
+    std::vector<double> end_ratios;
+    for (const std::string tolerance : {"1.0e-8", "1.0e-9", "1.0e-10"}) {
+      SCOPED_TRACE(name + " at " + tolerance);
+      double end_ratio = 0.0;
+      EXPECT_EQ(run_contact_text(text + "integrator: {method: implicit, tolerance: " + tolerance +
+                                     "}\n",
+                                 &end_ratio),
+                "");
+      end_ratios.push_back(end_ratio);
+    }
+    measured() << name << ": end ratio " << std::setprecision(12) << end_ratios[1] << " (1e-9), "
+               << end_ratios[2] << " (1e-10)\n";
+    EXPECT_LT(std::abs(end_ratios[1] - end_ratios[2]), 10.0 * 1e-9 * kMuS) << name;
+  }
+}
+
 TEST(AdaptiveScene, OrderNeedsAToleranceAndAKnownOrder) {
   const auto scene = subslip::io::parse_contact_scene(subslip::io::YamlDocument::from_string(
       kContactHead + "integrator: {tolerance: 1.0e-5, order: 3}\n", "s.yaml"));

@@ -182,8 +182,10 @@ TEST(FinishedFile, FinishingDropsTheReservationAndKeepsTheRows) {
 // writes. A stale temporary file (a kill while it was written) is simply replaced.
 TEST(FinishedFile, FailedFinishKeepsTheWorkingFileAndRestartFinishesIt) {
   const fs::path dir = scratch_dir();
+  // (order 1: many steps from the 2 increments, rows that outgrow the planned ones)
   std::ofstream(dir / "scene.yaml") << subslip::testing::contact_scene_start() +
-                                           "integrator: {method: implicit, tolerance: 1.0e-5}\n"
+                                           "integrator: {method: implicit, tolerance: 1.0e-5, "
+                                           "order: 1}\n"
                                            "loading:\n"
                                            "  - slide: {speed: 1.0, distance: 1.0}\n"
                                            "    increments: 2\n";

@@ -122,11 +122,15 @@ TEST(RunSize, ExtrapolatedIntegratorCountsItsStateCopies) {
     return estimate_crystal_run(parse_crystal_scene(d), 0).memory_bytes;
   };
   const double fixed = memory("");
-  const double backward_euler = memory("integrator: {method: implicit, tolerance: 1.0e-4}\n");
+  const double backward_euler =
+      memory("integrator: {method: implicit, tolerance: 1.0e-4, order: 1}\n");
   const double order3 = memory("integrator: {method: implicit, tolerance: 1.0e-4, order: 3}\n");
+  const double default_order = memory("integrator: {method: implicit, tolerance: 1.0e-4}\n");
   EXPECT_EQ(backward_euler, fixed);
   // 1000 grains x 4 copies x (15 + 4 x 12 values) x 8 bytes
   EXPECT_EQ(order3 - fixed, 1000.0 * 4.0 * 63.0 * 8.0);
+  // A tolerance without an order is order 2: 3 copies.
+  EXPECT_EQ(default_order - fixed, 1000.0 * 3.0 * 63.0 * 8.0);
 }
 
 TEST(RunSize, ContactEstimateAndRefusal) {

@@ -70,6 +70,29 @@ TEST(StepControl, KnownResolutionDecidesTheNoiseFloor) {
   const std::string why = clock.noise_floor_message();
   EXPECT_NE(why.find("round-off"), std::string::npos) << why;
   EXPECT_NE(why.find("1e-09"), std::string::npos) << why;
+  EXPECT_NE(why.find("use a tolerance of at least 1.00e-11"), std::string::npos) << why;
+}
+
+// The tolerance a refusal at the known resolution names is at least that resolution, shown in
+// three digits rounded up, so a clock at the named tolerance is never stopped by the floor: its
+// estimates at the resolution are accepted.
+TEST(StepControl, NamedToleranceIsAtLeastTheResolutionAndPassesTheFloor) {
+  for (const double resolution : {2.0000000000004e-12, 1.234567e-10, 9.996e-9, 3e-9}) {
+    SCOPED_TRACE(resolution);
+    AdaptiveSegment clock(1.0, 1e-2, 0.1 * resolution, 2);
+    EXPECT_FALSE(clock.refuse(false, resolution, resolution));
+    ASSERT_TRUE(clock.at_noise_floor());
+    const std::string why = clock.noise_floor_message();
+    const std::string key = "use a tolerance of at least ";
+    const auto at = why.find(key);
+    ASSERT_NE(at, std::string::npos) << why;
+    const double named = std::stod(why.substr(at + key.size()));
+    EXPECT_GE(named, resolution);
+    EXPECT_LE(named, resolution * (1.0 + 1e-2));  // three digits, rounded up by one at most
+    AdaptiveSegment at_named(1.0, 1e-2, named, 2);
+    EXPECT_TRUE(at_named.refuse(false, 1.5 * named, resolution));
+    EXPECT_FALSE(at_named.at_noise_floor());
+  }
 }
 
 // A step shorter than the time it starts at resolves (kSameTime of it: its end, or the end of a
@@ -206,4 +229,22 @@ TEST(Extrapolation, StiffModesAreDampedAtAnyStep) {
       }
     }
   }
+}
+
+// A stop an ulp short of the segment end (an output time computed from another run's times) is
+// the end: the step to it is the last and ends exactly on the end, leaving no step of an ulp.
+TEST(StepControl, StopWithinRoundOffOfTheEndIsTheEnd) {
+  const double duration = 0.02;
+  const std::array<double, 2> stops = {0.01, std::nextafter(duration, 0.0)};
+  AdaptiveSegment clock(duration, 1e-3, 1e-6, 2);
+  clock.set_stops(stops);
+  int steps = 0;
+  for (; !clock.last(); ++steps) {
+    ASSERT_LT(steps, 100);
+    clock.accept(0.0);
+  }
+  EXPECT_EQ(clock.end_time(), duration);
+  EXPECT_EQ(clock.step(), duration - clock.time());
+  EXPECT_TRUE(clock.accept(0.0));  // it ended on the stop
+  EXPECT_EQ(clock.time(), duration);
 }

@@ -67,11 +67,15 @@ void check_increment_lengths(const CheckedNode& segment, double duration, int in
 }
 
 int parse_adaptive_order(const CheckedNode& integrator, double tolerance) {
+  // With a tolerance the default is the lowest order whose error follows the tolerance
+  // (docs/integrators.md); backward Euler's own estimate (order 1), whose error follows its
+  // square root, is there by name. Without one, no estimate is made and the order is 1.
+  const int default_order = tolerance > 0.0 ? kDefaultAdaptiveOrder : 1;
   const auto order = integrator.optional("order");
-  if (!order) return 1;
+  if (!order) return default_order;
   if (!(tolerance > 0.0))
     order->fail("order is that of adaptive stepping: give a tolerance (method: implicit)");
-  return integrator.get_int("order", 1,
+  return integrator.get_int("order", default_order,
                             Range::in_closed_interval(1, integrators::kMaxExtrapolationOrder));
 }
 

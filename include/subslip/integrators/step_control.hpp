@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <span>
 #include <string>
@@ -26,8 +28,8 @@ namespace subslip::integrators {
 // at most 10x, the bound of DOPRI5 and of CVODE after its first step (at 4x, until 2026-11-27,
 // the 1000-grain aggregate's first increment of 1.4e-6 strain took 8 steps to 1 % at every
 // tolerance from 1e-2 down, 0.061 times 1e-2; at 10x 5 steps, 0.11; docs/integrators.md).
-// Backward Euler's own estimate (the default, `order: 1`, whose error follows the square root of
-// the tolerance anyway) keeps 4x, so that existing scenes keep their results.
+// Backward Euler's own estimate (`order: 1`, whose error follows the square root of the
+// tolerance anyway) keeps 4x, so that its runs keep their results.
 struct StepFactorLimits {
   double smallest;
   double largest;
@@ -154,15 +156,17 @@ class AdaptiveSegment {
   bool at_stop() const {
     return next_stop_ < stops_.size() && reaches(t_ + dt_, stops_[next_stop_]);
   }
-  bool last() const { return at_stop() ? stops_[next_stop_] >= duration_ : dt_ >= duration_ - t_; }
+  bool last() const {
+    return at_stop() ? reaches(stops_[next_stop_], duration_) : dt_ >= duration_ - t_;
+  }
   // The step to try now: the planned one, or what is left to the next stop or the segment end.
   double step() const {
-    if (at_stop()) return std::min(stops_[next_stop_], duration_) - t_;
+    if (at_stop()) return stop_time() - t_;
     return last() ? duration_ - t_ : dt_;
   }
   // Time into the segment at the end of the step tried now.
   double end_time() const {
-    if (at_stop()) return std::min(stops_[next_stop_], duration_);
+    if (at_stop()) return stop_time();
     return last() ? duration_ : t_ + dt_;
   }
   double time() const { return t_; }
@@ -237,15 +241,21 @@ class AdaptiveSegment {
     return buf;
   }
 
-  // Why a driver stops at the noise floor, for its failure message.
+  // Why a driver stops at the noise floor, for its failure message. With the estimate's
+  // resolution known (the extrapolated integrators), it names the smallest tolerance at or above
+  // that resolution in three digits: an attempt is refused at the floor only when its estimate
+  // is above the tolerance and at most the resolution, so from that tolerance on the floor no
+  // longer stops the run (where the resolution is the same along the path: the contact point,
+  // a crystal under prescribed L; under mixed control it follows the stress).
   std::string noise_floor_message() const {
-    char buf[320];
+    char buf[400];
     if (floor_start_.step == floor_end_.step && floor_start_.error == floor_end_.error) {
       std::snprintf(buf, sizeof buf,
                     "the local error estimate is at the round-off of what it compares (%.3g at "
                     "dt = %.3g): the tolerance %.3g is below what double precision resolves "
-                    "here; use a tolerance above %.3g",
-                    floor_end_.error, floor_end_.step, tolerance_, floor_end_.error);
+                    "here; use a tolerance of at least %s",
+                    floor_end_.error, floor_end_.step, tolerance_,
+                    three_digits_at_least(floor_end_.error).c_str());
       return buf;
     }
     std::snprintf(buf, sizeof buf,
@@ -258,6 +268,18 @@ class AdaptiveSegment {
   }
 
  private:
+  // `x` (> 0) in three significant digits, rounded up: the text read back is at least x.
+  static std::string three_digits_at_least(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.2e", x);
+    for (double shown = std::strtod(buf, nullptr); shown < x; shown = std::strtod(buf, nullptr)) {
+      // One unit of the last digit up, at the exponent of the text as printed.
+      const int exponent = std::atoi(std::strchr(buf, 'e') + 1);
+      std::snprintf(buf, sizeof buf, "%.2e", shown + std::pow(10.0, exponent - 2));
+    }
+    return buf;
+  }
+
   // A step of the extrapolated integrators (those that pass the estimate's resolution to
   // refuse) is one where it is longer than kSameTime of the time it starts at: they divide it
   // into up to 4 substeps whose ends are times, and below that a substep's end rounds onto its
@@ -268,6 +290,13 @@ class AdaptiveSegment {
   // A time reaches a stop when it is at or past it, or short of it by round-off of the stop's
   // time (kSameTime).
   static bool reaches(double time, double stop) { return time >= stop * (1.0 - kSameTime); }
+  // Where the step to the next stop ends: the stop, or the segment end when the stop is within
+  // round-off of it (an output time an ulp short of the end, computed from another run's times,
+  // would leave a last step of an ulp, which no solve resolves).
+  double stop_time() const {
+    const double stop = stops_[next_stop_];
+    return reaches(stop, duration_) ? duration_ : std::min(stop, duration_);
+  }
 
   double duration_;
   double dt_;

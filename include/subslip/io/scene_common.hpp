@@ -75,9 +75,16 @@ Units parse_units_without_length(const CheckedNode& node);
 void check_increment_lengths(const CheckedNode& segment, double duration, int increments,
                              double growth);
 
+// The order a tolerance gets when a scene names none: the lowest whose error follows the
+// tolerance (backward Euler advanced with its extrapolated solution; backward Euler's own
+// estimate, order 1, keeps the local error of a first-order method at the tolerance, and its
+// error follows the square root of it). docs/integrators.md, "Which to pick".
+inline constexpr int kDefaultAdaptiveOrder = 2;
+
 // The `order` of an `integrator` block (1: backward Euler's own estimate, 2 .. 4: extrapolated;
 // integrators/extrapolation.hpp), given its adaptive tolerance (0: fixed increments, where an
-// order is an error).
+// order is an error). With a tolerance and no `order`: kDefaultAdaptiveOrder; without
+// one, 1 (no estimate), what the options' default records.
 int parse_adaptive_order(const CheckedNode& integrator, double tolerance);
 
 // The value of the root `scene:` key, checked against `known` kinds (with a suggestion).

@@ -1,0 +1,302 @@
+#!/usr/bin/env python3
+"""Does a tolerance mean what it says? Every case of the given scenes at a ladder of tolerances
+with the default order (a tolerance and no `order`): whether it runs to the end, and its largest
+error on the path against a tight reference, as a multiple of the tolerance.
+
+    bench/tolerance_sweep.py SUBSLIP SCENE.yaml ... [--tolerances 1e-3 ... 1e-8]
+        [--reference-tolerance 1e-11] [--order K] [--compare-order-1] [--workdir DIR]
+        [--max-cases N] [--crystal-measure state|stress]
+
+SUBSLIP is the built CLI (build/src/subslip). Contact scenes: each case (one per element of the
+scene's sweep) runs with `integrator: {method: implicit, tolerance: T}` (plus `order: K` with
+--order), and the reference (order 2 at --reference-tolerance) runs with its steps ending on
+exactly that run's output times (`output.at`): the error is |f_t/f_n - reference| / mu_s at
+every step the run takes, compared at the same times without interpolation (a reference
+interpolated between its own steps is wrong by more than the runs where both take long steps
+towards a steady state). Steps whose time repeats the one before (a step below the absolute
+time's resolution) are left out of the comparison. Crystal scenes: `subslip accuracy` with
+`--reference-at-run-times` (docs/accuracy.md), integrator `extrapolated_2`.
+
+With --compare-order-1 each contact case also runs backward Euler's own estimate (`order: 1`) at
+the same tolerances, and the summary gives, for each of its points, the run time of the cheapest
+default-order point at least as accurate (work-precision at equal error; wall time of one run,
+so compare only large ratios on a shared machine).
+
+Prints one row per case, a cell per tolerance ("error/tolerance (steps)", or the failure), then a
+summary: runs that reached the end, and how many ended within 0.1 ... 10 times the tolerance,
+below 0.1 (more accurate than asked) or above 10. Benchmarks are not tests: nothing is asserted.
+Run it with `nice` on a shared machine.
+"""
+import argparse
+import bisect
+import copy
+import csv
+import itertools
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+import yaml
+
+
+class SceneLoader(yaml.SafeLoader):
+    """YAML 1.2 numbers: 1e-4 is a float (YAML 1.1 reads it as a string)."""
+
+
+SceneLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^[-+]?\.(inf|Inf|INF)$|^\.(nan|NaN|NAN)$"),
+    list("-+0123456789."))
+
+
+def load_scene(path):
+    with open(path) as f:
+        return yaml.load(f, Loader=SceneLoader)
+
+
+def cases_of(scene):
+    """(name, single-case scene) for every element of the scene's sweep."""
+    sweep = scene.get("sweep")
+    base = {k: v for k, v in scene.items() if k != "sweep"}
+    if not sweep:
+        return [("base", base)]
+    keys = list(sweep.keys())
+    out = []
+    for values in itertools.product(*(sweep[k] for k in keys)):
+        s = copy.deepcopy(base)
+        s["sweep"] = {k: [v] for k, v in zip(keys, values)}
+        name = ",".join(f"{k.split('.')[-1]}={v}" for k, v in zip(keys, values)
+                        if not isinstance(v, (dict, list)))
+        out.append((name or str(values), s))
+    return out
+
+
+def with_integrator(scene, tolerance, order, fields, at_times=None):
+    s = copy.deepcopy(scene)
+    integrator = {k: v for k, v in (s.get("integrator") or {}).items()
+                  if k not in ("order", "tolerance", "method")}
+    integrator.update({"method": "implicit", "tolerance": float(tolerance)})
+    if order:
+        integrator["order"] = int(order)
+    s["integrator"] = integrator
+    s["output"] = {"fields": fields}
+    if at_times is not None:
+        s["output"]["at"] = {"time": at_times}
+    return s
+
+
+RUN_SECONDS = 120.0  # --max-run-seconds
+
+
+def run(subslip, scene, workdir, tag):
+    path = os.path.join(workdir, tag + ".yaml")
+    with open(path, "w") as f:
+        yaml.safe_dump(scene, f, sort_keys=False)
+    h5 = os.path.join(workdir, tag + ".h5")
+    start = time.perf_counter()
+    try:
+        done = subprocess.run([subslip, "run", path, "-o", h5, "-f", "-q", "-j", "1"],
+                              capture_output=True, text=True, timeout=RUN_SECONDS)
+    except subprocess.TimeoutExpired:
+        return None, RUN_SECONDS, f"stopped after {RUN_SECONDS:g} s"
+    seconds = time.perf_counter() - start
+    if done.returncode != 0:
+        return None, seconds, (done.stderr.strip().splitlines() or ["failed"])[-1]
+    out = os.path.join(workdir, tag + "_csv")
+    subprocess.run([subslip, "post", h5, "--csv", out, "-f", "-q", "--dataset", "ratio"],
+                   check=True, capture_output=True)
+    ratio_csv = next(f for f in os.listdir(out) if f.endswith("_ratio.csv"))  # one case
+    with open(os.path.join(out, ratio_csv), newline="") as f:
+        rows = list(csv.reader(f))[1:]
+    summary = subprocess.run([subslip, "post", h5], capture_output=True, text=True).stdout
+    steps = re.search(r"^\s*increments\s*=\s*(\d+)", summary, re.M)
+    mu_s = re.search(r"^\s*mu_s\s*=\s*([0-9.eE+-]+)", summary, re.M)
+    os.remove(h5)
+    return {"time": [float(r[1]) for r in rows], "ratio": [float(r[2]) for r in rows],
+            "steps": int(steps.group(1)) if steps else -1,
+            "mu_s": float(mu_s.group(1)) if mu_s else math.nan}, seconds, None
+
+
+def own_times(got):
+    """The run's output times after the initial state, without repeats, and the ratio at each."""
+    times, ratios, previous = [], [], -math.inf
+    for t, r in zip(got["time"][1:], got["ratio"][1:]):
+        if t > previous:
+            times.append(t)
+            ratios.append(r)
+        previous = t
+    return times, ratios
+
+
+def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
+    """For each (tolerance, order) of `runs`: (max error / tolerance, steps, wall seconds, max
+    error) or a failure message. One reference run ends a step on every time of every run."""
+    out, got_all = {}, {}
+    for tolerance, order in runs:
+        got, seconds, why = run(subslip, with_integrator(scene, tolerance, order,
+                                                         ["time", "ratio"]),
+                                workdir, f"{tag}_{tolerance}_{order}")
+        if got is None:
+            out[(tolerance, order)] = why
+        else:
+            got_all[(tolerance, order)] = (got, seconds)
+    if not got_all:
+        return out
+    union = []
+    for t in sorted(set(t for got, _ in got_all.values() for t in own_times(got)[0])):
+        if not union or t > union[-1] * (1.0 + 16 * sys.float_info.epsilon):
+            union.append(t)  # (points closer than that are one for the parser)
+    ref, _, why = run(subslip, with_integrator(scene, reference_tolerance, 2, ["time", "ratio"],
+                                               union), workdir, tag + "_ref")
+    for key, (got, seconds) in got_all.items():
+        if ref is None:
+            out[key] = "reference: " + why
+            continue
+        times, ratios = own_times(got)
+        errors = []
+        for t, r in zip(times, ratios):
+            # The reference's step ending on t, or on a stop within round-off of it (the driver
+            # ends a step on a stop within 8 eps of the time: two runs' times that close are one).
+            j = bisect.bisect_left(ref["time"], t)
+            near = [i for i in (j - 1, j) if 0 <= i < len(ref["time"]) and
+                    abs(ref["time"][i] - t) <= 64 * sys.float_info.epsilon * abs(t)]
+            if near:
+                nearest = min(near, key=lambda i: abs(ref["time"][i] - t))
+                errors.append(abs(r - ref["ratio"][nearest]))
+        # A few times the reference cannot end a step on (round-off of a segment's start time,
+        # or two stops within round-off merged into one that ends elsewhere) are left out.
+        if len(errors) < 0.99 * len(times):
+            out[key] = f"reference has {len(errors)} of the {len(times)} times"
+            continue
+        error = max(errors) / got["mu_s"]
+        out[key] = (error / float(key[0]), got["steps"], seconds, error)
+    return out
+
+
+def crystal_rows(subslip, path, args, workdir):
+    out = os.path.join(workdir, os.path.splitext(os.path.basename(path))[0])
+    cmd = [subslip, "accuracy", path, "-o", out, "-f", "-q", "--no-plot",
+           "--integrators", "extrapolated_2", "--extrapolated", *args.tolerances,
+           "--reference-tolerance", args.reference_tolerance, "--reference-order", "2",
+           "--reference-at-run-times", "--repeat", "1", "--measure", args.crystal_measure,
+           "--max-run-seconds", str(args.max_run_seconds)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    csv_path = os.path.join(out, "accuracy.csv")
+    if not os.path.exists(csv_path):
+        return None, (done.stderr.strip().splitlines() or ["no output"])[-1]
+    with open(csv_path, newline="") as f:
+        return list(csv.DictReader(f)), None
+
+
+def band(ratio):
+    if ratio < 0.1:
+        return "below 0.1"
+    if ratio <= 10.0:
+        return "0.1 ... 10"
+    return "above 10"
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("subslip")
+    p.add_argument("scenes", nargs="+")
+    p.add_argument("--tolerances", nargs="+",
+                   default=["1e-3", "1e-4", "1e-5", "1e-6", "1e-7", "1e-8"])
+    p.add_argument("--reference-tolerance", default="1e-11")
+    p.add_argument("--order", type=int, default=0, help="0: the scene default (none given)")
+    p.add_argument("--compare-order-1", action="store_true")
+    p.add_argument("--workdir", default=None)
+    p.add_argument("--max-cases", type=int, default=0, help="per scene, 0: all")
+    p.add_argument("--crystal-measure", choices=["state", "stress"], default="state")
+    p.add_argument("--max-run-seconds", type=float, default=120.0)
+    args = p.parse_args()
+    global RUN_SECONDS
+    RUN_SECONDS = args.max_run_seconds
+    workdir = args.workdir or tempfile.mkdtemp(prefix="tolerance_sweep_")
+    os.makedirs(workdir, exist_ok=True)
+
+    print(f"order {args.order or 'default'}; reference: order 2 at {args.reference_tolerance} at "
+          "each run's own times; cell: max error over the path / tolerance (steps)\n")
+    print("| scene | case | " + " | ".join(args.tolerances) + " |")
+    print("|---|---|" + "---|" * len(args.tolerances), flush=True)
+    runs = ended = 0
+    bands, failures, equal_error = {}, [], []
+    for path in args.scenes:
+        name = os.path.basename(path)
+        scene = load_scene(path)
+        if scene.get("scene") == "crystal":
+            rows, why = crystal_rows(args.subslip, path, args, workdir)
+            if rows is None:
+                failures.append(f"{name}: {why}")
+                continue
+            for case in dict.fromkeys(r["case"] for r in rows):
+                cells = []
+                for tol in args.tolerances:
+                    r = next((x for x in rows if x["case"] == case and
+                              float(x["setting"]) == float(tol)), None)
+                    runs += 1
+                    if r is None or r["status"] != "ok":
+                        why = "not run" if r is None else r["status"] + " " + r["failure"]
+                        cells.append("**" + why.split()[0] + "**")
+                        failures.append(f"{name} {case} at {tol}: {why[:300]}")
+                        continue
+                    ended += 1
+                    ratio = float(r["error_to_tolerance"])
+                    bands[band(ratio)] = bands.get(band(ratio), 0) + 1
+                    cells.append(f"{ratio:.2g} ({r['steps']})")
+                print(f"| {name} | {case} | " + " | ".join(cells) + " |", flush=True)
+            continue
+        cases = cases_of(scene)
+        if args.max_cases:
+            cases = cases[:args.max_cases]
+        for k, (case, single) in enumerate(cases):
+            wanted = [(tol, args.order) for tol in args.tolerances]
+            if args.compare_order_1:
+                wanted += [(tol, 1) for tol in args.tolerances]
+            results = contact_points(args.subslip, single, wanted, args.reference_tolerance,
+                                     workdir, f"{os.path.splitext(name)[0]}_{k}")
+            cells, points = [], {}
+            for tol in args.tolerances:
+                runs += 1
+                got = results[(tol, args.order)]
+                if isinstance(got, str):
+                    cells.append("**reference**" if got.startswith("reference") else "**failed**")
+                    failures.append(f"{name} {case} at {tol}: {got[:300]}")
+                    continue
+                ended += 1
+                ratio, steps, seconds, error = got
+                points[tol] = (error, seconds)
+                bands[band(ratio)] = bands.get(band(ratio), 0) + 1
+                cells.append(f"{ratio:.2g} ({steps})")
+            print(f"| {name} | {case} | " + " | ".join(cells) + " |", flush=True)
+            if args.compare_order_1:
+                for tol in args.tolerances:
+                    got = results[(tol, 1)]
+                    if isinstance(got, str):
+                        equal_error.append((name, case, tol, math.nan, math.nan, math.nan))
+                        continue
+                    _, _, seconds, error = got
+                    better = [s for e, s in points.values() if e <= error]
+                    equal_error.append((name, case, tol, error, seconds,
+                                        min(better) if better else math.nan))
+    print(f"\n{ended} of {runs} runs reached the end; max error over the tolerance: " +
+          ", ".join(f"{k}: {v}" for k, v in sorted(bands.items())))
+    for f in failures:
+        print(f"  not ended: {f}")
+    if equal_error:
+        print("\nwork-precision: each order-1 point against the cheapest default-order point at "
+              "least as accurate (wall seconds of one run, with the process start)")
+        print("| scene | case | order-1 tolerance | order-1 error | order 1 [s] | default [s] |")
+        print("|---|---|---|---|---|---|")
+        for name, case, tol, e1, t1, t2 in equal_error:
+            print(f"| {name} | {case} | {tol} | {e1:.2g} | {t1:.3g} | {t2:.3g} |")
+    print(f"\n(runs in {workdir})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
