@@ -611,13 +611,13 @@ std::string run_contact_text(const std::string& text, double* end_ratio = nullpt
   const double r_hat = c.model.law.overstress.r_hat;
   std::string inadmissible;
   try {
-    contact::run_history(c.model, c.segments, c.integrator,
+    history::run_history(c.model, c.segments, c.integrator,
                          [&](const contact::ContactState& s, int) {
                            if (!(std::isfinite(s.r) && s.r < r_hat && s.law.r_s <= s.r))
                              inadmissible = "inadmissible state at t = " + std::to_string(s.time);
                            if (end_ratio) *end_ratio = s.traction_ratio();
                          });
-  } catch (const contact::StepFailure& e) {
+  } catch (const history::StepFailure& e) {
     return e.what();
   }
   return inadmissible;
