@@ -17,6 +17,10 @@ packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev li
           libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
           libhdf5-openmpi-dev  # ranks writing one result file together (parallel HDF5)
           python3-h5py python3-matplotlib python3-numpy)  # scripts/subslip_plots.py and its test
+# The tests of `test` include a Fortran driver of the FE library's UMAT (tests/fe/umat_driver.f90).
+if [ "${1:-}" = test ]; then
+  packages+=(gfortran)
+fi
 # The sanitizer and fuzz stages of `test` build the fuzz targets with clang (libFuzzer, OpenMP).
 if [ "${1:-}" = test ] && [ "${2:-}" != --quick ]; then
   packages+=(clang libclang-rt-14-dev libomp-dev)

@@ -26,7 +26,7 @@ LEVELS = [
     ("law",),                     # the subloading-overstress law (uses the scalar root finder)
     ("contact", "crystal"),       # the physics: a contact point, grains and the Taylor aggregate
     ("point",),                   # the material-point API over the physics
-    ("history",),                 # a contact point driven along a prescribed history
+    ("history", "fe"),            # a contact point driven along a history; the FE entry points
     ("study",),                   # accuracy, robustness and benchmark studies (and their peers)
     ("model",),                   # the plain run model a scene becomes (cases, fields, units)
     ("driver",),                  # runs a model's cases, hands results to sinks it defines
