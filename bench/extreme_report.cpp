@@ -292,9 +292,9 @@ CaseRun run_crystal(const io::CrystalCase& c, int split_by, double tolerance, do
     const cr::AggregateStats st = agg->run(
         split(c.segments, split_by), opt,
         [&](const cr::MacroState& m, const cr::GrainFields& f) {
-          f.ratio(r.data());
-          f.subloading_ratio(rs.data());
-          f.crss(crss.data());
+          f.values(cr::GrainField::r, r.data());
+          f.values(cr::GrainField::r_s, rs.data());
+          f.values(cr::GrainField::crss, crss.data());
           for (size_t i = 0; i < cells && out.violation.empty(); ++i) {
             const double rh = r_hat[i % n];
             std::ostringstream why;

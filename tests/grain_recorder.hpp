@@ -22,13 +22,13 @@ struct GrainRecorder {
       const auto n = g * static_cast<size_t>(f.slip_count());
       s.stress.resize(6 * g), s.orientation.resize(9 * g), s.slip.resize(n), s.rate.resize(n),
           s.crss.resize(n), s.ratio.resize(n), s.r_s.resize(n);
-      f.stress(s.stress.data());
-      f.orientation(s.orientation.data());
-      f.slip(s.slip.data());
-      f.slip_rate(s.rate.data());
-      f.crss(s.crss.data());
-      f.ratio(s.ratio.data());
-      f.subloading_ratio(s.r_s.data());
+      f.values(crystal::GrainField::stress, s.stress.data());
+      f.values(crystal::GrainField::orientation, s.orientation.data());
+      f.values(crystal::GrainField::slip, s.slip.data());
+      f.values(crystal::GrainField::slip_rate, s.rate.data());
+      f.values(crystal::GrainField::crss, s.crss.data());
+      f.values(crystal::GrainField::r, s.ratio.data());
+      f.values(crystal::GrainField::r_s, s.r_s.data());
       snaps.push_back(std::move(s));
     };
   }

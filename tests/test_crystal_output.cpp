@@ -79,13 +79,13 @@ Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
              std::vector<double>(n * k),
              std::vector<double>(n * k),
              std::vector<double>(n * k)};
-  g.stress(r.stress.data());
-  g.orientation(r.orientation.data());
-  g.slip(r.slip.data());
-  g.slip_rate(r.slip_rate.data());
-  g.crss(r.crss.data());
-  g.ratio(r.r.data());
-  g.subloading_ratio(r.r_s.data());
+  g.values(crystal::GrainField::stress, r.stress.data());
+  g.values(crystal::GrainField::orientation, r.orientation.data());
+  g.values(crystal::GrainField::slip, r.slip.data());
+  g.values(crystal::GrainField::slip_rate, r.slip_rate.data());
+  g.values(crystal::GrainField::crss, r.crss.data());
+  g.values(crystal::GrainField::r, r.r.data());
+  g.values(crystal::GrainField::r_s, r.r_s.data());
   return r;
 }
 

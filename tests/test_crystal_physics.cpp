@@ -183,9 +183,9 @@ SlideTrace crystal_slide(double alpha, double v, double length, int increments, 
   SlideTrace t;
   agg->run({seg}, opt, [&](const MacroState& m, const GrainFields& f) {
     double slip, crss, rs;
-    f.slip(&slip);
-    f.crss(&crss);
-    f.subloading_ratio(&rs);
+    f.values(GrainField::slip, &slip);
+    f.values(GrainField::crss, &crss);
+    f.values(GrainField::r_s, &rs);
     t.ratio.push_back(m.stress(0, 1) / kFn);
     t.slip.push_back(slip * h);
     t.mu.push_back(crss / kFn);

@@ -11,6 +11,7 @@
 
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
+#include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_common.hpp"
@@ -320,5 +321,43 @@ TEST(ShippedCrystalScenes, SingleSlipCheckSweepsTheShearRate) {
     EXPECT_NEAR(c.phase.stiffness(5, 5), 2.0e6, 1e-6);  // 2 G, G = alpha_t h
     EXPECT_DOUBLE_EQ(c.phase.custom_settings.tau0, 5.56);
     EXPECT_DOUBLE_EQ(c.phase.custom_settings.law.overstress.eta_v, 950.0);
+  }
+}
+
+// The run model only says where the orientations come from; the driver reads them. Read by
+// one process (no team, or a team of one), they are the whole set parse_crystal_scene reads,
+// in order, with the same digest; a file's problem is the same error, found when it is read.
+TEST(CrystalScene, DescribedSceneLeavesItsOrientationsToTheDriver) {
+  const fs::path path = kSource / "inputs/bcc_48_tension.yaml";
+  const CrystalScene whole = load_crystal_scene(path);
+  for (const parallel::Team* team : {static_cast<const parallel::Team*>(nullptr),
+                                     &parallel::serial_team()}) {
+    CrystalScene described = describe_crystal_scene(YamlDocument::from_file(path));
+    ASSERT_EQ(described.cases.size(), 1u);
+    CrystalCase& c = described.cases[0];
+    EXPECT_TRUE(c.orientations.empty());
+    ASSERT_TRUE(c.orientation_origin.file.has_value());
+    EXPECT_EQ(c.orientation_source.kind, "file");
+    driver::read_orientations(described, {team, nullptr});
+    EXPECT_FALSE(c.orientation_block.has_value());
+    ASSERT_EQ(c.orientations.size(), whole.cases[0].orientations.size());
+    EXPECT_EQ(c.orientations_digest(), whole.cases[0].orientations_digest());
+    EXPECT_EQ(c.orientation_source.largest_euler_deg,
+              whole.cases[0].orientation_source.largest_euler_deg);
+  }
+  const fs::path bad = kSource / "tests/data/crystal_scenes/bad_orientation_file.yaml";
+  std::string parsed_error;
+  try {
+    parse_crystal_scene(YamlDocument::from_file(bad));
+  } catch (const InputError& e) {
+    parsed_error = e.what();
+  }
+  ASSERT_FALSE(parsed_error.empty());
+  CrystalScene described = describe_crystal_scene(YamlDocument::from_file(bad));
+  try {
+    driver::read_orientations(described, {});
+    ADD_FAILURE() << "the bad orientation file was read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), parsed_error);
   }
 }

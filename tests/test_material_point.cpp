@@ -259,8 +259,8 @@ DriverRecord run_aggregate(const std::vector<Eigen::Matrix3d>& grains) {
     r.macro_stress.push_back(m.stress);
     std::vector<double> stress(6 * static_cast<std::size_t>(f.grain_count()));
     std::vector<double> slip(static_cast<std::size_t>(f.grain_count() * f.slip_count()));
-    f.stress(stress.data());
-    f.slip(slip.data());
+    f.values(cr::GrainField::stress, stress.data());
+    f.values(cr::GrainField::slip, slip.data());
     r.grain_stress.push_back(stress);
     r.slip.push_back(slip);
   });

@@ -599,8 +599,8 @@ std::vector<std::vector<double>> run_crystal(const CrystalScene& scene) {
                      row.push_back(m.strain(k / 3, k % 3));
                      row.push_back(m.deformation_gradient(k / 3, k % 3));
                    }
-                   f.crss(crss.data());
-                   f.slip(slip.data());
+                   f.values(crystal::GrainField::crss, crss.data());
+                   f.values(crystal::GrainField::slip, slip.data());
                    for (double x : crss) row.push_back(to_si(x, stress));
                    row.insert(row.end(), slip.begin(), slip.end());
                    if (columns.empty()) columns.resize(row.size());

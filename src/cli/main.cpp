@@ -458,7 +458,8 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   driver::OrientationSharing sharing;
   if (team.size() > 1 && io::h5::parallel_hdf5() && !a.gather_output)
     sharing = {&team, exit_code_of};
-  const io::CrystalScene scene = io::parse_crystal_scene(document, sharing);
+  io::CrystalScene scene = io::describe_crystal_scene(document);
+  driver::read_orientations(scene, sharing);
   const std::optional<long> checkpoint_every =
       a.checkpoint_every >= 0 ? std::optional<long>(a.checkpoint_every) : std::nullopt;
   bool checkpoints = true, any_checkpoints = false;

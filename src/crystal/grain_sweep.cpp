@@ -364,6 +364,26 @@ void GrainSweep<N>::subloading_ratio(double* out) const {
   per_system(out, [](const auto& s, int a) { return s.r_s(a); });
 }
 
+template <int N>
+void GrainSweep<N>::values(GrainField f, double* out) const {
+  switch (f) {
+    case GrainField::stress:
+      return stress(out);
+    case GrainField::orientation:
+      return orientation(out);
+    case GrainField::slip:
+      return slip(out);
+    case GrainField::slip_rate:
+      return slip_rate(out);
+    case GrainField::crss:
+      return crss(out);
+    case GrainField::r:
+      return ratio(out);
+    case GrainField::r_s:
+      return subloading_ratio(out);
+  }
+}
+
 #define SUBSLIP_INSTANTIATE_GRAIN_SWEEP(N) template class GrainSweep<N>;
 
 SUBSLIP_FOR_EACH_SLIP_COUNT(SUBSLIP_INSTANTIATE_GRAIN_SWEEP)

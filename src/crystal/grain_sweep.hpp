@@ -103,15 +103,16 @@ class GrainSweep final : public GrainFields {
   // GrainFields
   int grain_count() const override { return static_cast<int>(committed_.size()); }
   int slip_count() const override { return phase_.slip_count; }
-  void stress(double* out) const override;
-  void orientation(double* out) const override;
-  void slip(double* out) const override;
-  void slip_rate(double* out) const override;
-  void crss(double* out) const override;
-  void ratio(double* out) const override;
-  void subloading_ratio(double* out) const override;
+  void values(GrainField f, double* out) const override;
 
  private:
+  void stress(double* out) const;
+  void orientation(double* out) const;
+  void slip(double* out) const;
+  void slip_rate(double* out) const;
+  void crss(double* out) const;
+  void ratio(double* out) const;
+  void subloading_ratio(double* out) const;
   void solve_implicit_grain(
       size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options, Tangent* t,
       bool warm, bool carried, bool slip_tangent,

@@ -1,8 +1,11 @@
 #include "subslip/driver/orientation_sharing.hpp"
 
+#include "subslip/driver/crystal_run.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <exception>
 #include <span>
 #include <string>
 #include <utility>
@@ -58,7 +61,52 @@ std::vector<double> send_blocks(const RootOrientationReader& reader, const paral
   return own;
 }
 
+// Rank 0's reader of an orientation file (its second pass reports a problem as nullopt).
+RootOrientationReader root_reader(const model::OrientationFile& file, double& largest) {
+  RootOrientationReader reader;
+  reader.first_pass = [&file, &largest](const OrientationVisitor& each) {
+    return file.read(each, largest);
+  };
+  reader.noted = [&largest] { return largest; };
+  reader.second_pass = [&file](const OrientationVisitor& each) -> std::optional<std::size_t> {
+    try {
+      double again = -1.0;
+      return file.read(each, again);
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+  };
+  reader.fail_weights = file.fail_weights;
+  reader.fail_changed = file.fail_changed;
+  return reader;
+}
+
+// This rank's block of the orientations of `c`, and what the whole set gives.
+void read_own_block(model::CrystalCase& c, const OrientationSharing& sharing) {
+  if (!c.orientation_origin.file) {
+    model::read_all_orientations(c);
+    c.orientation_block = keep_own_block(c.orientations, *sharing.team);
+    return;
+  }
+  double largest = -1.0;
+  SharedOrientations shared =
+      share_root_orientations(sharing, root_reader(*c.orientation_origin.file, largest));
+  c.orientation_source.largest_euler_deg = shared.noted;
+  c.orientation_block = shared.block;
+  c.orientations = std::move(shared.mine);
+}
+
 }  // namespace
+
+void read_orientations(model::CrystalScene& scene, const OrientationSharing& sharing) {
+  const bool blocks = sharing.team != nullptr && shares_grains(scene, *sharing.team);
+  for (model::CrystalCase& c : scene.cases) {
+    if (blocks)
+      read_own_block(c, sharing);
+    else
+      model::read_all_orientations(c);
+  }
+}
 
 model::OrientationBlock keep_own_block(std::vector<crystal::Orientation>& grains,
                                        const parallel::Team& team) {

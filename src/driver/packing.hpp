@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "subslip/crystal/aggregate.hpp"
-#include "subslip/crystal/grain_field_values.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/driver/crystal_sink.hpp"
 #include "subslip/parallel/team.hpp"
 
@@ -136,7 +136,7 @@ class FieldArrays final : public crystal::GrainFields {
   // Every field of `fields`.
   explicit FieldArrays(const crystal::GrainFields& fields)
       : FieldArrays(fields.grain_count(), fields.slip_count()) {
-    for (crystal::GrainField f : crystal::kAllGrainFields) crystal::give(fields, f, at(f));
+    for (crystal::GrainField f : crystal::kAllGrainFields) fields.values(f, at(f));
   }
   // Values per grain over all fields.
   std::size_t width() const {
@@ -153,13 +153,7 @@ class FieldArrays final : public crystal::GrainFields {
 
   int grain_count() const override { return grains_; }
   int slip_count() const override { return slips_; }
-  void stress(double* out) const override { copy(crystal::GrainField::stress, out); }
-  void orientation(double* out) const override { copy(crystal::GrainField::orientation, out); }
-  void slip(double* out) const override { copy(crystal::GrainField::slip, out); }
-  void slip_rate(double* out) const override { copy(crystal::GrainField::slip_rate, out); }
-  void crss(double* out) const override { copy(crystal::GrainField::crss, out); }
-  void ratio(double* out) const override { copy(crystal::GrainField::r, out); }
-  void subloading_ratio(double* out) const override { copy(crystal::GrainField::r_s, out); }
+  void values(crystal::GrainField f, double* out) const override { copy(f, out); }
 
  private:
   // Where field f starts: the fields before it, each grains x its width.

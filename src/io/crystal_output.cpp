@@ -10,7 +10,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include "subslip/crystal/grain_field_values.hpp"
 #include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
@@ -284,13 +283,14 @@ std::size_t rows_within(std::size_t bytes, std::size_t row_bytes, std::size_t mo
   return std::clamp<std::size_t>(bytes / std::max<std::size_t>(row_bytes, 1), 1, most);
 }
 
-// The per-grain values of `f` for the current state, [grains x k] row-major, in `out`.
+// The per-grain values of `f` for the current state, [grains x k] row-major, in `out`, in the
+// shape the table stores it (from the values as the aggregate gives them, through `matrices`).
 void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matrices,
           std::vector<double>& out) {
-  switch (f) {
-    case GrainField::stress: {
+  switch (crystal::info(f).stored) {
+    case crystal::GrainFieldShape::tensor: {
       // [grains x 6] (11 22 33 23 13 12) from the aggregate, stored as full 3x3 tensors.
-      g.stress(matrices.data());
+      g.values(f, matrices.data());
       constexpr int kRow[6] = {0, 1, 2, 1, 0, 0}, kColumn[6] = {0, 1, 2, 2, 2, 1};
       for (std::size_t k = 0; k < static_cast<std::size_t>(g.grain_count()); ++k) {
         const double* voigt = matrices.data() + 6 * k;
@@ -302,8 +302,9 @@ void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matr
       }
       return;
     }
-    case GrainField::orientation: {
-      g.orientation(matrices.data());
+    case crystal::GrainFieldShape::quaternion: {
+      // [grains x 9] (row-major orientation matrices), stored as quaternions.
+      g.values(f, matrices.data());
       for (int k = 0; k < g.grain_count(); ++k) {
         const auto base = static_cast<std::size_t>(k);
         const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> m(matrices.data() +
@@ -313,8 +314,8 @@ void fill(GrainField f, const crystal::GrainFields& g, std::vector<double>& matr
       }
       return;
     }
-    default:  // one value per slip system, as the aggregate gives it
-      crystal::give(g, f, out.data());
+    case crystal::GrainFieldShape::per_system:  // as the aggregate gives it
+      g.values(f, out.data());
       return;
   }
 }

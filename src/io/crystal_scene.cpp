@@ -17,7 +17,6 @@
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/crystal/slip_systems.hpp"
 #include "subslip/crystal/texture.hpp"
-#include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/io/orientation_file.hpp"
 
 namespace subslip::io {
@@ -263,58 +262,40 @@ std::filesystem::path resolve_relative(const std::string& file, const std::strin
   return std::filesystem::path(scene_file).parent_path() / p;
 }
 
-// Reads the orientation file `node` names through `each` (returns the count). Errors inside
-// the file keep its file and line and say which scene key read it; a missing or empty file has
-// no line of its own and is reported at the scene key.
-std::size_t visit_orientation_file(const CheckedNode& node, OrientationSource& source,
-                                   const OrientationVisitor& each) {
-  const std::filesystem::path path = resolve_relative(node.as_string(), node.file());
-  source = {"file", path.string()};
-  try {
-    return read_orientation_file(path.string(), each, &source.largest_euler_deg);
-  } catch (const InputError& e) {
-    if (e.line == 0) node.fail(e.what());
-    throw InputError(e.file, e.line, e.key,
-                     e.message + " (orientation file given at " + node.file() + ":" +
-                         std::to_string(node.line()) + ": " + node.path() + ")");
+// Where a scene names an orientation file: errors about the file as a whole are reported here.
+struct SceneKey {
+  std::string file;
+  int line = 0;
+  std::string path;
+  [[noreturn]] void fail(const std::string& message) const {
+    throw InputError(file, line, path, message);
   }
-}
+};
 
-std::vector<crystal::Orientation> read_orientations_from(const CheckedNode& node,
-                                                         OrientationSource& source) {
-  std::vector<crystal::Orientation> out;
-  visit_orientation_file(node, source, [&](const crystal::Orientation& o) { out.push_back(o); });
-  return out;
-}
-
-// This rank's block of the orientations in the file `node` names, read by rank 0 alone
-// (driver::OrientationSharing); `block` what the whole file gives.
-std::vector<crystal::Orientation> read_shared_file(const CheckedNode& node,
-                                                   OrientationSource& source,
-                                                   const driver::OrientationSharing& sharing,
-                                                   std::optional<OrientationBlock>& block) {
+// The orientation file `node` names, to be read when asked. Errors inside the file keep its
+// file and line and say which scene key named it; a missing or empty file has no line of its
+// own and is reported at the scene key.
+model::OrientationFile orientation_file(const CheckedNode& node, OrientationSource& source) {
   const std::string path = resolve_relative(node.as_string(), node.file()).string();
-  driver::RootOrientationReader reader;
-  reader.first_pass = [&](const driver::OrientationVisitor& each) {
-    return visit_orientation_file(node, source, each);
-  };
-  reader.noted = [&] { return source.largest_euler_deg; };
-  reader.second_pass = [&](const driver::OrientationVisitor& each) -> std::optional<std::size_t> {
+  source = {"file", path};
+  const SceneKey key{node.file(), node.line(), node.path()};
+  model::OrientationFile file;
+  file.path = path;
+  file.read = [path, key](const model::OrientationVisitor& each, double& largest_euler_deg) {
     try {
-      OrientationSource again;
-      return visit_orientation_file(node, again, each);
-    } catch (const InputError&) {
-      return std::nullopt;
+      return read_orientation_file(path, each, &largest_euler_deg);
+    } catch (const InputError& e) {
+      if (e.line == 0) key.fail(e.what());
+      throw InputError(e.file, e.line, e.key,
+                       e.message + " (orientation file given at " + key.file + ":" +
+                           std::to_string(key.line) + ": " + key.path + ")");
     }
   };
-  reader.fail_weights = [&] { node.fail("the orientation weights sum to more than 1.8e308"); };
-  reader.fail_changed = [&] {
-    node.fail("the orientation file " + path + " changed while it was read; run again");
+  file.fail_weights = [key] { key.fail("the orientation weights sum to more than 1.8e308"); };
+  file.fail_changed = [key, path] {
+    key.fail("the orientation file " + path + " changed while it was read; run again");
   };
-  driver::SharedOrientations shared = driver::share_root_orientations(sharing, reader);
-  source = {"file", path, shared.noted};
-  block = shared.block;
-  return std::move(shared.mine);
+  return file;
 }
 
 std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
@@ -342,8 +323,8 @@ std::uint64_t read_seed(const CheckedNode& node) {
   return static_cast<std::uint64_t>(node.get_int("seed", 1, Range::non_negative()));
 }
 
-std::vector<crystal::Orientation> generated(const CheckedNode& node, bool component,
-                                            OrientationSource& source) {
+crystal::OrientationRequest generated(const CheckedNode& node, bool component,
+                                     OrientationSource& source) {
   crystal::OrientationRequest request;
   if (component) {
     node.allow_keys({"name", "count", "spread_deg", "seed"});
@@ -357,32 +338,29 @@ std::vector<crystal::Orientation> generated(const CheckedNode& node, bool compon
       node.get_int("count", Range::in_closed_interval(1, kMaxGeneratedGrains)));
   request.seed = read_seed(node);
   source = {component ? "component" : "random", crystal::describe(request)};
-  return crystal::generate_orientations(request);
+  return request;
 }
 
-// `sharing`: this rank keeps only its block (driver::OrientationSharing), and `block` says so.
-std::vector<crystal::Orientation> parse_orientations(const CheckedNode& node,
-                                                     OrientationSource& source,
-                                                     const driver::OrientationSharing* sharing,
-                                                     std::optional<OrientationBlock>& block) {
+// Where the orientations come from; inline Euler angles are read here (the scene holds them),
+// a file and a generated texture when the run model is read (model::read_all_orientations,
+// driver::read_orientations).
+model::OrientationOrigin parse_orientations(const CheckedNode& node, OrientationSource& source) {
   node.allow_keys({"file", "euler_deg", "random", "component"});
   const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
   const CheckedNode value = node.required(kind);
-  std::vector<crystal::Orientation> grains;
-  if (sharing != nullptr && kind == "file") return read_shared_file(value, source, *sharing, block);
+  model::OrientationOrigin origin;
   if (kind == "file") {
-    grains = read_orientations_from(value, source);
+    origin.file = orientation_file(value, source);
   } else if (kind == "euler_deg") {
-    grains = inline_euler(value, source);
+    origin.given = inline_euler(value, source);
+    // Weights are normalised by their sum, which must not overflow.
+    double total = 0.0;
+    for (const auto& g : origin.given) total += g.weight;
+    if (!std::isfinite(total)) value.fail("the orientation weights sum to more than 1.8e308");
   } else {
-    grains = generated(value, kind == "component", source);
+    origin.generated = generated(value, kind == "component", source);
   }
-  // Weights are normalised by their sum, which must not overflow.
-  double total = 0.0;
-  for (const auto& g : grains) total += g.weight;
-  if (!std::isfinite(total)) value.fail("the orientation weights sum to more than 1.8e308");
-  if (sharing != nullptr) block = driver::keep_own_block(grains, *sharing->team);
-  return grains;
+  return origin;
 }
 
 // ---------------------------------------------------------------- loading
@@ -656,8 +634,7 @@ void check_top_level(const CheckedNode& root) {
   root.get_choice("scene", {"crystal"});
 }
 
-CrystalCase parse_case(SweepCase swept, const Units& units,
-                       const driver::OrientationSharing* sharing) {
+CrystalCase parse_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
   check_top_level(root);
   CrystalCase c;
@@ -665,8 +642,7 @@ CrystalCase parse_case(SweepCase swept, const Units& units,
   c.overrides = std::move(swept.overrides);
   SceneValues values(units);
   parse_phase(root.required("phase"), c, values);
-  c.orientations = parse_orientations(root.required("orientations"), c.orientation_source, sharing,
-                                      c.orientation_block);
+  c.orientation_origin = parse_orientations(root.required("orientations"), c.orientation_source);
   c.segments = parse_loading(root.required("loading"), values);
   c.options = parse_integrator(root.optional("integrator"), c.phase);
   c.output = parse_output(root.optional("output"));
@@ -682,11 +658,12 @@ CrystalScene load_crystal_scene(const std::filesystem::path& path) {
 }
 
 CrystalScene parse_crystal_scene(const YamlDocument& document) {
-  return parse_crystal_scene(document, driver::OrientationSharing{});
+  CrystalScene scene = describe_crystal_scene(document);
+  model::read_all_orientations(scene);
+  return scene;
 }
 
-CrystalScene parse_crystal_scene(const YamlDocument& document,
-                                 const driver::OrientationSharing& sharing) {
+CrystalScene describe_crystal_scene(const YamlDocument& document) {
   const CheckedNode root = document.root();
   check_top_level(root);
   CrystalScene scene;
@@ -695,13 +672,8 @@ CrystalScene parse_crystal_scene(const YamlDocument& document,
   scene.title = root.get_string("title", "");
   scene.units = parse_units_without_length(root.required("units"));
   const Units& units = scene.units;
-  // Blocks where the ranks will share each case's grains (driver::shares_grains).
-  const bool blocks = sharing.team != nullptr && sharing.team->size() > 1 &&
-                      expand_sweep(document, kCrystalSweepable).size() <
-                          static_cast<std::size_t>(sharing.team->size());
-  const driver::OrientationSharing* share = blocks ? &sharing : nullptr;
-  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units, share](SweepCase swept) {
-    return parse_case(std::move(swept), units, share);
+  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units](SweepCase swept) {
+    return parse_case(std::move(swept), units);
   });
   return scene;
 }

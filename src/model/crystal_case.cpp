@@ -1,5 +1,6 @@
 #include "subslip/model/crystal_case.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
@@ -46,6 +47,29 @@ std::string orientations_digest(const std::vector<crystal::Orientation>& orienta
 
 std::string CrystalCase::orientations_digest() const {
   return orientation_block ? orientation_block->digest : model::orientations_digest(orientations);
+}
+
+void read_all_orientations(CrystalCase& c) {
+  const OrientationOrigin& origin = c.orientation_origin;
+  c.orientation_block.reset();
+  if (origin.file) {
+    std::vector<crystal::Orientation> read;
+    origin.file->read([&](const crystal::Orientation& o) { read.push_back(o); },
+                      c.orientation_source.largest_euler_deg);
+    // Weights are normalised by their sum, which must not overflow.
+    double sum = 0.0;
+    for (const auto& o : read) sum += o.weight;
+    if (!std::isfinite(sum)) origin.file->fail_weights();
+    c.orientations = std::move(read);
+  } else if (origin.generated) {
+    c.orientations = crystal::generate_orientations(*origin.generated);
+  } else {
+    c.orientations = origin.given;
+  }
+}
+
+void read_all_orientations(CrystalScene& scene) {
+  for (CrystalCase& c : scene.cases) read_all_orientations(c);
 }
 
 std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units) {

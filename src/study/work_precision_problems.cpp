@@ -275,16 +275,16 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
     if (measure_ == Measure::stress) {
       channels.resize(1 + 6 * static_cast<std::size_t>(grains.grain_count()));
       channels[0] = m.stress(i, j);
-      grains.stress(channels.data() + 1);
+      grains.values(crystal::GrainField::stress, channels.data() + 1);
       seen(m.time, channels, m.segment);
       return;
     }
     const auto n = static_cast<std::size_t>(grains.grain_count()) *
                    static_cast<std::size_t>(grains.slip_count());
     ratio.resize(n), crss.resize(n), r_s.resize(n), channels.resize(1 + kPerSystem * n);
-    grains.ratio(ratio.data());
-    grains.crss(crss.data());
-    grains.subloading_ratio(r_s.data());
+    grains.values(crystal::GrainField::r, ratio.data());
+    grains.values(crystal::GrainField::crss, crss.data());
+    grains.values(crystal::GrainField::r_s, r_s.data());
     channels[0] = m.stress(i, j);
     for (std::size_t k = 0; k < n; ++k) {
       channels[1 + kPerSystem * k] = ratio[k];

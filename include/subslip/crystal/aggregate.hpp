@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "subslip/crystal/crystal_kernel.hpp"
+#include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/parallel/team.hpp"
 
 namespace subslip::crystal {
@@ -105,18 +106,16 @@ struct AggregateStats {
 };
 
 // Per-grain fields for output, filled into caller-owned arrays (row-major, one row a grain).
+// The fields are those of the table (grain_fields_table.hpp), which gives each one's width as
+// given here (given_width), unit and meaning; an implementation gives every field of it.
 class GrainFields {
  public:
   virtual ~GrainFields() = default;
   virtual int grain_count() const = 0;
   virtual int slip_count() const = 0;
-  virtual void stress(double* out) const = 0;       // [grains x 6]: 11 22 33 23 13 12, sample frame
-  virtual void orientation(double* out) const = 0;  // [grains x 9]: g row-major (v_c = g v_s)
-  virtual void slip(double* out) const = 0;         // [grains x N]
-  virtual void slip_rate(double* out) const = 0;    // [grains x N]
-  virtual void crss(double* out) const = 0;         // [grains x N]: mu tau0
-  virtual void ratio(double* out) const = 0;        // [grains x N]: r
-  virtual void subloading_ratio(double* out) const = 0;  // [grains x N]: r_s
+  // [grains x given_width(f, slip_count())] values of `f` into `out`: stress 11 22 33 23 13 12
+  // (sample frame), orientation g row-major (v_c = g v_s), the others one per slip system.
+  virtual void values(GrainField f, double* out) const = 0;
 };
 
 using MacroObserver = std::function<void(const MacroState&, const GrainFields&)>;

@@ -1,7 +1,7 @@
 // How MPI ranks that share the grains of a crystal case come to hold only their blocks of its
-// orientations (parallel::block_of), so that no process holds the whole set. The parser
-// (io/crystal_scene.hpp) says where a set comes from; this decides who reads it and who gets
-// which block.
+// orientations (parallel::block_of), so that no process holds the whole set. The run model
+// (model::OrientationOrigin, made by io/crystal_scene.hpp) says where a set comes from; this
+// decides who reads it and who gets which block.
 #pragma once
 
 #include <cstddef>
@@ -27,6 +27,13 @@ struct OrientationSharing {
   const parallel::Team* team = nullptr;
   parallel::ExitCodeOf exit_code_of = nullptr;
 };
+
+// Reads the orientations of every case of `scene` (CrystalCase::orientation_origin into
+// `orientations`). Where the ranks of `sharing.team` will share each case's grains (fewer cases
+// than ranks), each rank keeps only its block and CrystalCase::orientation_block says what the
+// whole set gives; otherwise (no team, or one rank, or a case for each rank) every process
+// reads every set (model::read_all_orientations). Collective when sharing.
+void read_orientations(model::CrystalScene& scene, const OrientationSharing& sharing);
 
 // Cuts `grains`, a set every rank made alike, to this rank's block; what the whole set gives.
 model::OrientationBlock keep_own_block(std::vector<crystal::Orientation>& grains,

@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <string_view>
 
-#include "subslip/driver/orientation_sharing.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/io/sweep.hpp"
 #include "subslip/io/yaml_checked.hpp"
@@ -36,15 +35,16 @@ using model::to_string;
 inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
     "phase", "orientations", "loading", "integrator", "output"};
 
-// Reads, sweeps and checks a crystal scene. Every problem is an InputError with file, line and
-// key path. Orientation files are read relative to the scene file's directory.
+// Reads, sweeps and checks a crystal scene, and reads every case's orientations (the whole set
+// in this process: model::read_all_orientations). Every problem is an InputError with file,
+// line and key path. Orientation files are read relative to the scene file's directory.
 CrystalScene load_crystal_scene(const std::filesystem::path& path);
 CrystalScene parse_crystal_scene(const YamlDocument& document);
 
-// The same for MPI ranks that will share the grains of each case: each keeps only its block of
-// each case's orientations, an orientation file read by rank 0 alone (driver/
-// orientation_sharing.hpp says how). Collective.
-CrystalScene parse_crystal_scene(const YamlDocument& document,
-                                 const driver::OrientationSharing& sharing);
+// The run model alone: the same checks, but each case's orientations only described
+// (CrystalCase::orientation_origin: a file, a generated texture, the scene's Euler angles), to be
+// read by whoever runs it (driver::read_orientations gives each MPI rank its block). A problem
+// inside an orientation file is then found when it is read, with the same error.
+CrystalScene describe_crystal_scene(const YamlDocument& document);
 
 }  // namespace subslip::io

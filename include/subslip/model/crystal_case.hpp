@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -17,6 +18,7 @@
 #include "subslip/crystal/grain_fields_table.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/rotation.hpp"
+#include "subslip/crystal/texture.hpp"
 #include "subslip/model/case_common.hpp"
 #include "subslip/model/units.hpp"
 
@@ -63,6 +65,30 @@ class OrientationDigest {
 };
 std::string orientations_digest(const std::vector<crystal::Orientation>& orientations);
 
+using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
+
+// An orientation file a scene names. Reading it is the parser's: `read` visits every
+// orientation in file order, returns how many and sets the largest |Euler angle| given (-1: not
+// Euler angles); a problem is the input error naming the file, its line and column, and the
+// scene key that named the file. Who reads which part is the driver's
+// (driver/orientation_sharing.hpp).
+struct OrientationFile {
+  std::string path;  // as resolved against the scene file's directory
+  std::function<std::size_t(const OrientationVisitor&, double& largest_euler_deg)> read;
+  // The input errors at the scene key: weights that sum past the largest double; a file that
+  // did not give the same orientations when read again (it changed while it was read).
+  std::function<void()> fail_weights;
+  std::function<void()> fail_changed;
+};
+
+// Where a case's orientations come from, before they are read: a file, a generated texture
+// (its request holds the count and the seed), or the Euler angles written in the scene.
+struct OrientationOrigin {
+  std::optional<OrientationFile> file;
+  std::optional<crystal::OrientationRequest> generated;
+  std::vector<crystal::Orientation> given;  // (the scene's own, already in memory)
+};
+
 // What the whole set of a case's orientations gives, where a process holds only its block of
 // them (MPI ranks sharing the grains: driver/orientation_sharing.hpp).
 struct OrientationBlock {
@@ -78,8 +104,11 @@ struct CrystalCase {
   std::vector<SweepOverride> overrides;  // this case's swept values
   crystal::PhaseDescription phase;
   std::string elasticity_type;  // cubic | hexagonal | isotropic (for the attributes)
+  // Where the orientations come from; read into `orientations` by read_all_orientations (one
+  // process holding them all) or by the driver (driver::read_orientations: each rank its block).
+  OrientationOrigin orientation_origin;
   // Every grain's orientation, or only this process's block of them when `orientation_block`
-  // is set (grain_count() is then the case's).
+  // is set (grain_count() is then the case's); empty until read.
   std::vector<crystal::Orientation> orientations;
   std::optional<OrientationBlock> orientation_block;
   OrientationSource orientation_source;
@@ -101,6 +130,12 @@ struct CrystalScene {
   Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
   std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
 };
+
+// Reads every orientation of `c` (or of every case of `scene`) into `orientations`, the whole
+// set in this process; sets orientation_source.largest_euler_deg for a file. A problem in a file
+// is its input error (OrientationFile::read).
+void read_all_orientations(CrystalCase& c);
+void read_all_orientations(CrystalScene& scene);
 
 // The unit pairs of a crystal result file's /units group: ("stress", ...), ("time", ...).
 std::vector<std::pair<std::string, std::string>> crystal_units(const Units& units);

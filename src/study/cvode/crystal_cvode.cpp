@@ -428,12 +428,30 @@ class TaylorOde final : private crystal::GrainFields {
   }
 
   // GrainFields over the state view_ (the slip rates are those of the last rhs, at view_).
+  void values(crystal::GrainField f, double* out) const override {
+    switch (f) {
+      case crystal::GrainField::stress:
+        return stress(out);
+      case crystal::GrainField::orientation:
+        return orientation(out);
+      case crystal::GrainField::slip:
+        return slip(out);
+      case crystal::GrainField::slip_rate:
+        return slip_rate(out);
+      case crystal::GrainField::crss:
+        return crss(out);
+      case crystal::GrainField::r:
+        return ratio(out);
+      case crystal::GrainField::r_s:
+        return subloading_ratio(out);
+    }
+  }
   template <class F>
   void per_system(double* out, F&& f) const {
     for (int g = 0; g < grains_; ++g)
       for (int a = 0; a < n_; ++a) out[g * n_ + a] = f(g, a);
   }
-  void stress(double* out) const override {
+  void stress(double* out) const {
     for (int g = 0; g < grains_; ++g) {
       const double* yg = view_ + g * grain_size_;
       const Mat3 gm = Eigen::Map<const RowMat3>(yg + 6);
@@ -443,24 +461,24 @@ class TaylorOde final : private crystal::GrainFields {
       std::copy(v, v + 6, out + 6 * g);
     }
   }
-  void orientation(double* out) const override {
+  void orientation(double* out) const {
     for (int g = 0; g < grains_; ++g)
       std::copy(view_ + g * grain_size_ + 6, view_ + g * grain_size_ + 15, out + 9 * g);
   }
-  void slip(double* out) const override {
+  void slip(double* out) const {
     per_system(out, [&](int g, int a) { return view_[g * grain_size_ + slip_at(a)]; });
   }
-  void slip_rate(double* out) const override {
+  void slip_rate(double* out) const {
     per_system(out, [&](int g, int a) { return slips_[static_cast<size_t>(g)].rate(a); });
   }
-  void crss(double* out) const override {
+  void crss(double* out) const {
     per_system(out,
                [&](int g, int a) { return view_[g * grain_size_ + mu_at(a)] * phase_.tau0(a); });
   }
-  void ratio(double* out) const override {
+  void ratio(double* out) const {
     per_system(out, [&](int g, int a) { return slips_[static_cast<size_t>(g)].r(a); });
   }
-  void subloading_ratio(double* out) const override {
+  void subloading_ratio(double* out) const {
     per_system(out, [&](int g, int a) {
       return std::min(states_[static_cast<size_t>(g)].r_s(a), slips_[static_cast<size_t>(g)].r(a));
     });
