@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "export.hpp"
 #include "material_cache.hpp"
 #include "messages.hpp"
 #include "props.hpp"
@@ -171,8 +172,6 @@ void fric_increment(const FricIo& io) {
 
 }  // namespace subslip::fe
 
-#define SUBSLIP_FE_EXPORT extern "C" __attribute__((visibility("default")))
-
 SUBSLIP_FE_EXPORT void fric_(int* lm, double* tau, double* ddtddg, double* ddtddp, double* dslip,
                              double* sed, double* sfd, double* /*ddtddt*/, double* pnewdt,
                              double* statev, const double* dgam, const double* /*taulm*/,
@@ -201,19 +200,6 @@ SUBSLIP_FE_EXPORT void fric_(int* lm, double* tau, double* ddtddg, double* ddtdd
   }
 }
 
-SUBSLIP_FE_EXPORT void fric(int*, double*, double*, double*, double*, double*, double*, double*,
-                            double*, double*, const double*, const double*, const double*,
-                            const double*, const double*, const double*, const int*, const int*,
-                            const double*, const double*, const int*, const char*, const char*,
-                            const char*, const int*, const int*, const int*, const double*,
-                            const double*, const double*, const double*, const double*, const int*,
-                            const int*, const int*, const int*, const double*, const double*,
-                            const int*, size_t, size_t, size_t) __attribute__((alias("fric_")));
-SUBSLIP_FE_EXPORT void FRIC(int*, double*, double*, double*, double*, double*, double*, double*,
-                            double*, double*, const double*, const double*, const double*,
-                            const double*, const double*, const double*, const int*, const int*,
-                            const double*, const double*, const int*, const char*, const char*,
-                            const char*, const int*, const int*, const int*, const double*,
-                            const double*, const double*, const double*, const double*, const int*,
-                            const int*, const int*, const int*, const double*, const double*,
-                            const int*, size_t, size_t, size_t) __attribute__((alias("fric_")));
+// The same entry point under the names other compilers and conventions give it.
+SUBSLIP_FE_EXPORT decltype(fric_) fric __attribute__((alias("fric_")));
+SUBSLIP_FE_EXPORT decltype(fric_) FRIC __attribute__((alias("fric_")));

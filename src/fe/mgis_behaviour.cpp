@@ -12,6 +12,7 @@
 #include <numbers>
 #include <string>
 
+#include "export.hpp"
 #include "grain_increment.hpp"
 #include "subslip/crystal/elasticity.hpp"
 #include "subslip/fe/mgis_behaviour.h"
@@ -155,8 +156,6 @@ const Names& names() {
 }  // namespace
 
 }  // namespace subslip::fe
-
-#define SUBSLIP_FE_EXPORT extern "C" __attribute__((visibility("default")))
 
 SUBSLIP_FE_EXPORT int SubslipFCC_Tridimensional(mfront_gb_BehaviourData* d) {
   try {

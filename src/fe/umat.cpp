@@ -6,6 +6,7 @@
 #include <string>
 
 #include "abaqus_order.hpp"
+#include "export.hpp"
 #include "grain_increment.hpp"
 #include "messages.hpp"
 #include "subslip/fe/abaqus.h"
@@ -70,8 +71,6 @@ void umat_increment(const UmatIo& io) {
 
 }  // namespace subslip::fe
 
-#define SUBSLIP_FE_EXPORT extern "C" __attribute__((visibility("default")))
-
 SUBSLIP_FE_EXPORT void umat_(double* stress, double* statev, double* ddsdde, double* /*sse*/,
                              double* /*spd*/, double* /*scd*/, double* /*rpl*/, double* /*ddsddt*/,
                              double* /*drplde*/, double* /*drpldt*/, const double* /*stran*/,
@@ -101,22 +100,8 @@ SUBSLIP_FE_EXPORT void umat_(double* stress, double* statev, double* ddsdde, dou
 }
 
 // The same entry point under the names other compilers and conventions give it.
-SUBSLIP_FE_EXPORT void umat(double*, double*, double*, double*, double*, double*, double*, double*,
-                            double*, double*, const double*, const double*, const double*,
-                            const double*, const double*, const double*, const double*,
-                            const double*, const char*, const int*, const int*, const int*,
-                            const int*, const double*, const int*, const double*, const double*,
-                            double*, const double*, const double*, const double*, const int*,
-                            const int*, const int*, const int*, const int*, const int*, size_t)
-    __attribute__((alias("umat_")));
-SUBSLIP_FE_EXPORT void UMAT(double*, double*, double*, double*, double*, double*, double*, double*,
-                            double*, double*, const double*, const double*, const double*,
-                            const double*, const double*, const double*, const double*,
-                            const double*, const char*, const int*, const int*, const int*,
-                            const int*, const double*, const int*, const double*, const double*,
-                            double*, const double*, const double*, const double*, const int*,
-                            const int*, const int*, const int*, const int*, const int*, size_t)
-    __attribute__((alias("umat_")));
+SUBSLIP_FE_EXPORT decltype(umat_) umat __attribute__((alias("umat_")));
+SUBSLIP_FE_EXPORT decltype(umat_) UMAT __attribute__((alias("umat_")));
 
 SUBSLIP_FE_EXPORT int subslip_fe_umat_statev_count(const double* props, int nprops) {
   namespace fe = subslip::fe;
