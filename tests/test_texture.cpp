@@ -5,6 +5,9 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <stdexcept>
+#include <vector>
 
 #include "subslip/crystal/texture.hpp"
 
@@ -69,6 +72,30 @@ TEST(Texture, SeededGenerationIsReproducible) {
   std::mt19937_64 engine;
   engine.discard(9999);
   EXPECT_EQ(engine(), 9981545732273789042ull);
+}
+
+// A rank that keeps only its block visits a generated set one orientation at a time; it must
+// see the set a process holding it whole sees, bit for bit and in order.
+TEST(Texture, VisitedSetIsTheStoredSet) {
+  for (const auto& request :
+       {OrientationRequest{40, 11, std::nullopt, 0.0},
+        OrientationRequest{40, 11, TextureComponent::copper, 8.0}}) {
+    const auto stored = generate_orientations(request);
+    std::vector<Orientation> visited;
+    for_each_generated_orientation(request, [&](const Orientation& o) { visited.push_back(o); });
+    ASSERT_EQ(visited.size(), stored.size());
+    for (std::size_t i = 0; i < stored.size(); ++i) {
+      EXPECT_EQ(visited[i].q.w, stored[i].q.w);
+      EXPECT_EQ(visited[i].q.x, stored[i].q.x);
+      EXPECT_EQ(visited[i].q.y, stored[i].q.y);
+      EXPECT_EQ(visited[i].q.z, stored[i].q.z);
+      EXPECT_TRUE(visited[i].g == stored[i].g);
+      EXPECT_EQ(visited[i].weight, stored[i].weight);
+    }
+  }
+  EXPECT_THROW(for_each_generated_orientation(OrientationRequest{0, 1, std::nullopt, 0.0},
+                                              [](const Orientation&) {}),
+               std::invalid_argument);
 }
 
 TEST(Texture, ComponentsReproduceTheTabulatedEulerAngles) {

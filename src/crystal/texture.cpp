@@ -124,39 +124,73 @@ Eigen::Vector3d random_rotation_vector(std::mt19937_64& engine, double spread) {
   return sigma * Eigen::Vector3d(x, y, z);
 }
 
-std::vector<Orientation> random_orientations(std::size_t count, std::uint64_t seed) {
+namespace {
+
+void require_spread(double spread_deg) {
+  if (!(spread_deg >= 0.0 && spread_deg <= 180.0)) {
+    throw std::invalid_argument("texture spread must be in [0, 180] degrees, got " +
+                                std::to_string(spread_deg));
+  }
+}
+
+// Each orientation draws a fixed number of numbers from one engine, in order, so that a set is
+// the same whether it is kept whole or visited one orientation at a time.
+template <class Each>
+void visit_random(std::size_t count, std::uint64_t seed, Each&& each) {
   std::mt19937_64 engine(seed);
+  for (std::size_t i = 0; i < count; ++i) each(Orientation::from_quaternion(random_quaternion(engine)));
+}
+
+template <class Each>
+void visit_component(TextureComponent component, std::size_t count, double spread_deg,
+                     std::uint64_t seed, Each&& each) {
+  require_spread(spread_deg);
+  const Eigen::Matrix3d ideal = ideal_orientation(component).g;
+  const double spread = spread_deg * std::numbers::pi / 180.0;
+  std::mt19937_64 engine(seed);
+  for (std::size_t i = 0; i < count; ++i) {
+    const Eigen::Vector3d turn = random_rotation_vector(engine, spread);
+    each(Orientation::from_matrix(apply_sample_spin(ideal, turn)));
+  }
+}
+
+template <class Each>
+void visit_generated(const OrientationRequest& request, Each&& each) {
+  if (request.count == 0) throw std::invalid_argument("orientation count must be at least 1");
+  if (request.component)
+    visit_component(*request.component, request.count, request.spread_deg, request.seed, each);
+  else
+    visit_random(request.count, request.seed, each);
+}
+
+}  // namespace
+
+std::vector<Orientation> random_orientations(std::size_t count, std::uint64_t seed) {
   std::vector<Orientation> orientations;
   orientations.reserve(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    orientations.push_back(Orientation::from_quaternion(random_quaternion(engine)));
-  }
+  visit_random(count, seed, [&](const Orientation& o) { orientations.push_back(o); });
   return orientations;
 }
 
 std::vector<Orientation> component_orientations(TextureComponent component, std::size_t count,
                                                 double spread_deg, std::uint64_t seed) {
-  if (!(spread_deg >= 0.0 && spread_deg <= 180.0)) {
-    throw std::invalid_argument("texture spread must be in [0, 180] degrees, got " +
-                                std::to_string(spread_deg));
-  }
-  const Eigen::Matrix3d ideal = ideal_orientation(component).g;
-  const double spread = spread_deg * std::numbers::pi / 180.0;
-  std::mt19937_64 engine(seed);
   std::vector<Orientation> orientations;
   orientations.reserve(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    const Eigen::Vector3d turn = random_rotation_vector(engine, spread);
-    orientations.push_back(Orientation::from_matrix(apply_sample_spin(ideal, turn)));
-  }
+  visit_component(component, count, spread_deg, seed,
+                  [&](const Orientation& o) { orientations.push_back(o); });
   return orientations;
 }
 
 std::vector<Orientation> generate_orientations(const OrientationRequest& request) {
-  if (request.count == 0) throw std::invalid_argument("orientation count must be at least 1");
-  if (!request.component) return random_orientations(request.count, request.seed);
-  return component_orientations(*request.component, request.count, request.spread_deg,
-                                request.seed);
+  std::vector<Orientation> orientations;
+  if (request.count > 0) orientations.reserve(request.count);
+  visit_generated(request, [&](const Orientation& o) { orientations.push_back(o); });
+  return orientations;
+}
+
+void for_each_generated_orientation(const OrientationRequest& request,
+                                    const std::function<void(const Orientation&)>& each) {
+  visit_generated(request, each);
 }
 
 std::string describe(const OrientationRequest& request) {

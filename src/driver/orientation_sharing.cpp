@@ -81,8 +81,32 @@ RootOrientationReader root_reader(const model::OrientationFile& file, double& la
   return reader;
 }
 
+// A generated set, made one orientation at a time on every rank alike: each keeps only its
+// block, and learns the digest and the weight sum of the whole set on the way.
+void generate_own_block(model::CrystalCase& c, const parallel::Team& team) {
+  const crystal::OrientationRequest& request = *c.orientation_origin.generated;
+  const parallel::Block mine = parallel::block_of(request.count, team.rank(), team.size());
+  model::OrientationDigest digest;
+  double sum = 0.0;
+  std::size_t index = 0;
+  std::vector<crystal::Orientation> own;
+  own.reserve(mine.count);
+  crystal::for_each_generated_orientation(request, [&](const crystal::Orientation& o) {
+    digest.add(o);
+    sum += o.weight;
+    if (index >= mine.offset && index - mine.offset < mine.count) own.push_back(o);
+    ++index;
+  });
+  c.orientation_block = model::OrientationBlock{mine.offset, index, sum, digest.text()};
+  c.orientations = std::move(own);
+}
+
 // This rank's block of the orientations of `c`, and what the whole set gives.
 void read_own_block(model::CrystalCase& c, const OrientationSharing& sharing) {
+  if (c.orientation_origin.generated) {
+    generate_own_block(c, *sharing.team);
+    return;
+  }
   if (!c.orientation_origin.file) {
     model::read_all_orientations(c);
     c.orientation_block = keep_own_block(c.orientations, *sharing.team);

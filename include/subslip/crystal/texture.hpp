@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <random>
 #include <string>
@@ -83,6 +84,10 @@ struct OrientationRequest {
 };
 // Throws std::invalid_argument for count 0 or a spread outside [0, 180].
 std::vector<Orientation> generate_orientations(const OrientationRequest& request);
+// The same orientations, in the same order, handed to `each` one at a time: a process that keeps
+// only a block of a large set never holds the rest (driver/orientation_sharing.hpp).
+void for_each_generated_orientation(const OrientationRequest& request,
+                                    const std::function<void(const Orientation&)>& each);
 // One line for the file header, e.g. "random count=100 seed=100" or
 // "component=goss spread_deg=5 count=50 seed=1".
 std::string describe(const OrientationRequest& request);

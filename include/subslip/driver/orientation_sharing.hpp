@@ -20,7 +20,8 @@ namespace subslip::driver {
 // case's orientations (model::CrystalCase::orientation_block). An orientation file is then read
 // by rank 0 alone, twice, streaming (the checks, the count, the digest and the weight sum; then
 // each rank's block, sent to it: share_root_orientations), so that no process holds the whole
-// file; generated and inline sets are made on every rank and cut to its block (keep_own_block).
+// file; a generated set is made on every rank one orientation at a time, each keeping its block;
+// a scene's inline set, already in memory, is cut to each rank's block (keep_own_block).
 // A problem in the file is reported by rank 0 (the others stop with `exit_code_of` of it:
 // parallel::on_root). Collective.
 struct OrientationSharing {
