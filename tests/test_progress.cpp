@@ -332,6 +332,24 @@ TEST(Progress, SummaryGivesRatesCountsAndOutput) {
   contact.increments = 2000;
   contact.solves = 2000;
   contact.newton_iterations = 4409;
+  // A restart: the counters are this session's; the run's increments and the cases ended
+  // before stand beside them.
+  RunTotals before;
+  before.cases = 1;
+  before.increments = 200;
+  before.grain_steps = 200000;
+  before.solves = 400000;
+  before.newton_iterations = 873000;
+  before.cutbacks = 1;
+  before.compute_seconds = 5.0;
+  EXPECT_EQ(summary_text(t, before, 21.0, "results/default.h5"),
+            "done in 21 s: 2 cases (1 failed, 1 ended before the restart),\n"
+            "  300 increments (500 with the 200 before the restart),\n"
+            "  3e+05 grain-steps (1.5e+04 grain-steps/s),\n"
+            "  2.57 Newton iterations per grain solve, 0 cutbacks, 0 rejected steps\n"
+            "results: results/default.h5");
+  EXPECT_EQ(summary_text(t, RunTotals{}, 26.0, "results/default.h5"),
+            summary_text(t, 26.0, "results/default.h5"));
   EXPECT_EQ(summary_text(contact, 0.05, "c.h5"),
             "done in 0.1 s: 1 case, 2000 increments, 2.2 Newton iterations per increment,\n"
             "  0 cutbacks, 0 rejected steps\nresults: c.h5");

@@ -473,13 +473,29 @@ TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
         << log;
     EXPECT_NE(log.find("continue with: subslip run --restart out.h5"), std::string::npos) << log;
     EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
+    crystal::RunPosition stopped_at;
+    long increments_before = 0;
     {
       const h5::File restart_file = h5::File::open_read(dir / "out.restart.h5");
       const auto stop = CheckpointStore(restart_file.root()).latest(0);
       ASSERT_TRUE(stop.has_value());
       EXPECT_GT(stop->state.stats.increments, 0);
+      stopped_at = stop->state.position;
+      increments_before = stop->state.stats.increments;
     }
-    ASSERT_EQ(restart(dir, "out.h5"), 0) << log_of(dir);
+    // The restart says where the case continues, and its summary counts what it computed.
+    ASSERT_EQ(run_subslip(dir, {"run", "--restart", "out.h5"}, dir / "run.log"), 0)
+        << log_of(dir);
+    const std::string resumed = log_of(dir);
+    EXPECT_NE(resumed.find("case 'base': continues from its checkpoint after increment " +
+                           std::to_string(stopped_at.increment) + " of loading[" +
+                           std::to_string(stopped_at.segment) + "]"),
+              std::string::npos)
+        << resumed;
+    EXPECT_NE(resumed.find(" with the " + std::to_string(increments_before) +
+                           " before the restart)"),
+              std::string::npos)
+        << resumed;
   } else {
     GTEST_LOG_(INFO) << "the run ended before the signal";
   }
@@ -634,6 +650,51 @@ TEST(Restart, RefusesWhatItCannotContinue) {
   EXPECT_EQ(restart(dir, "cut.h5"), 0) << log_of(dir);
   EXPECT_EQ(run_subslip(dir, {"run", "scene.yaml", "--restart", "cut.h5"}, dir / "run.log"), 2);
   subslip::testing::expect_same_datasets(dir / "done.h5", dir / "cut.h5");
+  fs::remove_all(dir);
+}
+
+// What lies at a result path says what to do with it: an interrupted run is continued with
+// --restart (a new run there is refused, pointing at it); a restart file no run can continue
+// (its run finished, or its result file is gone) is named by `post` and by a refused restart,
+// and a new run removes it with a note.
+TEST(Restart, InterruptedAndLeftOverFilesSayWhatToDo) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "scene.yaml") << crystal_scene(2, 6, "output:\n  checkpoint_every: 2\n");
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "done.h5", "-q", "--keep-restart"},
+                        dir / "run.log"),
+            0)
+      << log_of(dir);
+  ASSERT_TRUE(fs::exists(dir / "done.restart.h5"));
+  expect_refused(dir, {"run", "--restart", "done.h5"},
+                 "done.restart.h5 beside it holds that run's last checkpoints, which no run "
+                 "continues: delete it");
+  ASSERT_EQ(run_subslip(dir, {"post", "done.h5"}, dir / "run.log"), 0) << log_of(dir);
+  EXPECT_NE(log_of(dir).find("finished:    yes"), std::string::npos) << log_of(dir);
+  EXPECT_NE(log_of(dir).find("done.restart.h5 (left over from this finished run"),
+            std::string::npos)
+      << log_of(dir);
+
+  fs::copy_file(dir / "done.h5", dir / "cut.h5");
+  mark_interrupted(dir / "cut.h5");
+  expect_refused(dir, {"run", "scene.yaml", "-o", "cut.h5"},
+                 "cut.h5: holds an interrupted run (");
+  EXPECT_NE(log_of(dir).find("continue it with: subslip run --restart cut.h5"), std::string::npos)
+      << log_of(dir);
+  ASSERT_EQ(run_subslip(dir, {"post", "cut.h5"}, dir / "run.log"), 0) << log_of(dir);
+  EXPECT_NE(log_of(dir).find("finished:    NO: a working file"), std::string::npos) << log_of(dir);
+  // The restart finds no checkpoint of the case (a finished run's are dropped) and says so.
+  ASSERT_EQ(run_subslip(dir, {"run", "--restart", "cut.h5"}, dir / "run.log"), 0) << log_of(dir);
+  EXPECT_NE(log_of(dir).find("case 'base': runs again from its start: "), std::string::npos)
+      << log_of(dir);
+
+  fs::remove(dir / "done.h5");
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "done.h5"}, dir / "run.log"), 0)
+      << log_of(dir);
+  EXPECT_NE(log_of(dir).find("note: removed done.restart.h5: the checkpoints of a run of done.h5"),
+            std::string::npos)
+      << log_of(dir);
+  EXPECT_FALSE(fs::exists(dir / "done.restart.h5"));
+  subslip::testing::expect_same_datasets(dir / "cut.h5", dir / "done.h5");
   fs::remove_all(dir);
 }
 

@@ -133,6 +133,12 @@ void print_warnings(const RunArgs& a, const std::vector<std::string>& warnings) 
   for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
+// What opening the result file did beside creating it (a left-over restart file removed).
+void print_notes(const RunArgs& a, const std::vector<std::string>& notes) {
+  if (a.quiet) return;
+  for (const auto& n : notes) std::fprintf(stderr, "note: %s\n", n.c_str());
+}
+
 // The progress goes to stderr (stdout keeps the results, redirected or not): a bar when stderr
 // is a terminal.
 cli::ProgressMode progress_mode(const RunArgs& a) {
@@ -252,6 +258,7 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::Re
       [&] {
         output.emplace(open_output(a, document, names_of(scene.cases), restart, {a.scene},
                                    io::estimate_contact_run(scene)));
+        print_notes(a, output->notes);
         print_warnings(a, io::contact_scene_warnings(scene));
       },
       exit_code_of);
@@ -321,11 +328,13 @@ text::Table crystal_table(const io::CrystalScene& scene) {
   return t;
 }
 
-std::string crystal_legend(const io::CrystalScene& scene) {
+// `restarted`: the run continued work of an earlier session, which the case rows count too.
+std::string crystal_legend(const io::CrystalScene& scene, bool restarted) {
   const std::string ij = component_label(driver::loading_component(scene.cases.front().segments));
   return "(final values, strain and stress along " + ij +
          "; mises: von Mises; gsteps/s: grain-steps per second; newton: iterations per grain "
-         "solve; cuts: cutbacks)";
+         "solve; cuts: cutbacks" +
+         (restarted ? "; rows count every session of the run, the summary this one" : "") + ")";
 }
 
 void print_crystal_row(const text::Table& t, const driver::CrystalCaseResult& r) {
@@ -366,6 +375,43 @@ cli::RunTotals crystal_totals(const std::vector<driver::CrystalCaseResult>& resu
     t.newton_iterations += r.summary.stats.newton_iterations;
   }
   return t;
+}
+
+// "12.2", "0.001": a time as printf's %g with six digits writes it.
+std::string shortest_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// The counters of the work an earlier session did (a restart), and its line: where an
+// interrupted case continues, or that it starts again and why.
+void add_earlier_work(cli::RunTotals& before, const driver::EarlierWork& w) {
+  if (w.kind == driver::EarlierWork::Kind::ended) ++before.cases;
+  before.increments += w.stats.increments;
+  before.grain_steps += w.stats.grain_steps;
+  before.solves += w.stats.grain_solves;
+  before.newton_iterations += w.stats.newton_iterations;
+  before.cutbacks += w.stats.cutbacks;
+  before.rejected += w.stats.rejected;
+  before.compute_seconds += w.stats.wall_seconds;
+}
+
+std::string earlier_work_line(const io::CrystalCase& c, const driver::EarlierWork& w,
+                              const std::string& time_unit) {
+  const std::string name = "case '" + c.name + "': ";
+  switch (w.kind) {
+    case driver::EarlierWork::Kind::checkpoint:
+      return name + "continues from its checkpoint after increment " +
+             std::to_string(w.position.increment) + " of loading[" +
+             std::to_string(w.position.segment) + "] (time " + shortest_number(w.time) + " " +
+             (time_unit.empty() ? "s" : time_unit) + ")";
+    case driver::EarlierWork::Kind::from_start:
+      return name + "runs again from its start: " + w.why;
+    case driver::EarlierWork::Kind::ended:
+      break;
+  }
+  return "";
 }
 
 // The work of a crystal case for the progress bar: grains x increments.
@@ -475,6 +521,7 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
         output.emplace(
             open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
                         io::estimate_crystal_run(scene, checkpoint_every), any_checkpoints));
+        print_notes(a, output->notes);
         print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
       },
       exit_code_of);
@@ -506,6 +553,14 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   options.on_progress = [&](std::size_t k, double fraction, bool resumed) {
     if (resumed) progress.set_done_before(k, fraction);
     progress.update(k, scene.cases[k].name, fraction);
+  };
+  cli::RunTotals before;  // what earlier sessions computed (a restart)
+  options.on_earlier_work = [&](std::size_t k, const driver::EarlierWork& w) {
+    add_earlier_work(before, w);
+    const std::string line = earlier_work_line(scene.cases[k], w, scene.units.time);
+    if (!speaks || line.empty()) return;
+    progress.clear();
+    print_wrapped(line);
   };
   const auto run = [&](driver::CrystalSink* root_sink) {
     return driver::run_crystal_scene_on_team(scene, team, root_sink, options);
@@ -587,10 +642,11 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   }
   progress.clear();
   if (speaks) {
-    print_wrapped(crystal_legend(scene), " ");
+    print_wrapped(crystal_legend(scene, before.cases > 0 || before.increments > 0), " ");
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - session).count();
-    std::printf("%s\n", cli::summary_text(crystal_totals(results), wall, output->path).c_str());
+    std::printf("%s\n",
+                cli::summary_text(crystal_totals(results), before, wall, output->path).c_str());
   }
   for (const auto& r : results) {
     if (!r.failure.empty()) throw crystal::CrystalStepFailure(r.failure);

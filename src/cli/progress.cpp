@@ -227,11 +227,45 @@ void ProgressReporter::clear() {
   last_draw_ = -1e300;  // redraw at the next update
 }
 
+namespace {
+
+// What this session computed: the run's counters less the earlier sessions'.
+RunTotals this_session(const RunTotals& t, const RunTotals& before) {
+  RunTotals s = t;
+  s.increments -= before.increments;
+  s.grain_steps -= before.grain_steps;
+  s.solves -= before.solves;
+  s.newton_iterations -= before.newton_iterations;
+  s.cutbacks -= before.cutbacks;
+  s.rejected -= before.rejected;
+  s.compute_seconds -= before.compute_seconds;
+  return s;
+}
+
+}  // namespace
+
 std::string summary_text(const RunTotals& t, double session_seconds, const std::string& output) {
+  return summary_text(t, RunTotals{}, session_seconds, output);
+}
+
+std::string summary_text(const RunTotals& run, const RunTotals& before, double session_seconds,
+                         const std::string& output) {
+  const RunTotals t = this_session(run, before);
   std::vector<std::string> phrases{"done in " + format_duration(session_seconds) + ": " +
                                    plural(static_cast<long>(t.cases), "case")};
-  if (t.failed > 0) phrases.back() += " (" + std::to_string(t.failed) + " failed)";
+  std::vector<std::string> notes;
+  if (t.failed > 0) notes.push_back(std::to_string(t.failed) + " failed");
+  if (before.cases > 0) notes.push_back(std::to_string(before.cases) + " ended before the restart");
+  if (!notes.empty()) {
+    phrases.back() += " (" + notes[0];
+    for (std::size_t k = 1; k < notes.size(); ++k) phrases.back() += ", " + notes[k];
+    phrases.back() += ")";
+  }
   phrases.push_back(plural(t.increments, "increment"));
+  if (before.increments > 0) {
+    phrases.back() += " (" + std::to_string(run.increments) + " with the " +
+                      std::to_string(before.increments) + " before the restart)";
+  }
   if (t.grain_steps > 0) {
     std::string steps = printf_string("%.3g grain-steps", static_cast<double>(t.grain_steps));
     if (t.compute_seconds > 0.0)

@@ -109,5 +109,11 @@ struct RunTotals {
 // Newton iterations per grain solve, 1 cutback, 0 rejected steps\nresults: out.h5", the first
 // part wrapped into lines of at most 80 columns (continued lines indented by two spaces).
 std::string summary_text(const RunTotals& t, double session_seconds, const std::string& output);
+// The same for a run an earlier session began (a restart): `t` counts every session, `before`
+// the earlier ones (its `cases`: those they ended). The counters are this session's, with the
+// run's increments and the cases ended before beside them: "done in 26 s: 1 case, 189
+// increments (250 with the 61 before the restart), ...".
+std::string summary_text(const RunTotals& t, const RunTotals& before, double session_seconds,
+                         const std::string& output);
 
 }  // namespace subslip::cli

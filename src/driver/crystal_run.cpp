@@ -140,6 +140,21 @@ std::string stopped_at(const model::CrystalCase& c, const crystal::RunPosition& 
   return msg.str();
 }
 
+// What an interrupted case continues from: its latest checkpoint, or (none) its start.
+EarlierWork earlier_work(const std::optional<ResumePoint>& resume, bool checkpoints) {
+  EarlierWork w;
+  if (resume) {
+    w.kind = EarlierWork::Kind::checkpoint;
+    w.position = resume->state.position;
+    w.time = resume->state.macro.time;
+    w.stats = resume->state.stats;
+  } else {
+    w.why = checkpoints ? "the run stopped before the case's first checkpoint"
+                        : "the case writes no checkpoints";
+  }
+  return w;
+}
+
 // Runs case `index` into the sink; `resuming`: an interrupted case, continued from the sink's
 // latest checkpoint of it (or from the start when it has none).
 CrystalCaseResult run_case(const model::CrystalScene& scene, CrystalSink& sink,
@@ -149,6 +164,8 @@ CrystalCaseResult run_case(const model::CrystalScene& scene, CrystalSink& sink,
   if (resuming) resume = sink.latest_checkpoint(index);
   const CheckpointPolicy policy = checkpoint_policy(c, options.checkpoint_every);
   const bool checkpoints = writes_checkpoints(policy, c, sink);
+  if (resuming && options.on_earlier_work)
+    options.on_earlier_work(index, earlier_work(resume, checkpoints));
   sink.begin_case(index, resume ? &*resume : nullptr);
   // The summary and the checkpoints name the last state written, which a resumed case has
   // from its checkpoint until it writes the next.
@@ -200,6 +217,16 @@ CrystalCaseResult run_case(const model::CrystalScene& scene, CrystalSink& sink,
 
 bool ended(CaseStatus s) {
   return s == CaseStatus::completed || s == CaseStatus::failed;
+}
+
+// A case an earlier session ended, to on_earlier_work.
+void report_ended(const CrystalRunOptions& options, std::size_t index,
+                  const CrystalCaseResult& stored) {
+  if (!options.on_earlier_work) return;
+  EarlierWork w;
+  w.kind = EarlierWork::Kind::ended;
+  w.stats = stored.summary.stats;
+  options.on_earlier_work(index, w);
 }
 
 // ---------------------------------------------------------------- whole cases over ranks
@@ -340,7 +367,13 @@ std::vector<CrystalCaseResult> run_cases_over_ranks(const model::CrystalScene& s
     for (std::size_t k = first; k < last; ++k) {
       if (ended(status[k])) {
         results.push_back(stored_result(scene.cases[k], shared.stored_case(k)));
+        report_ended(options, k, results.back());
       } else {
+        if (status[k] == CaseStatus::interrupted && options.on_earlier_work) {
+          EarlierWork w;
+          w.why = "a case a rank runs whole writes no checkpoints";
+          options.on_earlier_work(k, w);
+        }
         const int owner = static_cast<int>(k - first);
         results.push_back(write_case_of(scene, team, root_sink, k, owner,
                                         owner == team.rank() ? &*mine : nullptr));
@@ -390,6 +423,7 @@ std::vector<CrystalCaseResult> run_crystal_scene(const model::CrystalScene& scen
     const CaseStatus status = sink.status(k);
     if (ended(status)) {
       results.push_back(stored_result(scene.cases[k], sink.stored_case(k)));
+      report_ended(options, k, results.back());
       if (options.on_progress) options.on_progress(k, 1.0, true);
     } else {
       results.push_back(run_case(scene, sink, options, k, status == CaseStatus::interrupted));

@@ -23,6 +23,13 @@ std::string string_attribute(const h5::Group& root, const std::filesystem::path&
   return root.attribute_string(name);
 }
 
+// For a finished file: what to do with its restart file, when one was left beside it.
+std::string left_over_checkpoints(const std::filesystem::path& file) {
+  if (restart_file_role(file) != RestartFileRole::left_over) return "";
+  return "; " + restart_file_for(file).string() +
+         " beside it holds that run's last checkpoints, which no run continues: delete it";
+}
+
 }  // namespace
 
 RestartInfo inspect_for_restart(const std::filesystem::path& file,
@@ -50,9 +57,12 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
            "written by subslip " + program + ", this is " + SUBSLIP_VERSION +
                "; a continued run would not be identical to an uninterrupted one");
   }
-  if (root.attribute_int("completed") == 1) refuse(file, "completed", "the run completed");
-  if (root.has_attribute("finished") && root.attribute_int("finished") == 1)
-    refuse(file, "finished", "the run finished (every case completed or failed)");
+  if (root.attribute_int("completed") == 1)
+    refuse(file, "completed", "the run completed" + left_over_checkpoints(file));
+  if (root.has_attribute("finished") && root.attribute_int("finished") == 1) {
+    refuse(file, "finished",
+           "the run finished (every case completed or failed)" + left_over_checkpoints(file));
+  }
   if (!root.has_attribute("layout_complete") || root.attribute_int("layout_complete") != 1) {
     refuse(file, "layout_complete",
            "the run stopped before its result layout was written, so the file holds no result; "

@@ -45,6 +45,43 @@ bool is_restart_file(const fs::path& path, std::string* run_id) {
   }
 }
 
+ResultFileStatus result_file_status(const fs::path& result) {
+  ResultFileStatus status;
+  std::error_code ec;
+  if (!fs::exists(result, ec)) return status;
+  status.kind = ResultFileKind::other;
+  if (!fs::is_regular_file(result, ec)) return status;
+  try {
+    const h5::File f = h5::File::open_read(result);
+    const h5::Group root = f.root();
+    if (!root.has_attribute("format") || root.attribute_string("format") != "subslip")
+      return status;
+    if (root.has_attribute("run_id")) status.run_id = root.attribute_string("run_id");
+    const bool finished = root.has_attribute("finished") && root.attribute_int("finished") == 1;
+    status.kind = finished ? ResultFileKind::finished : ResultFileKind::working;
+    if (!finished && root.has("progress")) {
+      const h5::CaseProgress progress = h5::CaseProgress::open(root);
+      for (std::size_t k = 0; k < progress.size(); ++k) status.rows += progress.rows(k);
+    }
+  } catch (const h5::Error&) {
+    status.kind = ResultFileKind::other;
+  }
+  return status;
+}
+
+RestartFileRole restart_file_role(const fs::path& result) {
+  const fs::path restart = restart_file_for(result);
+  std::error_code ec;
+  if (!fs::exists(restart, ec)) return RestartFileRole::none;
+  std::string run_id;
+  if (!is_restart_file(restart, &run_id)) return RestartFileRole::foreign;
+  const ResultFileStatus owner = result_file_status(result);
+  if (owner.kind == ResultFileKind::none) return RestartFileRole::left_over;
+  if (owner.run_id != run_id) return RestartFileRole::foreign;
+  return owner.kind == ResultFileKind::working ? RestartFileRole::continues
+                                               : RestartFileRole::left_over;
+}
+
 bool every_case_ended(const fs::path& result) {
   const h5::File f = h5::File::open_read(result);
   const h5::CaseProgress progress = h5::CaseProgress::open(f.root());

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -12,6 +13,7 @@
 
 #include "subslip/io/h5_writer.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/result_file.hpp"
 #include "subslip/io/result_protocol.hpp"
 #include "subslip/io/text_layout.hpp"
 
@@ -269,6 +271,34 @@ std::string shape_text(const std::vector<std::size_t>& shape) {
   return "[" + join(dims, ", ") + "]";
 }
 
+// Whether the file is finished (each series exactly its rows) or a working file a run can
+// continue, and what its restart file beside it is.
+void print_finished(std::ostream& out, const ResultFile& r) {
+  const h5::Group& root = r.root;
+  const bool finished = root.has_attribute("finished") &&
+                        root.attribute_class("finished") != h5::ValueClass::string &&
+                        root.attribute_double("finished") == 1.0;
+  print_hanging(out, "finished:    ",
+                finished ? "yes (every series holds exactly its valid rows)"
+                         : "NO: a working file (series hold reserved rows; /progress counts the "
+                           "valid ones); subslip run --restart " +
+                               r.name + " continues or finishes it");
+  const std::filesystem::path restart = restart_file_for(r.name);
+  switch (restart_file_role(r.name)) {
+    case RestartFileRole::continues:
+      print_hanging(out, "restart:     ", restart.string() + " (the checkpoints of this run)");
+      break;
+    case RestartFileRole::left_over:
+      print_hanging(out, "restart:     ",
+                    restart.string() +
+                        " (left over from this finished run; no run continues it: delete it)");
+      break;
+    case RestartFileRole::none:
+    case RestartFileRole::foreign:
+      break;
+  }
+}
+
 void print_file_header(std::ostream& out, const ResultFile& r) {
   const h5::Group& root = r.root;
   const auto text = [&](const char* name) { return attribute_or(root, name, "-"); };
@@ -296,6 +326,7 @@ void print_file_header(std::ostream& out, const ResultFile& r) {
                 completed ? "yes"
                           : "NO (the run was interrupted, failed or is still running; see the "
                             "cases)");
+  print_finished(out, r);
   // Why a failed write stopped the run (a full disk); the attribute is empty otherwise.
   const std::string write_error = text("write_error");
   if (!write_error.empty() && write_error != "-") print_hanging(out, "write error: ", write_error);

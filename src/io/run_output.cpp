@@ -3,6 +3,8 @@
 #include <limits>
 #include <string>
 #include <system_error>
+#include <utility>
+#include <vector>
 
 namespace fs = std::filesystem;
 
@@ -31,12 +33,36 @@ void refuse_output_over_inputs(const fs::path& out, const std::vector<fs::path>&
   }
 }
 
-// The restart file of a new run's result (checkpoints): a restart file left by an interrupted
-// run is replaced only with --force; anything else at that path is never replaced.
-void check_restart_path(const fs::path& out, bool force) {
+// A result path that holds an interrupted run is continued with --restart, replaced only with
+// --force; the message says both.
+void refuse_interrupted_result(const fs::path& out, bool force) {
+  if (force) return;
+  const ResultFileStatus status = result_file_status(out);
+  if (status.kind != ResultFileKind::working) return;
+  throw io::h5::OutputPathError(
+      out.string() + ": holds an interrupted run (" + std::to_string(status.rows) +
+      " output rows written); continue it with: subslip run --restart " + out.string() +
+      " (or replace it with --force)");
+}
+
+// The restart file of a new run's result (checkpoints): one left by an interrupted run is
+// replaced only with --force; one no run can continue (its run finished, or its result file is
+// gone) is removed, with a note; anything else at that path is never replaced.
+void check_restart_path(const fs::path& out, bool force, std::vector<std::string>& notes) {
   const fs::path restart = io::restart_file_for(out);
   std::error_code ec;
   if (!fs::exists(restart, ec)) return;
+  if (restart_file_role(out) == RestartFileRole::left_over) {
+    fs::remove(restart, ec);
+    if (ec) {
+      throw io::h5::OutputPathError(restart.string() + ": cannot remove it (" + ec.message() +
+                                    "); it holds the checkpoints of a run of " + out.string() +
+                                    " that no run can continue");
+    }
+    notes.push_back("removed " + restart.string() + ": the checkpoints of a run of " +
+                    out.string() + " that had finished or whose result file is gone");
+    return;
+  }
   if (!io::is_restart_file(restart)) {
     throw io::h5::OutputPathError(restart.string() +
                                   ": exists and is not a subslip restart file, but the "
@@ -128,17 +154,20 @@ RunOutput open_output(const OutputRequest& request, const YamlDocument& document
   if (restart != nullptr) {
     io::check_restart_cases(out, *restart, case_names);
     check_fits(request, document, size);
-    return {out, {}, io::h5::File::open_write(out), request.keep_restart};
+    return {out, {}, io::h5::File::open_write(out), request.keep_restart, {}};
   }
   refuse_output_over_inputs(out, inputs);
   if (checkpoints) refuse_output_over_inputs(io::restart_file_for(out), inputs);
   check_fits(request, document, size);  // before check_output_path creates directories
+  refuse_interrupted_result(out, request.force);
   io::h5::check_output_path(out, request.force);
-  if (checkpoints) check_restart_path(out, request.force);
+  std::vector<std::string> notes;
+  if (checkpoints) check_restart_path(out, request.force, notes);
   fs::path partial = out;
   partial += ".partial";
   try {
-    return {out, partial, io::h5::File::create(partial, true), request.keep_restart};
+    return {out, partial, io::h5::File::create(partial, true), request.keep_restart,
+            std::move(notes)};
   } catch (const io::h5::Error& e) {
     std::error_code ec;
     fs::remove(partial, ec);

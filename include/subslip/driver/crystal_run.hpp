@@ -29,6 +29,22 @@ std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& s
 double von_mises_stress(const Eigen::Matrix3d& stress);
 double von_mises_strain(const Eigen::Matrix3d& strain);
 
+// What a restart finds of case `index` from the sessions before it (a run continued with
+// --restart), reported before the case is run or skipped.
+struct EarlierWork {
+  enum class Kind {
+    ended,       // the case ended (completed or failed) in an earlier session: it is not run
+    checkpoint,  // the case continues from its latest checkpoint
+    from_start,  // the case was interrupted without a checkpoint it can continue from: it runs
+                 // again from its start (`why`)
+  };
+  Kind kind = Kind::from_start;
+  crystal::RunPosition position;  // checkpoint: where it continues
+  double time = 0.0;              // checkpoint: the loading time there
+  crystal::AggregateStats stats;  // the counters of the sessions before (none for from_start)
+  std::string why;                // from_start: why there is no checkpoint to continue from
+};
+
 struct CrystalRunOptions {
   // The ranks that share each case's grains (MPI; each holds its parallel::block_of them). With
   // more than one, the sink must be a TeamCrystalSink (driver/team_crystal_sink.hpp) on every
@@ -42,6 +58,8 @@ struct CrystalRunOptions {
   // How far case `index` is: the fraction of its loading time done. `resumed` marks the point a
   // restart continues from (work done before this session), and completed cases it skips.
   std::function<void(std::size_t index, double fraction, bool resumed)> on_progress;
+  // Called for every case a restart finds begun or ended by an earlier session (on every rank).
+  std::function<void(std::size_t index, const EarlierWork&)> on_earlier_work;
   // Asked after every increment (on every rank; the ranks stop together when any asks): true
   // stops the run there, after a checkpoint when the case writes them, with RunStopped (a
   // signal from a batch scheduler, Ctrl-C). None: the run is never stopped.

@@ -35,6 +35,31 @@ inline constexpr const char* kRestartFormat = "subslip-restart";
 // then `run_id` (empty when it has none); false for anything else (not HDF5, another file).
 bool is_restart_file(const std::filesystem::path& path, std::string* run_id = nullptr);
 
+// What a result path holds, as a run or `subslip post` sees it.
+enum class ResultFileKind {
+  none,      // no file there
+  working,   // a subslip result file not finished: a run killed, stopped or still running
+  finished,  // a finished subslip result file
+  other,     // anything else (not HDF5, not a subslip result, unreadable)
+};
+struct ResultFileStatus {
+  ResultFileKind kind = ResultFileKind::none;
+  std::string run_id;    // the file's run_id (working and finished files)
+  long long rows = 0;    // the valid output rows of every case (working files)
+};
+ResultFileStatus result_file_status(const std::filesystem::path& result);
+
+// What the restart file next to `result` (restart_file_for) is to it.
+enum class RestartFileRole {
+  none,         // there is none
+  continues,    // the checkpoints of the interrupted run `result` holds (same run_id)
+  left_over,    // the checkpoints of a run that finished, or whose result file is gone: no run
+                // can continue from them (a kill between the finish and their removal, or
+                // --keep-restart)
+  foreign,      // another run's, or not a restart file
+};
+RestartFileRole restart_file_role(const std::filesystem::path& result);
+
 // True when every case of the (closed) working file at `result` has ended: completed or failed.
 bool every_case_ended(const std::filesystem::path& result);
 
