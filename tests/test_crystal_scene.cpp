@@ -258,7 +258,11 @@ INSTANTIATE_TEST_SUITE_P(
                "unknown key 'mu_s'"},
         Broken{"per_family_not_listed.yaml", 9, "phase.per_family.bcc_110_111", "fcc_111_110"},
         Broken{"custom_not_in_plane.yaml", 5, "phase.slip_systems[0]", "slip plane"},
-        Broken{"bad_sweep_L_index.yaml", 20, "sweep[\"loading[0].L[3][0]\"]", "no element 3"}),
+        Broken{"bad_sweep_L_index.yaml", 20, "sweep[\"loading[0].L[3][0]\"]", "no element 3"},
+        Broken{"unknown_compression.yaml", 20, "output.compression", "gzip"},
+        Broken{"compression_level_range.yaml", 21, "output.compression_level", "9"},
+        Broken{"compression_level_without_gzip.yaml", 21, "output.compression_level",
+               "compression: none"}),
     [](const ::testing::TestParamInfo<Broken>& info) {
       std::string name = info.param.file;
       return name.substr(0, name.find('.'));
@@ -270,7 +274,7 @@ TEST(BrokenCrystalScenes, TableCoversEveryFile) {
   for (const auto& entry : fs::directory_iterator(kBrokenDir)) {
     if (entry.path().extension() == ".yaml") ++files;
   }
-  EXPECT_EQ(files, 20u);
+  EXPECT_EQ(files, 23u);
 }
 
 // ---------------------------------------------------------------- shipped scenes

@@ -127,8 +127,10 @@ TEST(H5Output, ContactFileHasTheDocumentedLayoutAndValues) {
     EXPECT_TRUE(ds.has_attribute("unit"));
     EXPECT_FALSE(ds.attribute_string("description").empty());
     EXPECT_EQ(ds.shape().front(), n);
-    EXPECT_TRUE(ds.filters().empty());  // live rows are written in place, uncompressed
-    // A finished file: chunked (extendible) as while the run went, but exactly its rows.
+    // A finished file: chunked (extendible) as while the run went, but exactly its rows, and
+    // compressed (output.compression: gzip by default; the live rows were written in place,
+    // uncompressed).
+    EXPECT_EQ(ds.filters(), (std::vector<std::string>{"shuffle", "deflate"}));
     ASSERT_FALSE(ds.chunk_shape().empty());
     EXPECT_LE(ds.chunk_shape().front(), n);
   }

@@ -5,10 +5,12 @@
 // end unless --keep-restart.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "child_process.hpp"
@@ -127,6 +129,57 @@ TEST(FinishedFile, AdaptiveScenesHoldExactlyTheirRows) {
     expect_exact(dir / out);
     EXPECT_FALSE(fs::exists(dir / (out + ".finishing")));
     EXPECT_FALSE(fs::exists(restart_file_for(dir / out)));
+  }
+  fs::remove_all(dir);
+}
+
+// The series of a finished file as output.compression says: shuffled and deflated at the level
+// asked (by default too), or stored plain with `none`; the values read back are the same bits.
+TEST(FinishedFile, SeriesAreCompressedAsTheSceneSays) {
+  const fs::path dir = scratch_dir();
+  const std::string scene = R"(scene: crystal
+title: "compression"
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 5.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations:
+  random: {count: 40, seed: 3}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 10
+    increments: 20
+output:
+  grains: [stress, slip, r_s]
+)";
+  // (the level each file asks for; 0: none)
+  const std::vector<std::pair<std::string, int>> variants{
+      {"", 1}, {"  compression: none\n", 0}, {"  compression: gzip\n  compression_level: 7\n", 7}};
+  for (std::size_t k = 0; k < variants.size(); ++k) {
+    const auto& [extra, level] = variants[k];
+    SCOPED_TRACE(extra);
+    const std::string name = std::array{"v0", "v1", "v2"}.at(k);
+    std::ofstream(dir / (name + ".yaml")) << scene << extra;
+    ASSERT_EQ(run_logged(dir, {"run", name + ".yaml", "-o", name + ".h5", "-q"}), 0)
+        << read_text(dir / "run.log");
+    const h5::File f = h5::File::open_read(dir / (name + ".h5"));
+    EXPECT_EQ(f.root().attribute_int("gzip_level"), level);
+    const h5::Group base = f.root().open_group("cases").open_group("base");
+    for (const h5::Dataset& series :
+         {base.open_group("grains").open_dataset("stress"),
+          base.open_group("macro").open_dataset("stress")}) {
+      const std::vector<std::string> expected =
+          level > 0 ? std::vector<std::string>{"shuffle", "deflate"} : std::vector<std::string>{};
+      EXPECT_EQ(series.filters(), expected);
+    }
+    expect_exact(dir / (name + ".h5"));
+    if (k > 0) subslip::testing::expect_same_datasets(dir / "v0.h5", dir / (name + ".h5"));
   }
   fs::remove_all(dir);
 }

@@ -245,7 +245,8 @@ namespace {
 ContactRunFiles lay_out(const ContactScene& scene, h5::File& file) {
   const h5::Group root = file.root();
   h5::write_result_header(
-      file, {"contact", scene.file, scene.text, scene.title, scene.units.entries(), {}});
+      file, {"contact", scene.file, scene.text, scene.title, scene.units.entries(), {},
+             scene.compression.gzip_level});
   h5::Group cases = root.create_group("cases");
   std::vector<std::string> names;
   for (const auto& c : scene.cases) names.push_back(c.name);

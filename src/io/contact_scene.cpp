@@ -154,7 +154,7 @@ history::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
 std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
   const std::vector<ContactField> all(kAllContactFields.begin(), kAllContactFields.end());
   if (!node) return all;
-  node->allow_keys({"fields", "at"});
+  node->allow_keys({"fields", "at", kCompressionKeys[0], kCompressionKeys[1]});
   const auto fields = node->optional("fields");
   if (!fields) return all;
   std::vector<std::string_view> names;
@@ -245,6 +245,7 @@ ContactScene parse_contact_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units(root.required("units"));
+  scene.compression = parse_compression(root.optional("output"));
   const Units& units = scene.units;
   scene.cases = parse_sweep_cases(document, kContactSweepable, [&units](SweepCase swept) {
     return parse_case(std::move(swept), units);

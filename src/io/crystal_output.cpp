@@ -581,7 +581,8 @@ CrystalRunFiles lay_out(const CrystalScene& scene, h5::File& file,
                         const CrystalSinkOptions& options) {
   const h5::Group root = file.root();
   h5::write_result_header(file, {"crystal", scene.file, scene.text, scene.title,
-                                 crystal_units(scene.units), options.computed_with});
+                                 crystal_units(scene.units), options.computed_with,
+                                 scene.compression.gzip_level});
   h5::Group cases = root.create_group("cases");
   std::vector<std::string> names;
   for (const auto& c : scene.cases) names.push_back(c.name);

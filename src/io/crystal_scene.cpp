@@ -568,7 +568,8 @@ CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
   CrystalOutputSelection out;
   out.macro.assign(kAllMacroFields.begin(), kAllMacroFields.end());
   if (!node) return out;
-  node->allow_keys({"macro", "grains", "checkpoint_every", "at", "grains_at"});
+  node->allow_keys({"macro", "grains", "checkpoint_every", "at", "grains_at", kCompressionKeys[0],
+                    kCompressionKeys[1]});
   out.checkpoint_every = node->get_int("checkpoint_every", -1, Range::at_least(0));
   if (auto macro = node->optional("macro")) {
     if (macro->size() == 0) macro->fail("needs at least 'time'");
@@ -671,6 +672,7 @@ CrystalScene describe_crystal_scene(const YamlDocument& document) {
   scene.text = document.text();
   scene.title = root.get_string("title", "");
   scene.units = parse_units_without_length(root.required("units"));
+  scene.compression = parse_compression(root.optional("output"));
   const Units& units = scene.units;
   scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units](SweepCase swept) {
     return parse_case(std::move(swept), units);

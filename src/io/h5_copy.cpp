@@ -62,7 +62,8 @@ constexpr std::size_t kFinishedChunkBytes = std::size_t{1} << 20;
 
 // An extendible dataset (a series): its first `rows` rows, chunked as in `from` but with
 // chunks of at most `rows` rows; attributes copied.
-void copy_rows(hid_t from, hid_t to_group, const std::string& name, std::size_t rows) {
+void copy_rows(hid_t from, hid_t to_group, const std::string& name, std::size_t rows,
+               int gzip_level) {
   const std::string what = "copy rows of dataset " + object_path(from);
   Handle space = own(H5Dget_space(from), H5Sclose, what);
   const int rank = H5Sget_simple_extent_ndims(space.get());
@@ -83,6 +84,14 @@ void copy_rows(hid_t from, hid_t to_group, const std::string& name, std::size_t 
   chunk[0] = std::clamp<hsize_t>(rows, 1, std::max(chunk[0], wide));
   check(H5Pset_chunk(dcpl.get(), rank, chunk.data()), what + ": chunk");
   check(H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_INCR), what + ": allocation time");
+  // (The source's own filters, if any, give way to those asked for here.)
+  check(H5Premove_filter(dcpl.get(), H5Z_FILTER_ALL), what + ": filters");
+  if (gzip_level > 0) {
+    // The shuffle groups the bytes of equal significance (doubles of a series share their
+    // leading bytes), which deflate then finds.
+    check(H5Pset_shuffle(dcpl.get()), what + ": shuffle filter");
+    check(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(gzip_level)), what + ": deflate");
+  }
   std::vector<hsize_t> new_dims = dims;
   new_dims[0] = rows;
   Handle new_space = simple_space(new_dims, max_dims.data());
@@ -125,7 +134,8 @@ bool extendible(hid_t dataset) {
   return max_dims[0] == H5S_UNLIMITED;
 }
 
-void copy_group(hid_t from, hid_t to, const std::string& path, const RowsToKeep& rows) {
+void copy_group(hid_t from, hid_t to, const std::string& path, const RowsToKeep& rows,
+                int gzip_level) {
   copy_attributes(from, to);
   for (const std::string& name :
        Group(own(H5Gopen2(from, ".", H5P_DEFAULT), H5Gclose, "open group " + path)).members()) {
@@ -141,7 +151,7 @@ void copy_group(hid_t from, hid_t to, const std::string& path, const RowsToKeep&
       track_creation_order(gcpl.get());
       Handle target = own(H5Gcreate2(to, name.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT),
                           H5Gclose, "create group " + child);
-      copy_group(source.get(), target.get(), child, rows);
+      copy_group(source.get(), target.get(), child, rows, gzip_level);
       continue;
     }
     if (info.type == H5O_TYPE_DATASET) {
@@ -152,7 +162,8 @@ void copy_group(hid_t from, hid_t to, const std::string& path, const RowsToKeep&
         Handle space = own(H5Dget_space(source.get()), H5Sclose, "dataset space");
         hsize_t dims[H5S_MAX_RANK];
         if (H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0) fail("extent of " + child);
-        copy_rows(source.get(), to, name, keep ? *keep : static_cast<std::size_t>(dims[0]));
+        copy_rows(source.get(), to, name, keep ? *keep : static_cast<std::size_t>(dims[0]),
+                  gzip_level);
         continue;
       }
     }
@@ -162,10 +173,12 @@ void copy_group(hid_t from, hid_t to, const std::string& path, const RowsToKeep&
 
 }  // namespace
 
-void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows) {
+void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows,
+                      int gzip_level) {
   const Group from = source.root();
   const Group to = target.root();
-  copy_group(from.id(), to.id(), "/", rows);
+  if (gzip_level > 0 && H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0) gzip_level = 0;
+  copy_group(from.id(), to.id(), "/", rows, gzip_level);
 }
 
 void sync_to_disk(const std::filesystem::path& file) {

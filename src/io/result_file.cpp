@@ -108,6 +108,9 @@ bool finish_result(const fs::path& result) {
         rows["/cases/" + names[k] + "/grains/"] = static_cast<std::size_t>(progress.grain_rows(k));
         completed = completed && progress.state(k) == h5::CaseState::completed;
       }
+      // (A file without the attribute was laid out without compression.)
+      const int gzip_level =
+          root.has_attribute("gzip_level") ? static_cast<int>(root.attribute_int("gzip_level")) : 0;
       h5::File target = h5::File::create(temporary, true);
       h5::write_exact_copy(source, target, [&](const std::string& path) {
         std::optional<std::size_t> keep;  // the longest prefix that matches
@@ -119,7 +122,7 @@ bool finish_result(const fs::path& result) {
           }
         }
         return keep;
-      });
+      }, gzip_level);
       const h5::Group out = target.root();
       out.set_attribute("completed", completed ? 1 : 0);
       out.set_attribute("finished", 1);

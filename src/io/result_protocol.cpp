@@ -109,6 +109,7 @@ void write_result_header(File& file, const ResultHeader& header) {
   root.set_attribute("finished", 0);
   root.set_attribute("layout_complete", 0);
   root.reserve_string_attribute("write_error", kFailureMessageBytes);
+  root.set_attribute("gzip_level", header.gzip_level);
   root.write_text("scene", header.scene_text, "the scene file, verbatim");
   const Group units = root.create_group("units");
   for (const auto& [name, unit] : header.units) units.set_attribute(name, unit);

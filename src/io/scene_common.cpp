@@ -42,6 +42,21 @@ Units parse_units(const CheckedNode& node) {
   return read_units(node, true);
 }
 
+model::SeriesCompression parse_compression(const std::optional<CheckedNode>& output) {
+  model::SeriesCompression compression;
+  if (!output) return compression;
+  const auto method = output->optional("compression");
+  const bool gzip = !method || method->as_choice({"gzip", "none"}) == "gzip";
+  const auto level = output->optional("compression_level");
+  if (!gzip) {
+    if (level) level->fail("sets the level of gzip compression; drop it with 'compression: none'");
+    compression.gzip_level = 0;
+    return compression;
+  }
+  if (level) compression.gzip_level = level->as_int(Range::in_closed_interval(1, 9));
+  return compression;
+}
+
 Units parse_units_without_length(const CheckedNode& node) {
   return read_units(node, false);
 }

@@ -373,8 +373,11 @@ using RowsToKeep = std::function<std::optional<std::size_t>(const std::string& p
 // creation order, except that an extendible dataset holds only the rows `rows` gives (chunked
 // as before, chunks no longer than those rows) and a fixed-length string attribute (a reserved
 // message: `failed`, `write_error`) becomes a variable-length one (h5py reads it as str).
-// Datasets are copied in blocks of at most a few MB. `target` stays open.
-void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows);
+// Datasets are copied in blocks of at most a few MB. `target` stays open. With `gzip_level`
+// 1 ... 9 the extendible datasets' chunks are stored compressed (byte shuffle, then deflate at
+// that level), where this HDF5 has the deflate filter; readers decompress them unasked.
+void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows,
+                      int gzip_level = 0);
 
 // fsync of the file and of its directory (after a rename into it), so that what was written
 // survives a crash of the machine too. Throws Error naming the file.

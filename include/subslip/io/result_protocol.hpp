@@ -62,12 +62,16 @@ struct ResultHeader {
   // Further root attributes (name, text) that say how the results were computed, e.g. the
   // crystal solver's SIMD kernels.
   std::vector<std::pair<std::string, std::string>> computed_with;
+  // How the finished file will store its series (model::SeriesCompression: 0 none, 1 ... 9
+  // deflate at that level after the byte shuffle), kept until the file is finished, also by a
+  // later session (--restart).
+  int gzip_level = 0;
 };
 
 // Root attributes format = "subslip", format_version, program_version, build (SUBSLIP_BUILD:
 // "portable" or "native"), the header's computed_with, scene_kind,
 // scene_file, title, created (ISO-8601 UTC), run_id (new_run_id), completed = 0, finished = 0,
-// layout_complete = 0, write_error (reserved, empty: see mark_write_failed); dataset
+// layout_complete = 0, write_error (reserved, empty: see mark_write_failed), gzip_level; dataset
 // /scene; group /units with one string attribute per unit. Flushes.
 void write_result_header(File& file, const ResultHeader& header);
 // Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes

@@ -14,6 +14,7 @@
 #include "subslip/io/units.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/model/case_common.hpp"
+#include "subslip/model/series_compression.hpp"
 
 namespace subslip::io {
 
@@ -60,6 +61,12 @@ class SceneValues {
   const Units& units_;
   std::vector<WrittenValue> magnitudes_;
 };
+
+// The finished file's series storage from a scene's `output` block: `compression: gzip` (the
+// default, level model::SeriesCompression{}.gzip_level) or `none`, and with gzip
+// `compression_level: 1 ... 9`.
+model::SeriesCompression parse_compression(const std::optional<CheckedNode>& output);
+inline constexpr std::string_view kCompressionKeys[] = {"compression", "compression_level"};
 
 // Reads `units: {stress: MPa, length: mm, time: min}` (all three required; `um` may be written
 // as `µm`, and is stored as `um`).

@@ -13,6 +13,7 @@
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/history/contact_history.hpp"
 #include "subslip/model/case_common.hpp"
+#include "subslip/model/series_compression.hpp"
 #include "subslip/model/units.hpp"
 
 namespace subslip::model {
@@ -53,6 +54,7 @@ struct ContactScene {
   std::string text;   // the YAML text, verbatim
   std::string title;  // "" when the scene has none
   Units units;
+  SeriesCompression compression;   // of the finished file (output.compression)
   std::vector<ContactCase> cases;  // in sweep order (first swept key slowest)
 };
 

@@ -20,6 +20,7 @@
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/crystal/texture.hpp"
 #include "subslip/model/case_common.hpp"
+#include "subslip/model/series_compression.hpp"
 #include "subslip/model/units.hpp"
 
 namespace subslip::model {
@@ -128,6 +129,7 @@ struct CrystalScene {
   std::string text;   // the YAML text, verbatim
   std::string title;  // "" when the scene has none
   Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
+  SeriesCompression compression;   // of the finished file (output.compression)
   std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
 };
 
