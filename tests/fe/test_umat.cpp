@@ -179,14 +179,17 @@ TEST(FeUmat, AnIncrementOfNoTime) {
   EXPECT_EQ(u.statev, statev);
 }
 
-// A refused increment: PNEWDT < 1, STRESS and STATEV exactly as they came in, one message.
+// A refused increment: PNEWDT < 1, STRESS, STATEV and SSE, SPD, SCD exactly as they came in,
+// one message.
 void expect_refused(UmatPoint& u, const std::array<double, 6>& dstran, double dt,
                     const std::string& naming) {
   const auto stress = u.stress;
   const auto statev = u.statev;
+  const std::array<double, 3> energies{u.sse, u.spd, u.scd};
   EXPECT_LT(u.call(dstran, dt), 1.0);
   EXPECT_EQ(u.stress, stress);
   EXPECT_EQ(u.statev, statev);
+  EXPECT_EQ((std::array<double, 3>{u.sse, u.spd, u.scd}), energies);
   EXPECT_NE(last_message().find(naming), std::string::npos) << last_message();
 }
 
