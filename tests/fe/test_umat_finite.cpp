@@ -179,6 +179,36 @@ TEST(FeUmatFinite, UniaxialStressWithDdsddeEqualsTheNativeGrain) {
               newton_iterations, step);
 }
 
+// A finite-strain increment the grain solver cannot take (one Newton iteration allowed): PNEWDT
+// < 1, and STRESS, STATEV, SSE, SPD, SCD as they came in; the default solver takes it.
+TEST(FeUmatFinite, AFailedIncrementCutsBackAndLeavesStressAndStatev) {
+  UmatPoint u(finite_props());
+  Eigen::Matrix3d g;
+  g << -0.5e-3, 2e-3, 0.0, 0.0, -0.5e-3, 0.0, 0.0, 0.0, 1e-3;  // [1/s]
+  const double dt = 0.2;                                       // [s]
+  auto f = [&](double t) { return Eigen::Matrix3d(Eigen::Matrix3d::Identity() + t * g); };
+  for (int k = 1; k <= 3; ++k) {
+    set_f(u.dfgrd0, f(dt * (k - 1)));
+    set_f(u.dfgrd1, f(dt * k));
+    ASSERT_EQ(u.call({}, dt), 1.0) << last_message();
+  }
+  UmatPoint limited = u;
+  limited.props[SUBSLIP_UMAT_MAX_ITERATIONS - 1] = 1;
+  set_f(limited.dfgrd0, f(3 * dt));
+  set_f(limited.dfgrd1, f(13 * dt));
+  const UmatPoint before = limited;
+  EXPECT_LT(limited.call({}, dt), 1.0);
+  EXPECT_NE(last_message().find("grain solver"), std::string::npos) << last_message();
+  EXPECT_EQ(limited.stress, before.stress);
+  EXPECT_EQ(limited.statev, before.statev);
+  EXPECT_EQ(limited.ddsdde, before.ddsdde);
+  EXPECT_EQ((std::array<double, 3>{limited.sse, limited.spd, limited.scd}),
+            (std::array<double, 3>{before.sse, before.spd, before.scd}));
+  set_f(u.dfgrd0, f(3 * dt));
+  set_f(u.dfgrd1, f(13 * dt));
+  EXPECT_EQ(u.call({}, dt), 1.0) << last_message();
+}
+
 // A Taylor aggregate of three grains through PROPS equals the API's TaylorPoint.
 TEST(FeUmatTaylor, AggregateEqualsTheNativeTaylorPoint) {
   const std::vector<Eigen::Vector3d> euler = {{0, 0, 0}, {30, 40, 50}, {80, 20, 10}};
