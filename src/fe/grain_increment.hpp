@@ -10,11 +10,15 @@
 namespace subslip::fe {
 
 // The increment's kinematics: the grains take the constant velocity gradient `l` over dt,
-// then turn rigidly by `rotation` (the identity for small strain).
+// then turn rigidly by `rotation` (the identity for small strain). At finite strain `l` is
+// log(U) / dt of the relative deformation F1 F0^-1 = R U, U = V diag(stretch) V^T.
 struct Kinematics {
   Eigen::Matrix3d l = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
-  bool none = true;  // no deformation at all over the increment
+  Eigen::Vector3d stretch = Eigen::Vector3d::Ones();           // principal stretches of U
+  Eigen::Matrix3d stretch_axes = Eigen::Matrix3d::Identity();  // V: their directions
+  bool finite = false;  // from deformation gradients (the tangent is then d sigma1 / d eps)
+  bool none = true;     // no deformation at all over the increment
 };
 
 // Small strain: D = strain increment / dt, no spin.
@@ -26,9 +30,23 @@ Kinematics finite_strain_kinematics(const Eigen::Matrix3d& f0, const Eigen::Matr
 // The material of these PROPS (made once per distinct PROPS, shared by every thread).
 std::shared_ptr<const UmatMaterial> umat_material(const double* props, int nprops);
 
+// Energies per unit volume (the grains' weighted sum) [stress]: `elastic` at the increment's end
+// (1/2 sigma : C^-1 : sigma of the lattice stress), `plastic` and `viscous` the increment's
+// dissipation, split on each slip system into the static resistance (r_s mu tau0) and the
+// overstress above it; plastic + viscous = sum_a (tau_a(0) + tau_a(1)) / 2 dgamma_a.
+struct IncrementEnergies {
+  double elastic = 0.0;
+  double plastic = 0.0;
+  double viscous = 0.0;
+};
+
 struct GrainIncrement {
-  point::Mandel6 stress;   // Cauchy, sample frame at the increment's end
-  point::Matrix6 tangent;  // d stress / d (strain increment), Mandel, that frame
+  point::Mandel6 stress;  // Cauchy, sample frame at the increment's end
+  // Mandel, that frame. Small strain: d stress / d (strain increment). Finite strain: the
+  // derivative under F1 -> (I + d eps) F1 with d eps symmetric (a variation of F1 whose spin
+  // part only turns the stress with it), the exact derivative of the finite increment.
+  point::Matrix6 tangent;
+  IncrementEnergies energies;
 };
 
 // One increment from the state in `statev` (the UMAT layout, m.statev_count entries; a marker 0

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 
 #include "export.hpp"
@@ -44,10 +45,12 @@ void stensor_to_tfel(const Eigen::Matrix3d& s, double* v) {
     v[k] = (k < 3 ? 1.0 : std::numbers::sqrt2) * s(kStensor[k][0], kStensor[k][1]);
 }
 
-// d sigma / d F (6 x 9, row major, TFEL orders) of a Cauchy stress whose rate is the tangent
-// `c` (d sigma / d (D dt), Mandel) times the stretching plus the rotation of sigma with the spin:
-// a variation dF of F is the velocity gradient dF F^-1 over the step. This is the rate form's
-// operator: exact as the increments shrink, not the derivative of the finite increment.
+// d sigma / d F1 (6 x 9, row major, TFEL orders), MFront's DSIG_DF, from `c` = d sigma / d e
+// under F1 -> (I + e) F1 (e symmetric, Mandel; GrainIncrement::tangent) and the stress sigma at
+// the increment's end. A variation dF of F1 is F1 -> (I + l) F1 with l = dF F1^-1; its skew
+// part w turns the relative deformation's rotation and nothing else, so d sigma = c : sym(l) +
+// w sigma - sigma w. With the exact c of the increment this is the derivative of the finite
+// increment; with the elastic operator, the elastic response's.
 void dsigma_df(const point::Matrix6& c, const Eigen::Matrix3d& sigma, const Eigen::Matrix3d& f,
                double* k) {
   const Eigen::Matrix3d f_inverse = f.inverse();
@@ -98,6 +101,9 @@ int integrate(mfront_gb_BehaviourData* d) {
         "only the Cauchy stress and d sigma / d F are offered (K[1] = "
         "K[2] = 0)");
   const auto props = props_of(d->s0.material_properties);
+  // The UMAT's TAU0 = 0 (a tau0 per family after the base PROPS) has no material property here.
+  if (!(props[SUBSLIP_UMAT_TAU0 - 1] > 0.0))
+    throw std::invalid_argument("the material property tau0 must be > 0");
   const auto material = umat_material(props.data(), static_cast<int>(props.size()));
   const Eigen::Matrix3d f0 = tensor_from_tfel(d->s0.gradients);
   const Eigen::Matrix3d f1 = tensor_from_tfel(d->s1.gradients);

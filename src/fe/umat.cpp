@@ -41,7 +41,19 @@ struct UmatIo {
   int nprops;
   const double* dfgrd0;
   const double* dfgrd1;
+  double* sse;
+  double* spd;
+  double* scd;
 };
+
+// Abaqus' Jacobian under NLGEOM is that of the Kirchhoff stress per unit current volume,
+// (1/J) d tau / d eps under F1 -> (I + d eps) F1: with tau = J sigma and dJ = J tr(d eps) it is
+// d sigma / d eps + sigma (x) I.
+point::Matrix6 kirchhoff_jacobian(const point::Matrix6& d_sigma, const point::Mandel6& sigma) {
+  point::Mandel6 identity = point::Mandel6::Zero();
+  identity.head<3>().setOnes();
+  return d_sigma + sigma * identity.transpose();
+}
 
 void umat_increment(const UmatIo& io) {
   const auto material = umat_material(io.props, io.nprops);
@@ -64,15 +76,19 @@ void umat_increment(const UmatIo& io) {
   const GrainIncrement r = grain_increment(m, statev.data(), k, io.dtime);
   std::copy(statev.begin(), statev.end(), io.statev);
   to_abaqus_stress(r.stress, io.ntens, io.stress);
-  to_abaqus_tangent(r.tangent, io.ntens, io.ddsdde);
+  to_abaqus_tangent(m.finite_strain ? kirchhoff_jacobian(r.tangent, r.stress) : r.tangent, io.ntens,
+                    io.ddsdde);
+  if (io.sse) *io.sse = r.energies.elastic;
+  if (io.spd) *io.spd += r.energies.plastic;
+  if (io.scd) *io.scd += r.energies.viscous;
 }
 
 }  // namespace
 
 }  // namespace subslip::fe
 
-SUBSLIP_FE_EXPORT void umat_(double* stress, double* statev, double* ddsdde, double* /*sse*/,
-                             double* /*spd*/, double* /*scd*/, double* /*rpl*/, double* /*ddsddt*/,
+SUBSLIP_FE_EXPORT void umat_(double* stress, double* statev, double* ddsdde, double* sse,
+                             double* spd, double* scd, double* /*rpl*/, double* /*ddsddt*/,
                              double* /*drplde*/, double* /*drpldt*/, const double* /*stran*/,
                              const double* dstran, const double* /*time*/, const double* dtime,
                              const double* /*temp*/, const double* /*dtemp*/,
@@ -88,8 +104,8 @@ SUBSLIP_FE_EXPORT void umat_(double* stress, double* statev, double* ddsdde, dou
   fe::clear_message();
   try {
     fe::check_dimensions(*ndi, *nshr, *ntens);
-    fe::umat_increment(
-        {stress, statev, ddsdde, dstran, *dtime, *ntens, *nstatv, props, *nprops, dfgrd0, dfgrd1});
+    fe::umat_increment({stress, statev, ddsdde, dstran, *dtime, *ntens, *nstatv, props, *nprops,
+                        dfgrd0, dfgrd1, sse, spd, scd});
   } catch (const std::exception& e) {
     fe::refuse("umat", fe::where(noel, npt) + e.what());
     *pnewdt = std::min(*pnewdt, 0.5);

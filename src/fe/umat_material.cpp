@@ -1,5 +1,7 @@
 #include "umat_material.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -24,27 +26,62 @@ std::vector<cr::SlipFamily> families(int lattice) {
       return {F::bcc_110_111};
     case 3:
       return {F::bcc_110_111, F::bcc_112_111};
-    default:
+    case 4:
       return {F::bcc_110_111, F::bcc_112_111, F::bcc_123_111};
+    default:
+      return {F::hcp_basal_a, F::hcp_prismatic_a, F::hcp_pyramidal_a, F::hcp_pyramidal_ca};
   }
 }
 
-point::GrainParameters grain_parameters(const double* p) {
+// Where the entries after the orientation or the grain list are (umat_layout.h).
+struct Tail {
+  int base = 0;             // PROPS(base + offset)
+  bool hcp = false;         // C13, C33, c/a first
+  bool per_family = false;  // then one tau0 per family
+  int lattice = 0;
+
+  int size() const { return SUBSLIP_UMAT_TAIL(lattice, per_family); }
+  int first_tau0() const { return base + 1 + (hcp ? SUBSLIP_UMAT_HCP_TAIL : 0); }
+};
+
+double positive_prop(const double* p, int index, const char* name) {
+  const double v = prop(p, index, name);
+  if (!(v > 0.0)) throw std::invalid_argument(prop_name(index, name) + " must be > 0");
+  return v;
+}
+
+point::GrainParameters grain_parameters(const double* p, const Tail& tail) {
   point::GrainParameters d;
-  d.families = families(prop_code(p, SUBSLIP_UMAT_LATTICE, "lattice", 1, 4));
+  d.families = families(tail.lattice);
   cr::SlipGroupSettings g;
-  g.tau0 = prop(p, SUBSLIP_UMAT_TAU0, "tau0");
-  if (!(g.tau0 > 0.0))
-    throw std::invalid_argument(prop_name(SUBSLIP_UMAT_TAU0, "tau0") + " must be > 0");
   g.law = law_props(p, SUBSLIP_UMAT_MU_S);
   g.initial_mu = prop(p, SUBSLIP_UMAT_INITIAL_MU, "initial mu");
   if (g.initial_mu < 0.0)
     throw std::invalid_argument(prop_name(SUBSLIP_UMAT_INITIAL_MU, "initial mu") +
                                 " must be >= 0 (0: mu_s)");
   d.family_settings.assign(d.families.size(), g);
-  d.stiffness =
-      cr::cubic_stiffness(prop(p, SUBSLIP_UMAT_C11, "C11"), prop(p, SUBSLIP_UMAT_C12, "C12"),
-                          prop(p, SUBSLIP_UMAT_C44, "C44"));
+  for (std::size_t f = 0; f < d.families.size(); ++f)
+    d.family_settings[f].tau0 =
+        tail.per_family
+            ? positive_prop(p, tail.first_tau0() + static_cast<int>(f), "tau0 of a slip family")
+            : prop(p, SUBSLIP_UMAT_TAU0, "tau0");
+  const double c11 = prop(p, SUBSLIP_UMAT_C11, "C11"), c12 = prop(p, SUBSLIP_UMAT_C12, "C12"),
+               c44 = prop(p, SUBSLIP_UMAT_C44, "C44");
+  if (tail.hcp) {
+    d.stiffness =
+        cr::hexagonal_stiffness(c11, c12, prop(p, tail.base + SUBSLIP_UMAT_HCP_C13, "C13"),
+                                prop(p, tail.base + SUBSLIP_UMAT_HCP_C33, "C33"), c44);
+    const int c_over_a = tail.base + SUBSLIP_UMAT_HCP_C_OVER_A;
+    if (prop(p, c_over_a, "c/a") != 0.0) d.c_over_a = positive_prop(p, c_over_a, "c/a");
+  } else {
+    d.stiffness = cr::cubic_stiffness(c11, c12, c44);
+  }
+  if (!(Eigen::SelfAdjointEigenSolver<point::Matrix6>(d.stiffness, Eigen::EigenvaluesOnly)
+            .eigenvalues()
+            .minCoeff() > 0.0))
+    throw std::invalid_argument("PROPS(4..6) (C11, C12, C44)" +
+                                std::string(tail.hcp ? " with C13, C33" : "") +
+                                ": the elastic stiffness is not positive definite");
   const double coplanar = prop(p, SUBSLIP_UMAT_Q_COPLANAR, "q coplanar");
   const double non_coplanar = prop(p, SUBSLIP_UMAT_Q_NON_COPLANAR, "q non-coplanar");
   if (coplanar < 0.0 || non_coplanar < 0.0)
@@ -80,6 +117,44 @@ Eigen::Matrix3d orientation(const double* p, int first) {
   return cr::Orientation::from_euler(cr::degrees_to_radians(degrees)).g;
 }
 
+// The tail's place and content; NPROPS checked against it.
+Tail tail_of(const double* props, int nprops, bool taylor) {
+  Tail t;
+  t.lattice = prop_code(props, SUBSLIP_UMAT_LATTICE, "lattice", 1, SUBSLIP_UMAT_LATTICE_HCP);
+  t.hcp = t.lattice == SUBSLIP_UMAT_LATTICE_HCP;
+  const double tau0 = prop(props, SUBSLIP_UMAT_TAU0, "tau0");
+  if (tau0 < 0.0)
+    throw std::invalid_argument(prop_name(SUBSLIP_UMAT_TAU0, "tau0") +
+                                " must be > 0 (or 0: one per slip family after the base PROPS)");
+  t.per_family = tau0 == 0.0;
+  std::string what = "a single crystal";
+  if (taylor) {
+    const int grains = prop_code(props, SUBSLIP_UMAT_TAYLOR_GRAINS, "grain count", 1, 1000000);
+    t.base = SUBSLIP_UMAT_TAYLOR_NPROPS(grains);
+    what = "a Taylor aggregate of " + std::to_string(grains) + " grains";
+  } else {
+    t.base = SUBSLIP_UMAT_SINGLE_NPROPS;
+  }
+  if (nprops != t.base + t.size())
+    throw std::invalid_argument(
+        "NPROPS = " + std::to_string(nprops) + ": " + what + " of lattice " +
+        std::to_string(t.lattice) + (t.hcp ? " (HCP: C13, C33, c/a after the base)" : "") +
+        (t.per_family ? " with tau0 per slip family (PROPS(7) = 0)" : "") + " has " +
+        std::to_string(t.base + t.size()) + " PROPS (docs/fe.md)");
+  return t;
+}
+
+// What the energies need per slip system, in the grain's order.
+void describe_systems(const point::GrainParameters& d, UmatMaterial& m) {
+  for (const cr::DescribedSystem& system : cr::described_systems(d)) {
+    const Eigen::Matrix3d sm = system.s * system.m.transpose();
+    m.schmid.push_back(cr::mandel_from_symmetric(0.5 * (sm + sm.transpose())));
+    const cr::SlipGroupSettings& g = d.family_settings[static_cast<std::size_t>(system.group)];
+    m.tau0.push_back(g.tau0);
+    m.viscous.push_back(g.law.overstress.form != law::OverstressForm::rate_independent);
+  }
+}
+
 }  // namespace
 
 int grain_block(int slip_count) {
@@ -94,23 +169,17 @@ UmatMaterial make_umat_material(const double* props, int nprops) {
   UmatMaterial m;
   m.taylor = prop_code(props, SUBSLIP_UMAT_POINT, "point", 1, 2) == 2;
   m.finite_strain = prop_code(props, SUBSLIP_UMAT_STRAIN, "strain", 0, 1) == 1;
-  const point::GrainParameters parameters = grain_parameters(props);
+  const Tail tail = tail_of(props, nprops, m.taylor);
+  const point::GrainParameters parameters = grain_parameters(props, tail);
   const point::GrainOptions options = grain_options(props);
   m.lattice_stiffness = parameters.stiffness;
+  m.lattice_compliance = parameters.stiffness.inverse();
   if (!m.taylor) {
-    if (nprops != SUBSLIP_UMAT_SINGLE_NPROPS)
-      throw std::invalid_argument("NPROPS = " + std::to_string(nprops) + ": a single crystal has " +
-                                  std::to_string(SUBSLIP_UMAT_SINGLE_NPROPS) + " PROPS");
     m.orientations = {orientation(props, SUBSLIP_UMAT_PHI1)};
     m.weights = {1.0};
     m.grain = std::make_unique<point::GrainPoint>(parameters, options);
   } else {
     const int grains = prop_code(props, SUBSLIP_UMAT_TAYLOR_GRAINS, "grain count", 1, 1000000);
-    if (nprops != SUBSLIP_UMAT_TAYLOR_NPROPS(grains))
-      throw std::invalid_argument("NPROPS = " + std::to_string(nprops) +
-                                  ": a Taylor aggregate of " + std::to_string(grains) +
-                                  " grains has " +
-                                  std::to_string(SUBSLIP_UMAT_TAYLOR_NPROPS(grains)) + " PROPS");
     double total = 0.0;
     for (int k = 0; k < grains; ++k) {
       const int first = SUBSLIP_UMAT_TAYLOR_GRAINS + 1 + 4 * k;
@@ -126,6 +195,7 @@ UmatMaterial make_umat_material(const double* props, int nprops) {
     for (double& w : m.weights) w /= total;
   }
   m.slip_count = m.grain_point().slip_count();
+  describe_systems(parameters, m);
   m.statev_count = SUBSLIP_UMAT_NSTATV(static_cast<int>(m.orientations.size()), m.slip_count);
   return m;
 }

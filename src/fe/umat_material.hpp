@@ -17,6 +17,12 @@ struct UmatMaterial {
   std::vector<Eigen::Matrix3d> orientations;      // every grain's initial g
   std::vector<double> weights;                    // normalised
   point::Matrix6 lattice_stiffness;               // Mandel, lattice frame
+  point::Matrix6 lattice_compliance;              // its inverse
+  // Per slip system (the grain's order): the Schmid tensor sym(s m) (Mandel, lattice frame),
+  // tau0 [stress], and whether its law has an overstress (every form but rate_independent).
+  std::vector<point::Mandel6> schmid;
+  std::vector<double> tau0;
+  std::vector<bool> viscous;
   int slip_count = 0;
   int statev_count = 0;
 

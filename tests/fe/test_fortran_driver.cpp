@@ -1,6 +1,7 @@
 // The Fortran driver (tests/fe/umat_driver.f90, gfortran, CALL UMAT(...)) against the
 // material-point API on its paths: uniaxial stress with its own Newton iteration on the lateral
-// strains, and simple shear out and back. Skipped where the build found no Fortran compiler.
+// strains, simple shear out and back, and uniaxial stress at finite strain (each increment a
+// stretch exp(E), the native grain under L = E / dt). Skipped where the build found no Fortran compiler.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -60,16 +61,22 @@ TEST(FeFortran, DriverCallingUmatEqualsTheNativeGrain) {
   const auto out = run_driver(SUBSLIP_FE_FORTRAN_DRIVER);
   ASSERT_EQ(out.count('U'), 1u);
   ASSERT_EQ(out.count('S'), 1u);
+  ASSERT_EQ(out.count('F'), 1u);
   ASSERT_EQ(out.at('U').size(), 50u);
   ASSERT_EQ(out.at('S').size(), 90u);
+  ASSERT_EQ(out.at('F').size(), 50u);
   const pt::GrainPoint grain(fcc_parameters());
   const Eigen::Matrix3d g = orientation_of({30, 40, 50});
   pt::GrainState s = grain.initial_state(g);
-  for (int k = 1; k <= 50; ++k) {
-    const pt::GrainUpdate u = native_uniaxial_step(grain, s, k > 20 ? -2e-4 : 2e-4, 0.2);
-    s = u.state;
-    expect_line(out.at('U')[static_cast<std::size_t>(k - 1)], u.stress, s,
-                "uniaxial increment " + std::to_string(k));
+  for (const char path : {'U', 'F'}) {
+    s = grain.initial_state(g);
+    for (int k = 1; k <= 50; ++k) {
+      const pt::GrainUpdate u = native_uniaxial_step(grain, s, k > 20 ? -2e-4 : 2e-4, 0.2);
+      s = u.state;
+      expect_line(out.at(path)[static_cast<std::size_t>(k - 1)], u.stress, s,
+                  std::string(path == 'U' ? "uniaxial" : "finite-strain uniaxial") +
+                      " increment " + std::to_string(k));
+    }
   }
   s = grain.initial_state(g);
   for (int k = 1; k <= 90; ++k) {

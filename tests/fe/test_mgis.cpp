@@ -6,12 +6,15 @@
 #include <dlfcn.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
 
+#include "subslip/crystal/rotation.hpp"
 #include "subslip/fe/mgis_behaviour.h"
 #include "umat_call.hpp"
 
@@ -201,8 +204,7 @@ TEST(FeMgis, EqualsTheUmatAtFiniteStrain) {
 }
 
 // K[0] < 0: the prediction operator, nothing integrated. K[0] = 0: integration without an
-// operator. K[0] = 4: d sigma / d F, which in an elastic step matches differences of the
-// stress to the step's own size (the operator is that of the rate form).
+// operator. K[0] = 4: d sigma / d F1 (DSIG_DF), central differences of the stress.
 TEST(FeMgis, TheRequestInKZero) {
   const Library lib;
   ASSERT_TRUE(lib.loaded()) << dlerror();
@@ -238,9 +240,70 @@ TEST(FeMgis, TheRequestInKZero) {
       const double fd =
           (plus.sig0[static_cast<std::size_t>(a)] - minus.sig0[static_cast<std::size_t>(a)]) /
           (2 * h);
-      EXPECT_NEAR(tangent[static_cast<std::size_t>(9 * a + b)], fd, 1e-3 * scale) << a << ", " << b;
+      EXPECT_NEAR(tangent[static_cast<std::size_t>(9 * a + b)], fd, 1e-6 * scale) << a << ", " << b;
     }
   }
+}
+
+// The largest difference, relative to the largest entry, between K (d sigma / d F1, 6 x 9) of
+// the step F0 -> F1 from p's state and central differences of the behaviour's own Cauchy stress
+// in each component of F1.
+double tangent_error(const GenericPoint& p, const Eigen::Matrix3d& f0, const Eigen::Matrix3d& f1,
+                     double dt) {
+  GenericPoint at = p;
+  EXPECT_EQ(at.step(f0, f1, dt, 4.0), 1) << at.message;
+  double scale = 0.0;
+  for (double v : at.k) scale = std::max(scale, std::abs(v));
+  const std::array<std::array<int, 2>, 9> tensor = {
+      {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {1, 0}, {0, 2}, {2, 0}, {1, 2}, {2, 1}}};
+  const double h = 1e-8;
+  double error = 0.0;
+  for (int b = 0; b < 9; ++b) {
+    Eigen::Matrix3d fp = f1, fm = f1;
+    fp(tensor[b][0], tensor[b][1]) += h;
+    fm(tensor[b][0], tensor[b][1]) -= h;
+    GenericPoint plus = p, minus = p;
+    EXPECT_EQ(plus.step(f0, fp, dt, 0.0), 1);
+    EXPECT_EQ(minus.step(f0, fm, dt, 0.0), 1);
+    for (std::size_t a = 0; a < 6; ++a) {
+      const double fd = (plus.sig0[a] - minus.sig0[a]) / (2 * h);
+      error = std::max(error, std::abs(at.k[9 * a + static_cast<std::size_t>(b)] - fd) / scale);
+    }
+  }
+  return error;
+}
+
+// d sigma / d F1 is the derivative of the finite increment (MFront's DSIG_DF): tension with
+// shear turning 0.1 rad per step, an elasto-plastic step and an elastic (unloading) one.
+TEST(FeMgis, TheTangentIsTheDerivativeOfTheFiniteIncrement) {
+  const Library lib;
+  ASSERT_TRUE(lib.loaded()) << dlerror();
+  GenericPoint p{reinterpret_cast<Integrate>(
+      const_cast<void*>(lib.symbol<void>("SubslipFCC_Tridimensional")))};
+  Eigen::Matrix3d g;
+  g << -0.5e-3, 2e-3, 0.0, 0.0, -0.5e-3, 0.0, 0.0, 0.0, 1e-3;  // [1/s]
+  const double dt = 0.2;                                       // [s]
+  auto rotation = [](double t) {
+    return subslip::crystal::rotation_exp(Eigen::Vector3d(1.0, 2.0, 3.0).normalized() * 0.5 * t);
+  };
+  auto motion = [&](double t) {
+    return Eigen::Matrix3d(rotation(t) * (Eigen::Matrix3d::Identity() + t * g));
+  };
+  for (int k = 1; k <= 12; ++k) ASSERT_EQ(p.step(motion(dt * (k - 1)), motion(dt * k), dt, 0.0), 1);
+  const Eigen::Matrix3d f0 = motion(12 * dt);
+  const double plastic = tangent_error(p, f0, motion(13 * dt), dt);
+  const Eigen::Matrix3d back =
+      rotation(13 * dt) * (Eigen::Matrix3d::Identity() + (12 * dt - 0.02) * g);
+  GenericPoint unloaded = p;
+  ASSERT_EQ(unloaded.step(f0, back, dt, 0.0), 1);
+  for (int a = 0; a < 12; ++a)  // slip unchanged: an elastic step
+    EXPECT_EQ(unloaded.isv0[static_cast<std::size_t>(16 + 24 + a + 1)],
+              p.isv0[static_cast<std::size_t>(16 + 24 + a + 1)]);
+  const double elastic = tangent_error(p, f0, back, dt);
+  std::printf("d sigma / d F1 against central differences: plastic %.2e, elastic %.2e\n", plastic,
+              elastic);
+  EXPECT_LT(plastic, 1e-6);
+  EXPECT_LT(elastic, 1e-6);
 }
 
 TEST(FeMgis, AFailureReturnsMinusOneWithAMessage) {

@@ -179,14 +179,17 @@ TEST(FeUmat, AnIncrementOfNoTime) {
   EXPECT_EQ(u.statev, statev);
 }
 
-// A refused increment: PNEWDT < 1, STRESS and STATEV exactly as they came in, one message.
+// A refused increment: PNEWDT < 1, STRESS, STATEV and SSE, SPD, SCD exactly as they came in,
+// one message.
 void expect_refused(UmatPoint& u, const std::array<double, 6>& dstran, double dt,
                     const std::string& naming) {
   const auto stress = u.stress;
   const auto statev = u.statev;
+  const std::array<double, 3> energies{u.sse, u.spd, u.scd};
   EXPECT_LT(u.call(dstran, dt), 1.0);
   EXPECT_EQ(u.stress, stress);
   EXPECT_EQ(u.statev, statev);
+  EXPECT_EQ((std::array<double, 3>{u.sse, u.spd, u.scd}), energies);
   EXPECT_NE(last_message().find(naming), std::string::npos) << last_message();
 }
 
@@ -245,20 +248,26 @@ TEST(FeUmat, BadPropsAndStatevAreRefusedByName) {
 // Many integration points updated at once from OpenMP threads (as an FE code loops over its
 // elements), each with its own orientation and path, the material made on first use by
 // whichever thread comes first: the results equal the serial ones bitwise.
+// Half the points at small strain, half at finite strain (DFGRD0, DFGRD1).
 TEST(FeUmat, ConcurrentCallsGiveTheSerialResults) {
   constexpr int kPoints = 24, kSteps = 12;
   auto props_of = [](int p) {
     std::vector<double> props = fcc_props({10.0 * p, 5.0 + 3.0 * p, 7.0 * p});
     props[SUBSLIP_UMAT_TAU0 - 1] = kTau0 * (1.0 + 1e-9);  // a material no other test made
+    props[SUBSLIP_UMAT_STRAIN - 1] = p % 2;
     return props;
   };
   auto run = [&](int p) {
     UmatPoint u(props_of(p));
     u.noel = p;
+    Eigen::Matrix3d f = Eigen::Matrix3d::Identity();
     for (int k = 0; k < kSteps; ++k) {
       const double s = k < 8 ? 1.0 : -1.0;
-      if (u.call({-1e-4 * s, 0.5e-4 * s, 0.5e-4 * s, 1e-4 * (p % 3), 0, 0}, 0.1) != 1.0)
-        ADD_FAILURE() << last_message();
+      const std::array<double, 6> dstran{-1e-4 * s, 0.5e-4 * s, 0.5e-4 * s, 1e-4 * (p % 3), 0, 0};
+      Eigen::Map<Eigen::Matrix3d>(u.dfgrd0.data()) = f;
+      f = (Eigen::Matrix3d::Identity() + rate_of(dstran, 1.0)) * f;
+      Eigen::Map<Eigen::Matrix3d>(u.dfgrd1.data()) = f;
+      if (u.call(dstran, 0.1) != 1.0) ADD_FAILURE() << last_message();
     }
     return u;
   };
@@ -271,6 +280,9 @@ TEST(FeUmat, ConcurrentCallsGiveTheSerialResults) {
     EXPECT_EQ(serial.stress, other.stress) << "point " << p;
     EXPECT_EQ(serial.statev, other.statev) << "point " << p;
     EXPECT_EQ(serial.ddsdde, other.ddsdde) << "point " << p;
+    EXPECT_EQ((std::array<double, 3>{serial.sse, serial.spd, serial.scd}),
+              (std::array<double, 3>{other.sse, other.spd, other.scd}))
+        << "point " << p;
   }
 }
 

@@ -4,7 +4,9 @@
 // gradient as the increments shrink; the aggregate equals the API's TaylorPoint.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
+#include <cstdio>
 
 #include "subslip/crystal/rotation.hpp"
 #include "umat_call.hpp"
@@ -114,6 +116,97 @@ TEST(FeUmatFinite, SimpleShearApproachesTheNativeGrainAsIncrementsShrink) {
   // Measured: 3.3e-7 and 2.0e-8 (and 2.2e-9 with 800 increments): second order in dt.
   EXPECT_LT(fine, 1e-6);
   EXPECT_LT(fine, 0.25 * coarse);  // at least first order
+}
+
+// exp of a symmetric matrix.
+Eigen::Matrix3d symmetric_exp(const Eigen::Matrix3d& e) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> s(e);
+  return s.eigenvectors() * s.eigenvalues().array().exp().matrix().asDiagonal() *
+         s.eigenvectors().transpose();
+}
+
+// Uniaxial stress along 33 at finite strain: each increment F1 = exp(E) F0 with E symmetric (a
+// stretch without rotation, log U = E), its lateral components (all but 33, Abaqus order with
+// engineering shears) solved by Newton with DDSDDE so that the lateral stresses vanish. The
+// native grain takes L = E / dt with its own iteration on the lateral strains.
+TEST(FeUmatFinite, UniaxialStressWithDdsddeEqualsTheNativeGrain) {
+  constexpr std::array<int, 5> lateral = {0, 1, 3, 4, 5};  // Abaqus components
+  UmatPoint u(finite_props());
+  const pt::GrainPoint grain(fcc_parameters());
+  pt::GrainState s = grain.initial_state(orientation_of(kEuler));
+  Eigen::Matrix3d f = Eigen::Matrix3d::Identity();
+  const double dt = 0.2;  // [s]
+  int step = 0, newton_iterations = 0;
+  for (const auto& [increments, d33] : {std::pair{20, 2e-4}, std::pair{30, -2e-4}}) {
+    for (int k = 0; k < increments; ++k, ++step) {
+      const UmatPoint start = u;
+      std::array<double, 6> e{0, 0, d33, 0, 0, 0};  // engineering shears
+      bool converged = false;
+      for (int it = 0; it < 30 && !converged; ++it, ++newton_iterations) {
+        u = start;
+        set_f(u.dfgrd0, f);
+        set_f(u.dfgrd1, symmetric_exp(rate_of(e, 1.0)) * f);
+        ASSERT_EQ(u.call({}, dt), 1.0) << last_message();
+        Eigen::Matrix<double, 5, 1> r;
+        Eigen::Matrix<double, 5, 5> j;
+        for (int a = 0; a < 5; ++a) {
+          r(a) = u.stress[static_cast<std::size_t>(lateral[a])];
+          for (int b = 0; b < 5; ++b) j(a, b) = u.ddsdde_at(lateral[a], lateral[b]);
+        }
+        converged = r.norm() <= 1e-11 * std::abs(u.stress[2]);
+        if (converged) break;
+        const Eigen::Matrix<double, 5, 1> change = j.partialPivLu().solve(r);
+        for (int a = 0; a < 5; ++a) e[static_cast<std::size_t>(lateral[a])] -= change(a);
+      }
+      ASSERT_TRUE(converged) << "increment " << step;
+      f = symmetric_exp(rate_of(e, 1.0)) * f;
+      const pt::GrainUpdate n = native_uniaxial_step(grain, s, d33, dt);
+      s = n.state;
+      const auto expected = abaqus_stress(n.stress);
+      const double scale = max_abs(expected.data(), 6);
+      for (std::size_t i = 0; i < 6; ++i)
+        EXPECT_NEAR(u.stress[i], expected[i], 1e-10 * scale) << "increment " << step;
+      const double* b = u.statev.data() + 1;
+      for (int i = 0; i < 6; ++i) EXPECT_NEAR(b[i], s.stress(i), 1e-10 * scale) << step;
+      const double slip_scale = std::max(s.slip.cwiseAbs().maxCoeff(), 1e-3);
+      for (int a = 0; a < 12; ++a)
+        EXPECT_NEAR(b[16 + 24 + a], s.slip(a), 1e-10 * slip_scale) << step;
+    }
+  }
+  EXPECT_GT(s.slip.cwiseAbs().maxCoeff(), 1e-3);  // well into plastic flow
+  EXPECT_LT(u.stress[2], -2.0 * kTau0);           // and reversed into compression
+  std::printf("finite-strain uniaxial stress: %d Newton iterations over %d increments\n",
+              newton_iterations, step);
+}
+
+// A finite-strain increment the grain solver cannot take (one Newton iteration allowed): PNEWDT
+// < 1, and STRESS, STATEV, SSE, SPD, SCD as they came in; the default solver takes it.
+TEST(FeUmatFinite, AFailedIncrementCutsBackAndLeavesStressAndStatev) {
+  UmatPoint u(finite_props());
+  Eigen::Matrix3d g;
+  g << -0.5e-3, 2e-3, 0.0, 0.0, -0.5e-3, 0.0, 0.0, 0.0, 1e-3;  // [1/s]
+  const double dt = 0.2;                                       // [s]
+  auto f = [&](double t) { return Eigen::Matrix3d(Eigen::Matrix3d::Identity() + t * g); };
+  for (int k = 1; k <= 3; ++k) {
+    set_f(u.dfgrd0, f(dt * (k - 1)));
+    set_f(u.dfgrd1, f(dt * k));
+    ASSERT_EQ(u.call({}, dt), 1.0) << last_message();
+  }
+  UmatPoint limited = u;
+  limited.props[SUBSLIP_UMAT_MAX_ITERATIONS - 1] = 1;
+  set_f(limited.dfgrd0, f(3 * dt));
+  set_f(limited.dfgrd1, f(13 * dt));
+  const UmatPoint before = limited;
+  EXPECT_LT(limited.call({}, dt), 1.0);
+  EXPECT_NE(last_message().find("grain solver"), std::string::npos) << last_message();
+  EXPECT_EQ(limited.stress, before.stress);
+  EXPECT_EQ(limited.statev, before.statev);
+  EXPECT_EQ(limited.ddsdde, before.ddsdde);
+  EXPECT_EQ((std::array<double, 3>{limited.sse, limited.spd, limited.scd}),
+            (std::array<double, 3>{before.sse, before.spd, before.scd}));
+  set_f(u.dfgrd0, f(3 * dt));
+  set_f(u.dfgrd1, f(13 * dt));
+  EXPECT_EQ(u.call({}, dt), 1.0) << last_message();
 }
 
 // A Taylor aggregate of three grains through PROPS equals the API's TaylorPoint.

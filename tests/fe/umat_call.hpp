@@ -65,6 +65,21 @@ inline pt::GrainParameters fcc_parameters() {
   return d;
 }
 
+// A Taylor aggregate of three FCC grains of unequal weights, small strain.
+inline std::vector<double> taylor_fcc_props() {
+  const std::array<std::array<double, 3>, 3> euler = {{{0, 0, 0}, {30, 40, 50}, {80, 20, 10}}};
+  const std::array<double, 3> weights = {1.0, 2.0, 0.5};
+  std::vector<double> props = fcc_props({0, 0, 0});
+  props.resize(SUBSLIP_UMAT_TAYLOR_NPROPS(3));
+  props[SUBSLIP_UMAT_POINT - 1] = 2;
+  props[SUBSLIP_UMAT_TAYLOR_GRAINS - 1] = 3;
+  for (std::size_t g = 0; g < 3; ++g) {
+    for (std::size_t i = 0; i < 3; ++i) props[SUBSLIP_UMAT_TAYLOR_GRAINS + 4 * g + i] = euler[g][i];
+    props[SUBSLIP_UMAT_TAYLOR_GRAINS + 4 * g + 3] = weights[g];
+  }
+  return props;
+}
+
 inline Eigen::Matrix3d orientation_of(const Eigen::Vector3d& euler_degrees) {
   return cr::Orientation::from_euler(cr::degrees_to_radians(euler_degrees)).g;
 }
@@ -76,6 +91,7 @@ struct UmatPoint {
   std::vector<double> statev;
   std::array<double, 6> stress{};
   std::array<double, 36> ddsdde{};
+  double sse = 0, spd = 0, scd = 0;  // as Abaqus passes them: the values so far
   int ndi = 3, nshr = 3;
   int noel = 1, npt = 1;
   std::array<double, 9> dfgrd0{1, 0, 0, 0, 1, 0, 0, 0, 1};  // column major
@@ -89,7 +105,7 @@ struct UmatPoint {
   // One increment; returns PNEWDT (1 when the increment was taken).
   double call(const std::array<double, 6>& dstran, double dtime) {
     std::array<double, 6> stran{};
-    double sse = 0, spd = 0, scd = 0, rpl = 0, drpldt = 0, temp = 293, dtemp = 0, celent = 1;
+    double rpl = 0, drpldt = 0, temp = 293, dtemp = 0, celent = 1;
     std::array<double, 6> ddsddt{}, drplde{};
     std::array<double, 2> time{0.0, 0.0};
     std::array<double, 1> predef{}, dpred{};
