@@ -137,18 +137,8 @@ TEST(FinishedFile, AdaptiveScenesHoldExactlyTheirRows) {
 // asked (by default too), or stored plain with `none`; the values read back are the same bits.
 TEST(FinishedFile, SeriesAreCompressedAsTheSceneSays) {
   const fs::path dir = scratch_dir();
-  const std::string scene = R"(scene: crystal
-title: "compression"
-units: {stress: MPa, time: s}
-phase:
-  families: [fcc_111_110]
-  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
-  tau0: 10.0
-  law:
-    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 5.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-orientations:
+  const std::string scene = subslip::testing::copper_scene_start("title: compression\n") +
+                            R"(orientations:
   random: {count: 40, seed: 3}
 loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]

@@ -133,12 +133,6 @@ void print_warnings(const RunArgs& a, const std::vector<std::string>& warnings) 
   for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
-// What opening the result file did beside creating it (a left-over restart file removed).
-void print_notes(const RunArgs& a, const std::vector<std::string>& notes) {
-  if (a.quiet) return;
-  for (const auto& n : notes) std::fprintf(stderr, "note: %s\n", n.c_str());
-}
-
 // The progress goes to stderr (stdout keeps the results, redirected or not): a bar when stderr
 // is a terminal.
 cli::ProgressMode progress_mode(const RunArgs& a) {
@@ -258,7 +252,6 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::Re
       [&] {
         output.emplace(open_output(a, document, names_of(scene.cases), restart, {a.scene},
                                    io::estimate_contact_run(scene)));
-        print_notes(a, output->notes);
         print_warnings(a, io::contact_scene_warnings(scene));
       },
       exit_code_of);
@@ -521,7 +514,6 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
         output.emplace(
             open_output(a, document, names_of(scene.cases), restart, input_files(a, scene),
                         io::estimate_crystal_run(scene, checkpoint_every), any_checkpoints));
-        print_notes(a, output->notes);
         print_warnings(a, io::crystal_scene_warnings(scene, checkpoints));
       },
       exit_code_of);

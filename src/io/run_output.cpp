@@ -3,8 +3,6 @@
 #include <limits>
 #include <string>
 #include <system_error>
-#include <utility>
-#include <vector>
 
 namespace fs = std::filesystem;
 
@@ -45,23 +43,19 @@ void refuse_interrupted_result(const fs::path& out, bool force) {
       " (or replace it with --force)");
 }
 
-// The restart file of a new run's result (checkpoints): one left by an interrupted run is
-// replaced only with --force; one no run can continue (its run finished, or its result file is
-// gone) is removed, with a note; anything else at that path is never replaced.
-void check_restart_path(const fs::path& out, bool force, std::vector<std::string>& notes) {
+// The restart file of a new run's result (checkpoints): one left by an interrupted run, or one
+// no run can continue (its run finished, or its result file is gone), is replaced only with
+// --force, and the message says which it is; anything else at that path is never replaced.
+void check_restart_path(const fs::path& out, bool force) {
   const fs::path restart = io::restart_file_for(out);
   std::error_code ec;
   if (!fs::exists(restart, ec)) return;
-  if (restart_file_role(out) == RestartFileRole::left_over) {
-    fs::remove(restart, ec);
-    if (ec) {
-      throw io::h5::OutputPathError(restart.string() + ": cannot remove it (" + ec.message() +
-                                    "); it holds the checkpoints of a run of " + out.string() +
-                                    " that no run can continue");
-    }
-    notes.push_back("removed " + restart.string() + ": the checkpoints of a run of " +
-                    out.string() + " that had finished or whose result file is gone");
-    return;
+  if (!force && restart_file_role(out) == RestartFileRole::left_over) {
+    const bool finished = result_file_status(out).kind == ResultFileKind::finished;
+    throw io::h5::OutputPathError(
+        restart.string() + ": already exists, left over from a run of " + out.string() +
+        (finished ? " that finished" : " whose result file is gone") +
+        ": no run continues from it; delete it, or use --force to replace it");
   }
   if (!io::is_restart_file(restart)) {
     throw io::h5::OutputPathError(restart.string() +
@@ -102,6 +96,11 @@ void RunOutput::finish_collective_run(const std::optional<driver::SinkWriteError
 
 void RunOutput::finish() {
   if (!io::every_case_ended(path)) return;
+  // Every case has ended, so no run needs the checkpoints again (a restart of this file only
+  // finishes it): they go before the finished file replaces the working one, and a kill between
+  // the two leaves no restart file behind.
+  std::error_code ec;
+  if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
   std::string why;
   try {
     io::finish_result(path);
@@ -122,8 +121,6 @@ void RunOutput::finish() {
                              "--restart " +
                              path.string());
   }
-  std::error_code ec;
-  if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
 }
 
 std::string RunOutput::write_failure(const driver::SinkWriteError& e) {
@@ -154,20 +151,18 @@ RunOutput open_output(const OutputRequest& request, const YamlDocument& document
   if (restart != nullptr) {
     io::check_restart_cases(out, *restart, case_names);
     check_fits(request, document, size);
-    return {out, {}, io::h5::File::open_write(out), request.keep_restart, {}};
+    return {out, {}, io::h5::File::open_write(out), request.keep_restart};
   }
   refuse_output_over_inputs(out, inputs);
   if (checkpoints) refuse_output_over_inputs(io::restart_file_for(out), inputs);
   check_fits(request, document, size);  // before check_output_path creates directories
   refuse_interrupted_result(out, request.force);
   io::h5::check_output_path(out, request.force);
-  std::vector<std::string> notes;
-  if (checkpoints) check_restart_path(out, request.force, notes);
+  if (checkpoints) check_restart_path(out, request.force);
   fs::path partial = out;
   partial += ".partial";
   try {
-    return {out, partial, io::h5::File::create(partial, true), request.keep_restart,
-            std::move(notes)};
+    return {out, partial, io::h5::File::create(partial, true), request.keep_restart};
   } catch (const io::h5::Error& e) {
     std::error_code ec;
     fs::remove(partial, ec);

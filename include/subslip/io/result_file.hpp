@@ -10,7 +10,9 @@
 //   (and completed = 1 when every case completed). The copy is written under a temporary
 //   name ("<result>.finishing"), synced to disk and renamed over the working file, so that a
 //   kill at any moment leaves either the working file (which --restart finishes) or the
-//   finished one. Then the restart file is deleted unless it is to be kept.
+//   finished one. The restart file is deleted (unless it is to be kept) before that rename:
+//   once every case has ended no run needs its checkpoints, and a kill then leaves none behind
+//   a finished file.
 #pragma once
 
 #include <filesystem>

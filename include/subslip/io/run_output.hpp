@@ -32,7 +32,6 @@ struct RunOutput {
   std::filesystem::path partial;  // empty on a restart
   h5::File file;
   bool keep_restart = false;
-  std::vector<std::string> notes;  // what opening did beside creating the file, for the user
   bool restart() const { return partial.empty(); }
   void header_written() { std::filesystem::rename(partial, path); }
   std::filesystem::path restart_file() const { return restart_file_for(path); }
