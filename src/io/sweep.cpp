@@ -209,6 +209,14 @@ SweepCase make_case(const YamlDocument& scene, const std::vector<SweepEntry>& en
 
 }  // namespace
 
+namespace detail {
+
+bool same_input_error(const InputError& a, const InputError& b) {
+  return a.file == b.file && a.line == b.line && a.key == b.key && a.message == b.message;
+}
+
+}  // namespace detail
+
 std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
                                     std::span<const std::string_view> sweepable) {
   const CheckedNode root = scene.root();

@@ -42,20 +42,39 @@ struct SweepCase {
 std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
                                     std::span<const std::string_view> sweepable);
 
-// Parses every case of a scene's sweep with `parse_case(SweepCase)`. An error that only one
-// swept value causes says which case it is in.
+namespace detail {
+
+bool same_input_error(const InputError& a, const InputError& b);
+
+}  // namespace detail
+
+// Parses every case of a scene's sweep with `parse_case(SweepCase)`. An error that depends on
+// the case says which case it is in; one that every case has alike (a written value no swept
+// value touches) is reported as it is, without a case.
 template <class Parse>
 auto parse_sweep_cases(const YamlDocument& scene, std::span<const std::string_view> sweepable,
                        Parse&& parse_case) {
   std::vector<decltype(parse_case(std::declval<SweepCase>()))> cases;
-  for (SweepCase& swept : expand_sweep(scene, sweepable)) {
-    const std::string name = swept.name;
-    const bool swept_case = !swept.overrides.empty();
+  const std::vector<SweepCase> expanded = expand_sweep(scene, sweepable);
+  // Whether every case fails with `error` (only asked once a case has failed).
+  const auto every_case_fails_alike = [&](const InputError& error) {
+    for (const SweepCase& other : expanded) {
+      try {
+        parse_case(SweepCase(other));
+        return false;
+      } catch (const InputError& e) {
+        if (!detail::same_input_error(e, error)) return false;
+      }
+    }
+    return true;
+  };
+  for (const SweepCase& swept : expanded) {
     try {
-      cases.push_back(parse_case(std::move(swept)));
+      cases.push_back(parse_case(SweepCase(swept)));
     } catch (const InputError& e) {
-      if (!swept_case) throw;
-      throw InputError(e.file, e.line, e.key, e.message + " (in sweep case '" + name + "')");
+      if (swept.overrides.empty() || every_case_fails_alike(e)) throw;
+      throw InputError(e.file, e.line, e.key,
+                       e.message + " (in sweep case '" + swept.name + "')");
     }
   }
   return cases;
