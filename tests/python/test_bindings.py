@@ -5,7 +5,8 @@
 
 * subslip.run gives the command line's result file: every numeric dataset bitwise, for the main
   job, a contact scene and a sweep; a scene given as a dict gives the file of the same scene;
-* four Python threads running scenes, and material points, at once get identical results;
+* the core computes without the GIL; four Python threads running scenes, and material points,
+  at once get identical results;
 * a bad scene raises SceneError with the message the command line prints, and the interpreter
   goes on;
 * a contact point, a grain and a Taylor point driven along a scene's steps give the driver's
@@ -186,6 +187,42 @@ class Threads(unittest.TestCase):
             t.join()
         self.assertEqual(failures, [])
         return results
+
+    def assert_releases_the_gil(self, work):
+        """`work` lets another thread run while it computes: with a switch interval longer than
+        any run, the main thread gets the interpreter back before `work` ends only if the core
+        releases it."""
+        started, state = threading.Event(), {"done": False}
+
+        def worker():
+            started.set()  # (wakes the main thread, which then waits for the interpreter)
+            work()
+            state["done"] = True
+
+        interval = sys.getswitchinterval()
+        sys.setswitchinterval(1000.0)
+        try:
+            thread = threading.Thread(target=worker)
+            thread.start()
+            started.wait()
+            ran_meanwhile = not state["done"]
+            thread.join()
+        finally:
+            sys.setswitchinterval(interval)
+        self.assertTrue(ran_meanwhile)
+
+    def test_the_core_computes_without_the_gil(self):
+        # The compiled calls themselves, their arguments made before: nothing else between the
+        # worker's started.set() and its end could hand the interpreter over (file system
+        # calls in subslip.run's own code would).
+        core = subslip._native.core()
+        scene = scene_path("inputs/paper_fig12_peak_bottom.yaml")
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "r.h5")
+            self.assert_releases_the_gil(lambda: core.run_scene(scene, "", out, False, 0))
+        point = core.TaylorPoint(*subslip.scene_source.scene_source(TAYLOR_SCENE), "")
+        gradients, dt = point.steps()
+        self.assert_releases_the_gil(lambda: point.along_path(gradients, dt, None))
 
     def test_four_runs_at_once_are_identical(self):
         scene = scene_path("inputs/paper_fig12_peak_bottom.yaml")
