@@ -296,6 +296,13 @@ class BadScenes(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "dt must be positive"):  # the point's check
             point.along_path(np.zeros((1, 2)), 5.56, [0.0])
 
+    def test_a_step_the_point_cannot_take_raises_step_failure(self):
+        scene = copy.deepcopy(CONTACT_SCENE)
+        scene["integrator"] = {"method": "forward_euler"}
+        point = subslip.ContactPoint(scene)
+        with self.assertRaisesRegex(subslip.StepFailure, "^step 1: "):  # a slide of 0.5 mm at once
+            point.along_path([[0.0, 0.0], [0.5, 0.0]], 5.56, [1.0, 1.0])
+
 
 class PointsEqualTheDrivers(unittest.TestCase):
     def test_contact_point_along_the_scenes_steps(self):
