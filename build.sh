@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The two commands of README.md. Each installs what it needs (Debian packages), builds, and then
-#   ./build.sh run  [SCENE.yaml]  builds the Release program (build/) and runs a scene (default:
+#   ./build.sh run  [SCENE.yaml]  builds the Release program (build/) and the Python module
+#                                 (build/python/), and runs a scene (default:
 #                                 inputs/default.yaml, the main job) into results/<scene>.h5;
 #   ./build.sh test [--quick]     builds the GoogleTest suite with AddressSanitizer + UBSan
 #                                 (build-asan/, optimised: -O1 -g1) and runs it (ctest), then runs
@@ -16,10 +17,12 @@ packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev li
           libgtest-dev libxsimd-dev  # SIMD batches of slip systems in the grain solver
           libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
           libhdf5-openmpi-dev  # ranks writing one result file together (parallel HDF5)
-          python3-h5py python3-matplotlib python3-numpy)  # scripts/subslip_plots.py and its test
+          python3-h5py python3-matplotlib python3-numpy  # scripts/subslip_plots.py and its test
+          python3-dev pybind11-dev python3-yaml)  # the Python module subslip._core (docs/python.md)
 # The tests of `test` include a Fortran driver of the FE library's UMAT (tests/fe/umat_driver.f90).
+# and an offline pip install of the Python package (tests/python/test_bindings.py).
 if [ "${1:-}" = test ]; then
-  packages+=(gfortran)
+  packages+=(gfortran python3-pip python3-setuptools python3-wheel)
 fi
 # The sanitizer and fuzz stages of `test` build the fuzz targets with clang (libFuzzer, OpenMP).
 if [ "${1:-}" = test ] && [ "${2:-}" != --quick ]; then
@@ -99,7 +102,9 @@ fuzz_tests() {
 
 case "${1:-}" in
   run)
-    release_build subslip  # the program only: a run needs neither the tests nor the benchmarks
+    # The program and the Python module (subslip.run, the material points): neither the tests
+    # nor the benchmarks.
+    release_build subslip subslip_python
     scene="${2:-inputs/default.yaml}"
     out="results/$(basename "${scene%.*}").h5"
     # --force: this command is documented to refresh results/<scene>.h5 each time it is run.

@@ -31,7 +31,8 @@ LEVELS = [
     ("model",),                   # the plain run model a scene becomes (cases, fields, units)
     ("driver",),                  # runs a model's cases, hands results to sinks it defines
     ("io",),                      # scene parsers into the model; HDF5 sinks; result files
-    ("cli",),                     # arguments and printing
+    ("cli",),                     # arguments and printing; `subslip run` (cli/run_scene.hpp)
+    ("python",),                  # the Python module: runs as `subslip run`, material points
 ]
 LEVEL = {layer: k for k, layers in enumerate(LEVELS) for layer in layers}
 

@@ -1,6 +1,7 @@
-"""subslip: reading subslip result files (HDF5) with numpy.
+"""subslip: running scenes and material points of the core, reading result files (HDF5).
 
     import subslip
+    result = subslip.run("inputs/default.yaml")      # a dict or a YAML file; in memory
     with subslip.open("results/default.h5") as result:
         case = result.case(result.cases[0])
         stress = case.series("macro/stress")        # (n, 3, 3), valid rows only
@@ -9,8 +10,10 @@
 Series are cut to the rows the run wrote (/progress), tensors come as (n, 3, 3) or
 (n, G, 3, 3) whatever the file's column layout, and derived quantities (von Mises measures,
 equivalent plastic strain, slip activity, pole-figure and inverse-pole-figure points) and CSV
-export are on the Case. Needs numpy and h5py (Debian: apt-get install python3-numpy
-python3-h5py; use /usr/bin/python3). Tutorial: docs/python.md.
+export are on the Case. subslip.run, ContactPoint, GrainPoint and TaylorPoint call the compiled
+core (subslip._core, built by ./build.sh run). Needs numpy and h5py (Debian: apt-get install
+python3-numpy python3-h5py; use /usr/bin/python3), for a scene given as a dict PyYAML
+(python3-yaml). Tutorial: docs/python.md.
 """
 
 from ._deps import MissingDependency, require
@@ -25,10 +28,15 @@ from .texture import (cubic_family, hexagonal_family, inverse_pole_figure_points
                       pole_families, pole_figure_points, quaternion_to_matrix)
 from .derived import loading_component  # noqa: E402
 from .csv_export import MissingBinary, exact_number  # noqa: E402
+from .errors import MissingCore, RunError, SceneError, SceneWarning, StepFailure  # noqa: E402
+from .run import run  # noqa: E402
+from .point import ContactPoint, GrainPoint, TaylorPoint, increment_lengths  # noqa: E402
 
 __all__ = [
     "open", "Result", "Case", "CASE_STATES", "NotAResult", "MissingData", "MissingDependency",
     "LayoutError", "to_matrices", "von_mises_stress", "von_mises_strain", "quaternion_to_matrix",
     "cubic_family", "hexagonal_family", "pole_families", "pole_figure_points",
     "inverse_pole_figure_points", "loading_component", "exact_number", "MissingBinary",
+    "run", "ContactPoint", "GrainPoint", "TaylorPoint", "increment_lengths", "SceneError",
+    "StepFailure", "RunError", "SceneWarning", "MissingCore",
 ]

@@ -13,6 +13,7 @@ DEBIAN_PACKAGES = {
     "numpy": "python3-numpy",
     "h5py": "python3-h5py",
     "matplotlib": "python3-matplotlib",
+    "yaml": "python3-yaml",
 }
 
 

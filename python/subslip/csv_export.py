@@ -9,10 +9,12 @@ else `subslip` on PATH. `exact_number` gives the text the files hold for one num
 std::to_chars chooses: 20, 0.5, 1e-04, 1.5e+22), to check values against them.
 """
 
+import builtins
 import math
 import os
 import shutil
 import subprocess
+import tempfile
 
 
 class MissingBinary(RuntimeError):
@@ -94,8 +96,17 @@ def export_case(case, directory, names=None, grain=None, overwrite=False):
                             "or set SUBSLIP_BINARY to the program")
     if case.group is None:  # listed but never created: nothing to write
         return []
-    command = [binary, "post", case.result.path, "--csv", os.fspath(directory),
-               "--case", case.name]
+    if case.result.image is not None:  # a result in memory (subslip.run): post reads a copy
+        with tempfile.TemporaryDirectory(prefix="subslip-") as copy:
+            path = os.path.join(copy, "result.h5")
+            with builtins.open(path, "wb") as f:
+                f.write(case.result.image)
+            return _post_csv(binary, path, case, directory, names, grain, overwrite)
+    return _post_csv(binary, case.result.path, case, directory, names, grain, overwrite)
+
+
+def _post_csv(binary, path, case, directory, names, grain, overwrite):
+    command = [binary, "post", path, "--csv", os.fspath(directory), "--case", case.name]
     for name in [names] if isinstance(names, str) else (names or []):
         command += ["--dataset", name]
     if grain is not None:

@@ -9,6 +9,7 @@ over from before a restart and cases a killed run never reached do not show up. 
 """
 
 import functools
+import io
 import os
 
 import numpy as np
@@ -57,9 +58,12 @@ class Result:
     """A result file: `cases` (the started ones, in run order), `scene_kind`, `completed`,
     `units`, `title`, `case(name)`. Close it (or use `with`)."""
 
-    def __init__(self, path):
+    def __init__(self, path, image=None):
+        """`path`: the file; with `image` (the bytes of a result file, as subslip.run returns
+        one), only the name the result goes by, and the file is read from memory."""
         self.path = os.fspath(path)
-        self.file = h5py.File(self.path, "r")
+        self.image = image
+        self.file = h5py.File(io.BytesIO(image) if image is not None else self.path, "r")
         try:
             self._read_header()
         except Exception:
