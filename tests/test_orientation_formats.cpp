@@ -311,6 +311,8 @@ std::vector<BadText> bad_texts() {
       {"euler: subslip's own header", euler_deg,
        "# subslip-orientations convention=quaternion\n1 0 0 0\n", 1, "header",
        "leave out the format"},
+      {"euler: only comments", euler_deg, "# nothing\n\n", 0, "orientations",
+       "every line is blank or a comment"},
       {"euler: not a number", euler_deg, "10 20 30\n10 x 30\n", 2, "Phi", "'x' is not a number"},
       {"mtex: Matthies angles", mtex, " alpha beta gamma\n 1 2 3\n", 1, "header",
        "export with the option 'Bunge'"},

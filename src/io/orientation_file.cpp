@@ -109,10 +109,7 @@ class OrientationReader {
       }
     }
     if (!convention_) fail(0, "orientations", concat("empty file: expected ", expected_start()));
-    if (count_ == 0) {
-      fail(0, "orientations",
-           is_table() ? "no orientations after the column labels" : "no orientations");
-    }
+    if (count_ == 0) fail(0, "orientations", concat("no orientations ", after_what()));
     return count_;
   }
 
@@ -126,6 +123,17 @@ class OrientationReader {
 
   bool is_table() const {
     return layout_.kind == OrientationFileKind::mtex || layout_.kind == OrientationFileKind::damask;
+  }
+
+  std::string_view after_what() const {
+    switch (layout_.kind) {
+      case OrientationFileKind::subslip:
+        return "after the header";
+      case OrientationFileKind::euler:
+        return "(every line is blank or a comment)";
+      default:
+        return "after the column labels";
+    }
   }
 
   std::string expected_start() const {
