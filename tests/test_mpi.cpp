@@ -227,6 +227,27 @@ TEST(Mpi, OrientationFileReadByBlocksGivesTheSerialRun) {
   fs::remove_all(dir);
 }
 
+// A file another tool wrote (a DAMASK table: comments, labels, a text column) is read by blocks
+// through the same reader: the serial run's result, and a bad line reported as in a serial run.
+TEST(Mpi, OrientationTableOfAnotherToolReadByBlocksGivesTheSerialRun) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "table.txt") << "# written by damask.Table.save\n"
+                                      "1_O 2_O 3_O 4_O phase\n"
+                                      "1.0 0.0 0.0 0.0 Copper\n"
+                                      "0.5 0.5 0.5 0.5 Copper\n"
+                                      "0.7071067811865476 0.0 0.7071067811865476 0.0 Copper\n";
+  std::ofstream(dir / "table.yaml") << reversal_scene_with("{file: table.txt, format: damask}", 10);
+  expect_ranks_give_the_serial_run(dir, "table.yaml", {2}, false);
+  std::ofstream(dir / "bad.txt") << "1_O 2_O 3_O 4_O\n1 0 0 0\n1 zero 0 0\n";
+  std::ofstream(dir / "bad.yaml") << reversal_scene_with("{file: bad.txt, format: damask}", 10);
+  EXPECT_NE(run_mpi(dir, 2, {"run", "bad.yaml", "-o", "p.h5", "-q"}), 0);
+  const std::string log = log_of(dir);
+  const auto first = log.find("bad.txt:3: 2_O: 'zero' is not a number");
+  ASSERT_NE(first, std::string::npos) << log;
+  EXPECT_EQ(log.find("bad.txt:3: 2_O:", first + 1), std::string::npos) << log;
+  fs::remove_all(dir);
+}
+
 // A problem in an orientation file read by rank 0 for every rank is reported once, as a
 // serial run reports it, with the same exit status.
 TEST(Mpi, BadOrientationFileIsReportedOnceAsInASerialRun) {

@@ -275,15 +275,18 @@ struct SceneKey {
 // The orientation file `node` names, to be read when asked. Errors inside the file keep its
 // file and line and say which scene key named it; a missing or empty file has no line of its
 // own and is reported at the scene key.
-model::OrientationFile orientation_file(const CheckedNode& node, OrientationSource& source) {
+model::OrientationFile orientation_file(const CheckedNode& node,
+                                        const OrientationFileLayout& layout,
+                                        OrientationSource& source) {
   const std::string path = resolve_relative(node.as_string(), node.file()).string();
   source = {"file", path};
   const SceneKey key{node.file(), node.line(), node.path()};
   model::OrientationFile file;
   file.path = path;
-  file.read = [path, key](const model::OrientationVisitor& each, double& largest_euler_deg) {
+  file.read = [path, key, layout](const model::OrientationVisitor& each,
+                                  double& largest_euler_deg) {
     try {
-      return read_orientation_file(path, each, &largest_euler_deg);
+      return read_orientation_file(path, each, &largest_euler_deg, layout);
     } catch (const InputError& e) {
       if (e.line == 0) key.fail(e.what());
       throw InputError(e.file, e.line, e.key,
@@ -324,7 +327,7 @@ std::uint64_t read_seed(const CheckedNode& node) {
 }
 
 crystal::OrientationRequest generated(const CheckedNode& node, bool component,
-                                     OrientationSource& source) {
+                                      OrientationSource& source) {
   crystal::OrientationRequest request;
   if (component) {
     node.allow_keys({"name", "count", "spread_deg", "seed"});
@@ -341,16 +344,53 @@ crystal::OrientationRequest generated(const CheckedNode& node, bool component,
   return request;
 }
 
+// How the file named by orientations.file is laid out: subslip's own header, or the format and
+// units of a file another tool wrote (docs/orientations.md).
+OrientationFileLayout file_layout(const CheckedNode& node) {
+  OrientationFileLayout layout;
+  layout.kind = node.optional("format") ? node.required("format").as_enum<OrientationFileKind>(
+                                              {{"subslip", OrientationFileKind::subslip},
+                                               {"euler", OrientationFileKind::euler},
+                                               {"mtex", OrientationFileKind::mtex},
+                                               {"damask", OrientationFileKind::damask}})
+                                        : OrientationFileKind::subslip;
+  if (auto angles = node.optional("angles")) {
+    if (layout.kind == OrientationFileKind::subslip) {
+      angles->fail(
+          "applies to format euler, mtex or damask; a subslip file states its units in "
+          "its header");
+    }
+    layout.angles =
+        angles->as_enum<AngleUnit>({{"deg", AngleUnit::degrees}, {"rad", AngleUnit::radians}});
+  } else if (layout.kind == OrientationFileKind::euler) {
+    node.fail("format euler needs the unit of its angles: angles: deg or angles: rad");
+  }
+  if (auto column = node.optional("column")) {
+    if (layout.kind != OrientationFileKind::damask) {
+      column->fail("applies to format damask only (the label of its orientation column)");
+    }
+    layout.column = column->as_string();
+  }
+  return layout;
+}
+
 // Where the orientations come from; inline Euler angles are read here (the scene holds them),
 // a file and a generated texture when the run model is read (model::read_all_orientations,
 // driver::read_orientations).
 model::OrientationOrigin parse_orientations(const CheckedNode& node, OrientationSource& source) {
-  node.allow_keys({"file", "euler_deg", "random", "component"});
+  node.allow_keys({"file", "format", "angles", "column", "euler_deg", "random", "component"});
   const std::string kind = *node.one_of({"file", "euler_deg", "random", "component"}, true);
   const CheckedNode value = node.required(kind);
+  if (kind != "file") {
+    for (std::string_view file_key : {"format", "angles", "column"}) {
+      if (auto extra = node.optional(file_key)) {
+        extra->fail("applies to orientations.file only");
+      }
+    }
+  }
   model::OrientationOrigin origin;
   if (kind == "file") {
-    origin.file = orientation_file(value, source);
+    origin.file = orientation_file(value, file_layout(node), source);
   } else if (kind == "euler_deg") {
     origin.given = inline_euler(value, source);
     // Weights are normalised by their sum, which must not overflow.

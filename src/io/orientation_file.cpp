@@ -28,6 +28,14 @@ constexpr double kNormTolerance = 1e-3;
 
 constexpr std::array<const char*, 3> kEulerColumns{"phi1", "Phi", "phi2"};
 constexpr std::array<const char*, 4> kQuaternionColumns{"w", "x", "y", "z"};
+// The column labels of MTEX's export (quaternion/export.m via quaternion/Euler.m): Bunge Euler
+// angles, or with the option 'quaternion' the components a b c d, which for the same Bunge angles
+// are subslip's w x y z (MTEX's euler2quat gives the quaternion of euler_to_quaternion).
+constexpr std::array<const char*, 3> kMtexEulerLabels{"phi1", "Phi", "phi2"};
+constexpr std::array<const char*, 4> kMtexQuaternionLabels{"a", "b", "c", "d"};
+// Radians written with few significant digits (MTEX writes %g: 6) may round past pi or 2 pi,
+// e.g. 2 pi as 6.28319; up to half a unit in the sixth digit is rounding, not a wrong angle.
+constexpr double kRadiansRounding = 1e-5;
 
 // Joins message parts with append: GCC 12 warns falsely (-Wrestrict) on "literal" + std::string&&.
 template <typename... Parts>
@@ -71,8 +79,18 @@ std::string format_number(double value, int digits) {
 class OrientationReader {
  public:
   // `each`: called with every orientation in file order (nothing is kept).
-  OrientationReader(const std::string& file_name, const OrientationVisitor& each)
-      : file_(file_name), each_(each) {}
+  OrientationReader(const std::string& file_name, const OrientationVisitor& each,
+                    const OrientationFileLayout& layout)
+      : file_(file_name), layout_(layout), each_(each) {
+    if (layout_.kind == OrientationFileKind::euler) {
+      if (!layout_.angles) {
+        fail(0, "angles", "a headerless Euler list needs its unit: angles deg or rad");
+      }
+      convention_ = OrientationConvention::bunge_euler_deg;
+    }
+    unit_ = layout_.angles.value_or(
+        layout_.kind == OrientationFileKind::damask ? AngleUnit::radians : AngleUnit::degrees);
+  }
 
   // Returns the number of orientations read.
   std::size_t read(std::istream& in) {
@@ -81,17 +99,17 @@ class OrientationReader {
       ++line_;
       if (!text.empty() && text.back() == '\r') text.pop_back();
       if (!convention_) {
-        read_header_line(text);
+        if (is_table()) {
+          read_labels_line(text);
+        } else {
+          read_header_line(text);
+        }
       } else {
         read_data_line(text);
       }
     }
-    if (!convention_) {
-      fail(0, "orientations",
-           concat("empty file: expected the header '", kHeaderExample,
-                  "' and at least one orientation"));
-    }
-    if (count_ == 0) fail(0, "orientations", "no orientations after the header");
+    if (!convention_) fail(0, "orientations", concat("empty file: expected ", expected_start()));
+    if (count_ == 0) fail(0, "orientations", concat("no orientations ", after_what()));
     return count_;
   }
 
@@ -103,6 +121,48 @@ class OrientationReader {
     fail(line_, key, message);
   }
 
+  bool is_table() const {
+    return layout_.kind == OrientationFileKind::mtex || layout_.kind == OrientationFileKind::damask;
+  }
+
+  std::string_view after_what() const {
+    switch (layout_.kind) {
+      case OrientationFileKind::subslip:
+        return "after the header";
+      case OrientationFileKind::euler:
+        return "(every line is blank or a comment)";
+      default:
+        return "after the column labels";
+    }
+  }
+
+  std::string expected_start() const {
+    switch (layout_.kind) {
+      case OrientationFileKind::mtex:
+        return "a line of column labels (phi1 Phi phi2 or a b c d) and at least one orientation";
+      case OrientationFileKind::damask:
+        return concat("a line of column labels (with 1_", layout_.column, " 2_", layout_.column,
+                      " ...) and at least one orientation");
+      default:
+        return concat("the header '", std::string(kHeaderExample),
+                      "' and at least one orientation");
+    }
+  }
+
+  static bool has_subslip_header(std::string_view text) {
+    const std::string_view content = trim_left(text);
+    if (!content.starts_with('#')) return false;
+    return trim_left(content.substr(1)).starts_with(kMagic);
+  }
+
+  // A file in subslip's own format named with another format would be read against its header.
+  void refuse_subslip_header(std::string_view text) const {
+    if (has_subslip_header(text)) {
+      fail("header", concat("this file has subslip's own header, yet it is read as format ",
+                            to_string(layout_.kind), ": leave out the format"));
+    }
+  }
+
   void read_header_line(std::string_view text) {
     if (is_blank(text)) return;
     const std::string_view content = trim_left(text);
@@ -110,7 +170,8 @@ class OrientationReader {
     std::string word;
     if (!(words >> word) || word != kMagic) {
       fail("header", concat("the first line must be the header '", kHeaderExample,
-                            "' (or convention=quaternion)"));
+                            "' (or convention=quaternion); a file without it (a Euler list, an "
+                            "MTEX or DAMASK table) needs its format named: docs/orientations.md"));
     }
     while (words >> word) read_header_word(word);
     if (!convention_) {
@@ -143,11 +204,94 @@ class OrientationReader {
     }
   }
 
+  // The first line that is neither blank nor a '#' comment names the columns (DAMASK writes its
+  // comments before it; MTEX writes none).
+  void read_labels_line(std::string_view text) {
+    refuse_subslip_header(text);
+    if (is_blank(text) || trim_left(text).starts_with('#')) return;
+    labels_ = split_fields(text);
+    if (layout_.kind == OrientationFileKind::mtex) {
+      find_mtex_columns();
+    } else {
+      find_damask_columns();
+    }
+    labels_line_ = line_;
+  }
+
+  std::string labels_list() const {
+    std::string list;
+    for (const std::string& label : labels_) list.append(list.empty() ? "" : " ").append(label);
+    return list;
+  }
+
+  int label_index(std::string_view label) const {
+    const auto found = std::find(labels_.begin(), labels_.end(), label);
+    return found == labels_.end() ? -1 : int(found - labels_.begin());
+  }
+
+  // Every one of `wanted` present: their indices; otherwise empty.
+  template <std::size_t N>
+  std::vector<int> indices_of(const std::array<const char*, N>& wanted) const {
+    std::vector<int> indices;
+    for (const char* label : wanted) {
+      const int index = label_index(label);
+      if (index < 0) return {};
+      indices.push_back(index);
+    }
+    return indices;
+  }
+
+  void find_mtex_columns() {
+    if (auto euler = indices_of(kMtexEulerLabels); !euler.empty()) {
+      columns_ = euler;
+      convention_ = OrientationConvention::bunge_euler_deg;
+    } else if (auto quaternion = indices_of(kMtexQuaternionLabels); !quaternion.empty()) {
+      columns_ = quaternion;
+      convention_ = OrientationConvention::quaternion;
+    } else if (label_index("alpha") >= 0 || label_index("Psi") >= 0 || label_index("omega") >= 0) {
+      fail("header", concat("the columns (", labels_list(),
+                            ") are Euler angles of another convention than Bunge's; export "
+                            "with the option 'Bunge' (MTEX's default) or 'quaternion'"));
+    } else {
+      fail("header", concat("expected MTEX's column labels phi1 Phi phi2 (Bunge Euler angles) "
+                            "or a b c d (quaternion), found: ",
+                            labels_list()));
+    }
+  }
+
+  // DAMASK labels the components of a vector column v as 1_v 2_v ... (Table.save).
+  void find_damask_columns() {
+    const std::string& name = layout_.column;
+    for (int component = 1;; ++component) {
+      const int index = label_index(concat(std::to_string(component), "_", name));
+      if (index < 0) break;
+      columns_.push_back(index);
+    }
+    if (columns_.size() == 4) {
+      convention_ = OrientationConvention::quaternion;
+    } else if (columns_.size() == 3) {
+      convention_ = OrientationConvention::bunge_euler_deg;
+    } else if (columns_.empty()) {
+      fail("header", concat("no column ", name, " (labels 1_", name, " 2_", name,
+                            " ...) among the labels: ", labels_list(),
+                            "; name the orientation column with orientations.column"));
+    } else {
+      fail("header", concat("column ", name, " has ", std::to_string(columns_.size()),
+                            " components; expected 4 (quaternion w x y z) or 3 (Bunge Euler "
+                            "angles phi1 Phi phi2)"));
+    }
+  }
+
   void read_data_line(std::string_view text) {
+    if (layout_.kind == OrientationFileKind::euler && count_ == 0) refuse_subslip_header(text);
     const std::size_t comment = text.find('#');
     if (comment != std::string_view::npos) text = text.substr(0, comment);
     if (is_blank(text)) return;
     const std::vector<std::string> fields = split_fields(text);
+    if (is_table()) {
+      read_table_row(fields);
+      return;
+    }
     const bool has_weight = check_column_count(int(fields.size()));
     const int angle_columns = int(fields.size()) - (has_weight ? 1 : 0);
 
@@ -157,9 +301,40 @@ class OrientationReader {
     const double weight = has_weight ? parse_number(fields.back(), "weight") : 1.0;
     if (!(weight > 0.0)) fail("weight", concat("weight must be positive, got ", fields.back()));
 
-    const crystal::Quaternion q = *convention_ == OrientationConvention::bunge_euler_deg
-                                      ? quaternion_from_euler_degrees(values, fields)
-                                      : checked_quaternion(values);
+    std::vector<std::string> keys;
+    for (int i = 0; i < angle_columns; ++i) keys.emplace_back(column_name(i));
+    emit(values, fields, keys, weight);
+  }
+
+  // Only the orientation columns are read: the others may hold anything the tool wrote (a phase
+  // name, coordinates, grain properties).
+  void read_table_row(const std::vector<std::string>& fields) {
+    if (fields.size() != labels_.size()) {
+      fail("columns", concat("expected ", std::to_string(labels_.size()),
+                             " values, one per column label on line ", std::to_string(labels_line_),
+                             ", found ", std::to_string(fields.size())));
+    }
+    std::vector<double> values;
+    std::vector<std::string> texts;
+    std::vector<std::string> keys;
+    for (int index : columns_) {
+      values.push_back(parse_number(fields[index], labels_[index].c_str()));
+      texts.push_back(fields[index]);
+      keys.push_back(labels_[index]);
+    }
+    emit(values, texts, keys, 1.0);
+  }
+
+  void emit(const std::vector<double>& values, const std::vector<std::string>& texts,
+            const std::vector<std::string>& keys, double weight) {
+    crystal::Quaternion q;
+    if (*convention_ == OrientationConvention::quaternion) {
+      q = checked_quaternion(values);
+    } else if (unit_ == AngleUnit::degrees) {
+      q = quaternion_from_euler_degrees(values, texts, keys);
+    } else {
+      q = quaternion_from_euler_radians(values, texts, keys);
+    }
     each_(crystal::Orientation::from_quaternion(q, weight));
     ++count_;
   }
@@ -213,18 +388,40 @@ class OrientationReader {
   }
 
   crystal::Quaternion quaternion_from_euler_degrees(const std::vector<double>& degrees,
-                                                    const std::vector<std::string>& fields) {
+                                                    const std::vector<std::string>& fields,
+                                                    const std::vector<std::string>& keys) {
     for (int i : {0, 2}) {
       if (degrees[i] < -360.0 || degrees[i] > 360.0) {
-        fail(kEulerColumns[i], concat(fields[i], " deg is outside [-360, 360]"));
+        fail(keys[i], concat(fields[i], " deg is outside [-360, 360]"));
       }
     }
     if (degrees[1] < 0.0 || degrees[1] > 180.0) {
-      fail("Phi", concat(fields[1], " deg is outside [0, 180]"));
+      fail(keys[1], concat(fields[1], " deg is outside [0, 180]"));
     }
     const Eigen::Vector3d euler(degrees[0], degrees[1], degrees[2]);
     largest_euler_deg_ = std::max(largest_euler_deg_, euler.cwiseAbs().maxCoeff());
     return crystal::euler_to_quaternion(crystal::degrees_to_radians(euler));
+  }
+
+  // The ranges of degrees, in radians; an angle beyond them was most likely written in degrees.
+  crystal::Quaternion quaternion_from_euler_radians(const std::vector<double>& radians,
+                                                    const std::vector<std::string>& fields,
+                                                    const std::vector<std::string>& keys) const {
+    constexpr double pi = std::numbers::pi;
+    const auto outside = [](double value, double low, double high) {
+      const double slack = kRadiansRounding * std::max(std::abs(low), std::abs(high));
+      return !(value >= low - slack && value <= high + slack);
+    };
+    const char* hint = ": were the angles written in degrees? (then angles: deg)";
+    for (int i : {0, 2}) {
+      if (outside(radians[i], -2.0 * pi, 2.0 * pi)) {
+        fail(keys[i], concat(fields[i], " rad is outside [-2 pi, 2 pi]", hint));
+      }
+    }
+    if (outside(radians[1], 0.0, pi)) {
+      fail(keys[1], concat(fields[1], " rad is outside [0, pi]", hint));
+    }
+    return crystal::euler_to_quaternion(Eigen::Vector3d(radians[0], radians[1], radians[2]));
   }
 
   crystal::Quaternion checked_quaternion(const std::vector<double>& v) const {
@@ -239,8 +436,13 @@ class OrientationReader {
   }
 
   std::string file_;
+  OrientationFileLayout layout_;
+  AngleUnit unit_ = AngleUnit::degrees;
   int line_ = 0;
   std::optional<OrientationConvention> convention_;
+  std::vector<std::string> labels_;  // a table's column labels
+  std::vector<int> columns_;         // the indices of its orientation columns
+  int labels_line_ = 0;
   int first_data_line_ = 0;
   int first_column_count_ = 0;
   const OrientationVisitor& each_;
@@ -276,6 +478,19 @@ std::string_view to_string(OrientationConvention convention) {
   return convention == OrientationConvention::bunge_euler_deg ? "bunge-euler-deg" : "quaternion";
 }
 
+std::string_view to_string(OrientationFileKind kind) {
+  switch (kind) {
+    case OrientationFileKind::euler:
+      return "euler";
+    case OrientationFileKind::mtex:
+      return "mtex";
+    case OrientationFileKind::damask:
+      return "damask";
+    default:
+      return "subslip";
+  }
+}
+
 namespace {
 
 // A byte-order mark at the start of `in` (editors on Windows write one): a UTF-8 one is
@@ -298,8 +513,9 @@ std::istream& without_byte_order_mark(std::istream& in, const std::string& file_
 }  // namespace
 
 std::size_t read_orientations(std::istream& in, const std::string& file_name,
-                              const OrientationVisitor& each, double* largest_euler_deg) {
-  OrientationReader reader(file_name, each);
+                              const OrientationVisitor& each, double* largest_euler_deg,
+                              const OrientationFileLayout& layout) {
+  OrientationReader reader(file_name, each, layout);
   std::istringstream converted;
   const std::size_t count = reader.read(without_byte_order_mark(in, file_name, converted));
   if (largest_euler_deg != nullptr) *largest_euler_deg = reader.largest_euler_deg_;
@@ -307,11 +523,12 @@ std::size_t read_orientations(std::istream& in, const std::string& file_name,
 }
 
 std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
-                                                    double* largest_euler_deg) {
+                                                    double* largest_euler_deg,
+                                                    const OrientationFileLayout& layout) {
   std::vector<crystal::Orientation> orientations;
   read_orientations(
       in, file_name, [&](const crystal::Orientation& o) { orientations.push_back(o); },
-      largest_euler_deg);
+      largest_euler_deg, layout);
   return orientations;
 }
 
@@ -321,15 +538,17 @@ bool euler_angles_look_like_radians(double largest_euler_deg, std::size_t count)
 }
 
 std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
-                                                        double* largest_euler_deg) {
+                                                        double* largest_euler_deg,
+                                                        const OrientationFileLayout& layout) {
   std::vector<crystal::Orientation> orientations;
   read_orientation_file(
-      path, [&](const crystal::Orientation& o) { orientations.push_back(o); }, largest_euler_deg);
+      path, [&](const crystal::Orientation& o) { orientations.push_back(o); }, largest_euler_deg,
+      layout);
   return orientations;
 }
 
 std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
-                                  double* largest_euler_deg) {
+                                  double* largest_euler_deg, const OrientationFileLayout& layout) {
   std::error_code error;
   if (!std::filesystem::is_regular_file(path, error)) {
     throw InputError(
@@ -338,7 +557,7 @@ std::size_t read_orientation_file(const std::string& path, const OrientationVisi
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
-  return read_orientations(in, path, each, largest_euler_deg);
+  return read_orientations(in, path, each, largest_euler_deg, layout);
 }
 
 std::string format_orientations(const std::vector<crystal::Orientation>& orientations,

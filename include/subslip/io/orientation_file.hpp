@@ -20,12 +20,19 @@
 //
 // Every problem throws subslip::InputError "FILE:LINE: KEY: MESSAGE" with the 1-based line (0 for
 // a missing or empty file), KEY naming the column or part at fault (header, convention, columns,
-// phi1, Phi, phi2, w, x, y, z, quaternion, weight, orientations, file).
+// phi1, Phi, phi2, w, x, y, z, quaternion, weight, orientations, file; in a table written by
+// another tool the column's own label, e.g. 1_O).
+//
+// Files others write (OrientationFileLayout, docs/orientations.md): a headerless Bunge Euler list
+// (units given by the caller), MTEX's text export (quaternion/export.m, EBSD/export.m: one line of
+// column labels, then numbers) and DAMASK's ASCII table (Table.save: '#' comment lines, one line
+// of column labels such as 1_O 2_O 3_O 4_O, then numbers). Same ranges, checks and messages.
 #pragma once
 
 #include <cstddef>
 #include <functional>
 #include <istream>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -40,22 +47,49 @@ enum class OrientationConvention { bunge_euler_deg, quaternion };
 
 std::string_view to_string(OrientationConvention convention);  // "bunge-euler-deg", "quaternion"
 
+// Who wrote the file, hence how it is laid out.
+enum class OrientationFileKind {
+  subslip,  // subslip's header line states the convention
+  euler,    // no header: phi1 Phi phi2 [weight] per line, '#' comments, units from `angles`
+  mtex,     // MTEX export: a line of column labels (phi1 Phi phi2 or a b c d), then numbers
+  damask,   // DAMASK Table.save: '#' comments, a line of column labels, then numbers
+};
+enum class AngleUnit { degrees, radians };
+
+struct OrientationFileLayout {
+  OrientationFileKind kind = OrientationFileKind::subslip;
+  // The unit of Euler angles in an euler, mtex or damask file. Required for euler; for mtex the
+  // default is degrees and for damask radians (each tool's default when it writes them).
+  std::optional<AngleUnit> angles;
+  // damask: the label of the orientation column (DAMASK writes a vector column `O` as 1_O ... 4_O);
+  // 4 components are a quaternion w x y z, 3 are Bunge Euler angles.
+  std::string column = "O";
+};
+
+// "subslip", "euler", "mtex", "damask" (the scene's orientations.format values).
+std::string_view to_string(OrientationFileKind kind);
+
 // Reads a whole file. Weights are returned as written (not normalised to sum 1).
 // `largest_euler_deg` (optional): set to the largest |Euler angle| read, -1 for quaternions.
+// `largest_euler_deg` stays -1 for angles read as radians (they need no check for radians).
 std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
-                                                        double* largest_euler_deg = nullptr);
+                                                        double* largest_euler_deg = nullptr,
+                                                        const OrientationFileLayout& layout = {});
 // The same from a stream; `file_name` is what error messages call it.
 std::vector<crystal::Orientation> read_orientations(std::istream& in, const std::string& file_name,
-                                                    double* largest_euler_deg = nullptr);
+                                                    double* largest_euler_deg = nullptr,
+                                                    const OrientationFileLayout& layout = {});
 
 // Streaming: `each` is called with every orientation in file order and nothing is kept (a file
 // of more orientations than one process should hold: driver::share_root_orientations); the same
 // checks and messages. Returns how many were read.
 using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
 std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
-                                  double* largest_euler_deg = nullptr);
+                                  double* largest_euler_deg = nullptr,
+                                  const OrientationFileLayout& layout = {});
 std::size_t read_orientations(std::istream& in, const std::string& file_name,
-                              const OrientationVisitor& each, double* largest_euler_deg = nullptr);
+                              const OrientationVisitor& each, double* largest_euler_deg = nullptr,
+                              const OrientationFileLayout& layout = {});
 
 // Whether `count` Euler angle sets, said to be degrees, whose largest |angle| is
 // `largest_euler_deg`, were most likely written in radians (all within 2 pi, not all zero).
