@@ -165,7 +165,9 @@ std::vector<StudyCase> crystal_cases(const AccuracyArgs& a, const io::YamlDocume
          std::make_unique<study::CrystalProblem>(
              c.phase, c.orientations, c.segments, c.options, driver::loading_component(c.segments),
              a.measure == "stress" ? study::CrystalProblem::Measure::stress
-                                   : study::CrystalProblem::Measure::state)});
+                                   : study::CrystalProblem::Measure::state,
+             a.reference_at_run_times ? study::CrystalProblem::TimeAxis::segment
+                                      : study::CrystalProblem::TimeAxis::absolute)});
   }
   return out;
 }

@@ -261,8 +261,10 @@ class TaylorAggregate final : public Aggregate {
         if (solved) why = describe_error(error);
         if (!clock.refuse(!solved, error.value,
                           extrapolated
-                              ? extrapolation_.resolution(grains_.phase(), fc, opt, macro_.stress)
-                              : 0.0)) {
+                              ? extrapolation_.resolution(grains_.phase(), opt,
+                                                          step_free_stress_error_, error.crss)
+                              : 0.0,
+                          true)) {
           if (clock.at_noise_floor())
             why = clock.noise_floor_message() + " (" + why + ")";
           else if (clock.below_time_resolution())
@@ -326,6 +328,7 @@ class TaylorAggregate final : public Aggregate {
     auto restore_trend = [&] { mixed_.path() = path_start; };
     const double t0 = clock.time();
     const double t1 = clock.end_time();
+    step_free_stress_error_ = 0.0;
     bool ok = true;
     for (int j = 1; j <= order && ok; ++j) {
       u = u_start;
@@ -340,6 +343,7 @@ class TaylorAggregate final : public Aggregate {
         ok = mixed_.try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u,
                              opt, why);
         if (ok) {
+          step_free_stress_error_ = std::max(step_free_stress_error_, mixed_.free_stress_error());
           mixed_.record_free_step(u, mixed_.step_correction(), end - t);
           commit(seg, fc, u, end - t);
         }
@@ -357,7 +361,7 @@ class TaylorAggregate final : public Aggregate {
       macro_ = macro_start;
       return false;
     }
-    extrapolation_.combine(order, grains_);
+    extrapolation_.combine(order, t1 - t0, grains_);
     return grains_.every_grain_ok(stats_, why);
   }
 
@@ -432,6 +436,8 @@ class TaylorAggregate final : public Aggregate {
   aggregate_parts::Extrapolation<N> extrapolation_;
   Cursor cursor_;
   std::chrono::steady_clock::time_point session_start_ = std::chrono::steady_clock::now();
+  // The largest free-stress error of the substeps of the extrapolated step last tried.
+  double step_free_stress_error_ = 0.0;
   double wall_before_ = 0.0;  // wall_seconds of the sessions before a restore
 };
 

@@ -17,7 +17,7 @@ Mat3 log_strain(const Mat3& f) {
 // trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
 // estimates in errors_, the restoring reports in reports_.
 template <int N>
-void Extrapolation<N>::combine(int order, GrainSweep<N>& grains) {
+void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains) {
   grains.forget_solve();  // its trial states are no longer the last solve's
   const Phase<N>& phase = grains.phase();
   std::vector<GrainState<N>>& trial = grains.trial();
@@ -65,12 +65,23 @@ void Extrapolation<N>::combine(int order, GrainSweep<N>& grains) {
     }
     if (switches_phase(phase, step_start_[gi], gi, order)) {
       // A system switched between elastic and slipping inside the step: the solution has a
-      // kink there and no error expansion in powers of the step, so the estimate is backward
-      // Euler's own (one substep against two): such a step is shortened until that meets the
-      // tolerance.
+      // kink there and no error expansion in powers of the step, so the step is judged as a
+      // backward Euler step: by the one-substep solution against the two-substep one, and by
+      // backward Euler's own estimate, dt/2 |A (rates at the one-substep solution's end - at
+      // the step's start)| over the CRSS (GrainSweep::local_error). The second sees a switch
+      // every solution steps over: a system slipping at the start of a reversal whose
+      // solutions all end elastic (each evaluates the flow rule only where the stress has
+      // already unloaded) agree with each other exactly, while the true path slips on until
+      // the system's r falls to r_s. Such a step is shortened until both meet the tolerance.
       const GrainState<N>& one = solutions_[0][gi];
       const GrainState<N>& two = solutions_[1][gi];
-      errors_[gi] = errors_[gi].cwiseMax(system_errors(phase, one.stress - two.stress, out.mu));
+      const GrainState<N>& start = step_start_[gi];
+      const VecN crss = start.mu.cwiseProduct(phase.tau0);
+      const VecN rate_estimate =
+          (0.5 * dt) * (phase.interaction * (one.rate - start.rate)).cwiseAbs().cwiseQuotient(crss);
+      errors_[gi] = errors_[gi]
+                        .cwiseMax(system_errors(phase, one.stress - two.stress, out.mu))
+                        .cwiseMax(rate_estimate);
     }
   }
   combine_macro(order, grains);
@@ -93,14 +104,15 @@ typename Extrapolation<N>::VecN Extrapolation<N>::system_errors(const Phase<N>& 
 
 // Whether a system of grain g switched between elastic and slipping in the step from `start`:
 // it slips (a non-zero rate) at the end of one of the `order` solutions and not at the start,
-// or the other way round.
+// or the other way round, or it slips at both in opposite senses (a reversal inside the step).
 template <int N>
 bool Extrapolation<N>::switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g,
                                       int order) const {
   for (int j = 0; j < order; ++j) {
     const VecN& rate = solutions_[static_cast<size_t>(j)][g].rate;
     for (int a = 0; a < phase.slip_count; ++a)
-      if ((rate(a) != 0.0) != (start.rate(a) != 0.0)) return true;
+      if ((rate(a) > 0.0) != (start.rate(a) > 0.0) || (rate(a) < 0.0) != (start.rate(a) < 0.0))
+        return true;
   }
   return false;
 }
@@ -126,24 +138,23 @@ void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
 
 // What the extrapolated estimate resolves (as for the contact point): the grains' states are
 // exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
-// control, to the free stresses' tolerance over the smallest CRSS (mu no lower than the
-// smaller of mu_s and mu_k: the law moves it between them); the estimate's weights amplify
-// that (estimate_noise_gain).
+// control, to the free-stress error the step's substeps were accepted with (at most the free
+// stresses' tolerance, often far below it); that is an error of the stress, and the estimate
+// divides the stress by the CRSS of the system that decides it (`deciding_crss`, at the step's
+// start), so it enters over that CRSS. The estimate's weights amplify the sum
+// (estimate_noise_gain). (A bound from the tolerance and the laws' mu_s and mu_k instead is
+// 100 times too fine where the CRSS starts at 0.01 mu_s tau0, and too coarse where the free
+// stresses are met far within their tolerance: there an estimate flat at the stresses'
+// round-off was refused 20-30 times down to the time's resolution, or a reference that runs
+// was stopped.)
 template <int N>
-double Extrapolation<N>::resolution(const Phase<N>& phase, const std::vector<FreeComponent>& fc,
-                                    const AggregateOptions& opt, const Mat3& macro_stress) {
+double Extrapolation<N>::resolution(const Phase<N>& phase, const AggregateOptions& opt,
+                                    double free_stress_error, double deciding_crss) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
-  double largest_ratio = 1.0, smallest_mu = std::numeric_limits<double>::infinity();
-  for (const auto& law : phase.laws) {
-    const auto& p = law.parameters();
-    largest_ratio = std::max(largest_ratio, p.overstress.r_hat);
-    smallest_mu = std::min({smallest_mu, p.friction.mu_s, p.friction.mu_k});
-  }
-  double mixed = 0.0;
-  if (!fc.empty()) {
-    const double scale = std::max(macro_stress.cwiseAbs().maxCoeff(), phase.tau0.maxCoeff());
-    mixed = opt.stress_tolerance * scale / (smallest_mu * phase.tau0.minCoeff());
-  }
+  double largest_ratio = 1.0;
+  for (const auto& law : phase.laws)
+    largest_ratio = std::max(largest_ratio, law.parameters().overstress.r_hat);
+  const double mixed = deciding_crss > 0.0 ? free_stress_error / deciding_crss : 0.0;
   return integrators::estimate_noise_gain(opt.order) *
          (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
 }

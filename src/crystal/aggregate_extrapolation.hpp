@@ -31,12 +31,15 @@ class Extrapolation {
   // The combined macroscopic state (combine).
   const MacroState& macro() const { return extrapolated_macro_; }
 
-  void combine(int order, GrainSweep<N>& grains);
+  // `dt`: the step's length (backward Euler's own estimate on steps with a switch).
+  void combine(int order, double dt, GrainSweep<N>& grains);
   ErrorEstimate error(const GrainSweep<N>& grains) const {
     return grains.worst_error([&](size_t g) { return errors_[g]; });
   }
-  static double resolution(const Phase<N>& phase, const std::vector<FreeComponent>& fc,
-                           const AggregateOptions& opt, const Mat3& macro_stress);
+  // The round-off level of an estimate decided by a system of CRSS `deciding_crss`, of a step
+  // whose substeps met their free stresses' targets within `free_stress_error`.
+  static double resolution(const Phase<N>& phase, const AggregateOptions& opt,
+                           double free_stress_error, double deciding_crss);
 
  private:
   VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;

@@ -24,6 +24,7 @@ struct ErrorEstimate {
   double value = 0.0;
   size_t grain = 0;
   int system = -1;
+  double crss = 0.0;  // of that system at the step's start (the scale of its estimate)
 };
 
 template <int N>
@@ -77,21 +78,22 @@ class GrainSweep final : public GrainFields {
   template <class PerGrain>
   ErrorEstimate worst_error(PerGrain&& error_of) const {
     ErrorEstimate worst;
-    const auto keep_worse = [&worst](double value, size_t grain, int system) {
+    const auto keep_worse = [&worst](double value, size_t grain, int system, double crss) {
       if (!std::isnan(worst.value) && (std::isnan(value) || value > worst.value))
-        worst = {value, grain, system};
+        worst = {value, grain, system, crss};
     };
     for (size_t g = 0; g < committed_.size(); ++g) {
       const VecN error = error_of(g);
-      for (int a = 0; a < phase_.slip_count; ++a) keep_worse(error(a), offset_ + g, a);
+      for (int a = 0; a < phase_.slip_count; ++a)
+        keep_worse(error(a), offset_ + g, a, committed_[g].mu(a) * phase_.tau0(a));
     }
     if (team_.size() == 1) return worst;
-    const double mine[3] = {worst.value, static_cast<double>(worst.grain),
-                            static_cast<double>(worst.system)};
+    const double mine[4] = {worst.value, static_cast<double>(worst.grain),
+                            static_cast<double>(worst.system), worst.crss};
     const std::vector<double> all = team_.all_gather(mine);
     worst = {};
-    for (size_t r = 0; r < all.size(); r += 3)
-      keep_worse(all[r], static_cast<size_t>(all[r + 1]), static_cast<int>(all[r + 2]));
+    for (size_t r = 0; r < all.size(); r += 4)
+      keep_worse(all[r], static_cast<size_t>(all[r + 1]), static_cast<int>(all[r + 2]), all[r + 3]);
     return worst;
   }
 

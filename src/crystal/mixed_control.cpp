@@ -309,6 +309,7 @@ bool MixedControl<N>::try_step(const LoadSegment& seg, const std::vector<FreeCom
                                const Mat3& target, double dt, Eigen::VectorXd& u,
                                const AggregateOptions& opt, std::string& why) {
   step_correction_ = zero_correction(fc);
+  free_stress_error_ = 0.0;
   if (fc.empty()) return grains_.solve(seg.velocity_gradient, dt, false, opt, stats_, why);
   if (opt.predictor == MixedPredictor::last)
     return solve_free_components(seg, fc, target, dt, u, opt, why);
@@ -370,6 +371,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
     if (it.residual.size <= std::max(tolerance, resolution.round_off)) {
       u = it.u;
       step_correction_ = dt * error_correction(jacobian, it.residual.value, tolerance, it.l);
+      free_stress_error_ = it.residual.size;
       return true;
     }
     if (iteration == opt.max_mixed_iterations || budget == 0) break;
@@ -410,6 +412,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
       if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why)) return false;
       u = it.u;
       step_correction_ = dt * error_correction(jacobian, it.residual.value, tolerance, it.l);
+      free_stress_error_ = it.residual.size;
       return true;
     }
     // Near the tolerance the stress can be noisier than grain_noise says (measured at G/tau0

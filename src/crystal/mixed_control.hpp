@@ -45,6 +45,9 @@ class MixedControl {
   // The strain along the free components that removes the free-stress error of the last step
   // try_step solved, to first order (zero where it solved none: FreePath).
   const Eigen::VectorXd& step_correction() const { return step_correction_; }
+  // The largest abs(free stress - target) of the last step try_step solved (0 without free
+  // components): what the step's stress is resolved to, at most the free stresses' tolerance.
+  double free_stress_error() const { return free_stress_error_; }
 
   Eigen::VectorXd elastic_free_start(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                                      const Mat3& stress_start) const;
@@ -109,6 +112,7 @@ class MixedControl {
   AggregateStats& stats_;
   FreePath path_;
   Eigen::VectorXd step_correction_;
+  double free_stress_error_ = 0.0;
 };
 
 }  // namespace subslip::crystal::aggregate_parts

@@ -162,13 +162,14 @@ double extrapolation_error(const Combined& difference, const ContactState& s) {
   return std::max({traction, std::abs(difference(2)) / s.law.mu, std::abs(difference(3))});
 }
 
-// Whether a step from s0 switched between sticking and sliding: one of its `order` solutions
-// ends in the other phase (`sliding`: whether each does).
-bool switches_phase(const ContactState& s0,
-                    const std::array<bool, integrators::kMaxExtrapolationOrder>& sliding,
-                    int order) {
-  const bool start = s0.vp_rate > 0.0;
-  return std::any_of(sliding.begin(), sliding.begin() + order, [&](bool b) { return b != start; });
+// Whether a substep ending in `after` switched the contact's phase relative to the step's
+// start `s0`: it ends sticking where the step started sliding or the other way round, or it
+// ends sliding against the direction the step started sliding in (a reversal through zero
+// traction, sliding, sticking and sliding back, inside the substep).
+bool switches_phase(const ContactState& s0, const ContactState& after) {
+  const bool sliding = after.vp_rate > 0.0, was_sliding = s0.vp_rate > 0.0;
+  return sliding != was_sliding ||
+         (sliding && was_sliding && after.traction_t.dot(s0.traction_t) < 0.0);
 }
 
 struct ExtrapolatedStep {
@@ -196,7 +197,7 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
   std::array<Combined, integrators::kMaxExtrapolationOrder> solutions;
   ContactState one_step, finest;
   int iterations = 0;
-  std::array<bool, integrators::kMaxExtrapolationOrder> sliding{};  // at the end, per solution
+  bool switched = false;  // in any substep of any solution (switches_phase)
   for (int j = 1; j <= opt.order; ++j) {
     ContactState s = s0;
     double t = t0;
@@ -207,11 +208,11 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
                                             contact::normal_traction_at(seg, c, fn_start, end), h);
       iterations += a.report.iterations;
       if (!a.report.ok) return {{s, iterations, false, std::move(a.report.why)}, 0.0};
+      switched = switched || switches_phase(s0, a.state);
       s = a.state;
       t = end;
     }
     solutions[static_cast<size_t>(j - 1)] = combined_part(s);
-    sliding[static_cast<size_t>(j - 1)] = s.vp_rate > 0.0;
     if (j == 1) one_step = s;
     finest = s;
   }
@@ -226,12 +227,22 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
     out.error = integrators::guarded_estimate(out.error, extrapolation_error(earlier[0], end),
                                               extrapolation_error(earlier[1], end));
   }
-  if (switches_phase(s0, sliding, opt.order)) {
+  if (switched) {
     // A switch between sticking and sliding inside the step: the solution has a kink there and
-    // no error expansion in powers of the step, so the estimate is backward Euler's own (one
-    // substep against two): a step with a switch is shortened until that meets the tolerance.
-    out.error =
-        std::max(out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state));
+    // no error expansion in powers of the step, so the step is judged as a backward Euler step:
+    // by the one-substep solution against the two-substep one, and by backward Euler's own
+    // estimate, which compares the sliding velocity at the step's start with the one-substep
+    // solution's at its end. The second is what sees a switch that every solution steps over:
+    // a contact sliding at the start of a reversal whose solutions all end sticking (each
+    // evaluates the flow rule only where the traction has already unloaded) agree with each
+    // other exactly, while the true path slides on until r falls to r_s. A step with a switch
+    // is shortened until both meet the tolerance; it then ends near the switch, and its error
+    // is the local error of one first-order step there.
+    const double t_from_start = t1 - t0;
+    const double fn1 = contact::normal_traction_at(seg, c, fn_start, t1);
+    out.error = std::max(
+        {out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state),
+         local_error(point, s0, one_step, seg.velocity * t_from_start, fn1, t_from_start)});
   }
   return out;
 }
@@ -283,13 +294,15 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
     const bool last = clock.last();
     s = a.state;
     const bool stop = clock.accept(error);
+    // The time of every step's end from the segment's start and the time into it (the output
+    // time where the step ends on one): the running sum of thousands of steps drifts by many
+    // ulps of the absolute time, which on a steep ramp late in a history (a re-slide 61 min
+    // in) is a difference of 1e-6 of mu_s between a run and its reference at "the same" time.
+    s.time = t_start + clock.time();
     ++stats.increments;
     ++stats.substeps;
     if (seg.output_at_times) {
-      if (stop) {
-        s.time = t_start + clock.time();  // exactly the output time (the sum of steps rounds)
-        on_output(s, index);
-      }
+      if (stop) on_output(s, index);
     } else if (last || clock.accepted() % seg.output_every == 0) {
       on_output(s, index);
     }

@@ -172,6 +172,7 @@ std::vector<double> Trajectory::headline() const {
 RunResult record(const Problem& problem, const Setting& setting, Report report, Trajectory& path,
                  double budget_seconds) {
   path = {};
+  path.times_into_segments = problem.times_into_segments();
   const auto start = Clock::now();
   long reported = 0;
   try {
@@ -229,6 +230,7 @@ void reference_at(const Problem& problem, const StudyOptions& options, const Sto
     companion.add(t, v, seg);
   };
   reference = {}, companion = {};
+  reference.times_into_segments = companion.times_into_segments = problem.times_into_segments();
   for (const auto& [setting, keep] :
        {std::pair{options.reference, &keep_reference}, std::pair{looser, &keep_companion}}) {
     const RunResult r = problem.run(setting, Report::every_step, *keep, stops);
@@ -250,6 +252,7 @@ PointResult measure_point(const Problem& problem, const Setting& setting,
                              !is_fixed_step(options.reference.integrator);
   ErrorAccumulator error(reference, scales);
   Trajectory path;  // kept only when the run gets its own reference
+  path.times_into_segments = problem.times_into_segments();
   long reported = 0;
   // A run that overruns the budget is stopped from its observer.
   const auto start = Clock::now();

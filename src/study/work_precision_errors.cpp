@@ -84,7 +84,7 @@ PathInterpolant::PathInterpolant(const Trajectory& path) : width_(path.width) {
       Piece p;
       p.segment = seg;
       if (k > 0) {  // the segment starts where the previous one ended
-        p.t.push_back(path.time[k - 1]);
+        p.t.push_back(path.times_into_segments ? 0.0 : path.time[k - 1]);
         const auto v = path.at(k - 1);
         p.y.insert(p.y.end(), v.begin(), v.end());
       }
@@ -205,6 +205,7 @@ Trajectory richardson(const Trajectory& fine, const Trajectory& coarse) {
   const auto w = static_cast<std::size_t>(fine.width);
   std::vector<double> v(w);
   Trajectory correction;
+  correction.times_into_segments = fine.times_into_segments;
   for (std::size_t k = 0; k < coarse.size(); ++k) {
     const double t = coarse.time[k];
     f.at(t, coarse.segment[k], v);
@@ -214,6 +215,7 @@ Trajectory richardson(const Trajectory& fine, const Trajectory& coarse) {
   }
   const PathInterpolant c(correction);
   Trajectory out;
+  out.times_into_segments = fine.times_into_segments;
   for (std::size_t k = 0; k < fine.size(); ++k) {
     const double t = fine.time[k];
     c.at(t, fine.segment[k], v);

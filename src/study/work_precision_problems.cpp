@@ -148,13 +148,14 @@ CrystalProblem::CrystalProblem(crystal::PhaseDescription phase,
                                std::vector<crystal::Orientation> orientations,
                                std::vector<crystal::LoadSegment> segments,
                                crystal::AggregateOptions options, std::pair<int, int> component,
-                               Measure measure)
+                               Measure measure, TimeAxis clock)
     : phase_(std::move(phase)),
       orientations_(std::move(orientations)),
       segments_(std::move(segments)),
       options_(options),
       component_(component),
-      measure_(measure) {}
+      measure_(measure),
+      clock_(clock) {}
 
 bool CrystalProblem::supports(Integrator integrator) const {
   // The rate-independent form has no slip rate for forward Euler or an ODE solver.
@@ -222,8 +223,9 @@ std::string CrystalProblem::channel_name(int channel) const {
 namespace {
 
 // The segments with output at the stops only (times into each segment), for an adaptive run.
+// `into_segment`: the stops' times are times into their segments already (TimeAxis::segment).
 std::vector<crystal::LoadSegment> with_stops(std::vector<crystal::LoadSegment> segments,
-                                             const StopTimes& stops) {
+                                             const StopTimes& stops, bool into_segment) {
   std::vector<double> starts(segments.size());
   double start = 0.0;  // (accumulated as the aggregate accumulates it)
   for (std::size_t k = 0; k < segments.size(); ++k) {
@@ -239,7 +241,7 @@ std::vector<crystal::LoadSegment> with_stops(std::vector<crystal::LoadSegment> s
   using integrators::kSameTime;
   for (const auto& [segment, time] : stops) {
     if (segment < 0 || static_cast<std::size_t>(segment) >= segments.size()) continue;
-    const double segment_start = starts[static_cast<std::size_t>(segment)];
+    const double segment_start = into_segment ? 0.0 : starts[static_cast<std::size_t>(segment)];
     auto& s = segments[static_cast<std::size_t>(segment)];
     const double into = time - segment_start;
     if (into <= kSameTime * segment_start) continue;
@@ -267,16 +269,18 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
   // Reused from point to point (the observer runs between steps, never concurrently).
   std::vector<double> ratio, crss, r_s, channels;
   const auto record = [&](const crystal::MacroState& m, const crystal::GrainFields& grains) {
+    // (The initial state, segment -1, is at time 0 on either clock.)
+    const double time = clock_ == TimeAxis::segment && m.segment >= 0 ? m.segment_time : m.time;
     if (report == Report::scene_points) {  // timed: the grains' fields are not what is timed
       const double headline = m.stress(i, j);
-      seen(m.time, std::span<const double>(&headline, 1), m.segment);
+      seen(time, std::span<const double>(&headline, 1), m.segment);
       return;
     }
     if (measure_ == Measure::stress) {
       channels.resize(1 + 6 * static_cast<std::size_t>(grains.grain_count()));
       channels[0] = m.stress(i, j);
       grains.values(crystal::GrainField::stress, channels.data() + 1);
-      seen(m.time, channels, m.segment);
+      seen(time, channels, m.segment);
       return;
     }
     const auto n = static_cast<std::size_t>(grains.grain_count()) *
@@ -291,7 +295,7 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
       channels[2 + kPerSystem * k] = std::log(crss[k]);
       channels[3 + kPerSystem * k] = r_s[k];
     }
-    seen(m.time, channels, m.segment);
+    seen(time, channels, m.segment);
   };
   crystal::AggregateOptions opt = options_;
   opt.tolerance = 0.0;
@@ -318,8 +322,9 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
         opt.tolerance = setting.value;
         opt.order = extrapolation_order(setting.integrator);
         auto aggregate = crystal::build_taylor_aggregate(phase_, orientations_);
-        const auto segments =
-            stops.empty() ? outputs_for(segments_, report) : with_stops(segments_, stops);
+        const auto segments = stops.empty()
+                                  ? outputs_for(segments_, report)
+                                  : with_stops(segments_, stops, clock_ == TimeAxis::segment);
         out.counters = counters_of(aggregate->run(segments, opt, record));
         break;
       }

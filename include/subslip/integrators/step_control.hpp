@@ -189,6 +189,7 @@ class AdaptiveSegment {
     for (; next_stop_ < stops_.size() && reaches(t_, stops_[next_stop_]); ++next_stop_) stop = true;
     ++accepted_;
     refusals_ = 0;
+    refused_error_ = 0.0;
     const double factor = step_factor(error, tolerance_, order_, growth_);
     dt_ = h * factor;
     if (shortened && factor >= 1.0) dt_ = std::max(dt_, planned);
@@ -205,12 +206,19 @@ class AdaptiveSegment {
   // shrinks (kFloorShrink). Outside their asymptotic range (a nonlinear relaxation at the start
   // of a hold, many time scales inside one step) the extrapolated estimates can stay flat over
   // a 1000-fold shrink, so the second rule would stop them where shorter steps do help.
-  bool refuse(bool failed, double error, double resolution = 0.0) {
+  // `flat_only`: the resolution is a bound that the estimate's actual round-off can lie far
+  // below (the crystal's: the free stresses' error over a CRSS, which the solutions of a step
+  // share in part), so an estimate at or below it is the floor only once it has stopped falling:
+  // it is no smaller than that of the longer attempt refused just before it.
+  bool refuse(bool failed, double error, double resolution = 0.0, bool flat_only = false) {
     const double h = step();
     if (resolution > 0.0) {
       dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, order_, kAfterRejected);
       ++refusals_;
-      noise_floor_ = !failed && error <= resolution;
+      const double before = refused_error_;
+      refused_error_ = failed ? 0.0 : error;
+      noise_floor_ =
+          !failed && error <= resolution && (!flat_only || (before > 0.0 && error >= before));
       if (noise_floor_) floor_start_ = floor_end_ = {h, resolution};
       below_time_resolution_ = !resolvable(dt_);
       return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && !below_time_resolution_;
@@ -314,6 +322,9 @@ class AdaptiveSegment {
   };
   Attempt floor_start_, floor_end_;  // the first rejected attempt in a row, and the last
   bool noise_floor_ = false;
+  // The estimate of the refused attempt before (0: none, or it failed): where the resolution is
+  // a bound (refuse's `flat_only`), the floor is an estimate that stopped falling.
+  double refused_error_ = 0.0;
   bool below_time_resolution_ = false;  // the last refusal gave up on the step's length
 };
 

@@ -83,6 +83,9 @@ struct Trajectory {
   std::vector<double> time;
   std::vector<double> value;  // point-major: value[k * width + c]
   std::vector<int> segment;   // loading segment of each point, -1 for the initial state
+  // Times are times into each point's segment (Problem::times_into_segments), not absolute:
+  // every segment then starts at 0.
+  bool times_into_segments = false;
 
   void add(double t, double v, int seg);  // one channel
   void add(double t, std::span<const double> v, int seg);
@@ -136,6 +139,8 @@ class Problem {
   // Whether run() honours `stops` with an adaptive integrator: its steps end there, and only
   // those points (and the initial state) are reported.
   virtual bool supports_stops() const { return false; }
+  // Whether run() reports (and reads stops as) times into each segment instead of absolute ones.
+  virtual bool times_into_segments() const { return false; }
   // The increments of the unrefined scene, summed over segments (the base of the factors).
   virtual long base_increments() const = 0;
   virtual std::string quantity() const = 0;  // channel 0: "f_t/f_n", "sigma_33", ...
@@ -196,13 +201,21 @@ class ContactProblem final : public Problem {
 class CrystalProblem final : public Problem {
  public:
   enum class Measure { state, stress };
+  // The times a run reports its points at: absolute, or the time into each point's segment
+  // (exact, where an absolute time resolves a step only to an ulp of itself: the first steps of
+  // a reversal at 1e4 /s a million seconds into a history are 1e-10 s, one ulp of 1e6 s, and a
+  // comparison at absolute times there compares different states). Stops (a reference at a
+  // run's times) are read on the same clock.
+  enum class TimeAxis { absolute, segment };
   CrystalProblem(crystal::PhaseDescription phase, std::vector<crystal::Orientation> orientations,
                  std::vector<crystal::LoadSegment> segments, crystal::AggregateOptions options,
-                 std::pair<int, int> component, Measure measure = Measure::state);
+                 std::pair<int, int> component, Measure measure = Measure::state,
+                 TimeAxis clock = TimeAxis::absolute);
   RunResult run(const Setting& setting, Report report, const PointObserver& observe,
                 const StopTimes& stops = {}) const override;
   bool supports(Integrator integrator) const override;
   bool supports_stops() const override { return true; }
+  bool times_into_segments() const override { return clock_ == TimeAxis::segment; }
   long base_increments() const override;
   std::string quantity() const override;
   std::vector<double> error_scales(const Trajectory& reference) const override;
@@ -217,6 +230,7 @@ class CrystalProblem final : public Problem {
   crystal::AggregateOptions options_;
   std::pair<int, int> component_;
   Measure measure_;
+  TimeAxis clock_;
 };
 
 // Interpolation of a path within each loading segment: the nodes of segment k are the points
