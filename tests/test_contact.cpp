@@ -636,7 +636,7 @@ TEST(ContactConvergence, RateIndependentForwardEulerConvergesToImplicit) {
 
 // The implicit result does not depend on the step size beyond its discretisation error: the
 // paper setting with 2000 and 20000 graded increments agrees on the peak to better than 1e-3
-// relative (the acceptance criterion of the issue), and on the bottom to the ratio resolution.
+// relative, and on the bottom to the ratio resolution.
 TEST(ContactConvergence, ImplicitIsStepSizeIndependent) {
   const auto p = paper_law();
   for (double v : {1.0, 200.0}) {

@@ -387,7 +387,7 @@ fs::path run(const fs::path& dir, const std::string& name, const std::string& or
 
 }  // namespace
 
-// What the issue asks to hold: the same orientations written by MTEX or DAMASK give the same
+// The same orientations written by MTEX or DAMASK give the same
 // result file as subslip's own format, bit for bit.
 TEST(OrientationFormats, CrystalRunsFromOtherToolsFilesAreBitwiseTheSame) {
   const fs::path dir = subslip::testing::scratch_dir("orientation_formats");

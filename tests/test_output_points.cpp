@@ -308,7 +308,7 @@ TEST(OutputPoints, BadPointsNameFileLineAndKey) {
   }
 }
 
-// ---- the test: rows at exactly the strains asked for, fixed and adaptive
+// ---- rows at exactly the strains asked for, fixed and adaptive
 
 TEST(OutputPoints, CrystalRowsAreAtTheStrainsFixedAndAdaptive) {
   const fs::path dir = scratch_dir();

@@ -394,7 +394,7 @@ int restart(const fs::path& dir, const std::string& file, std::vector<std::strin
 
 }  // namespace
 
-// The test: a real run killed part-way, restarted, killed again, restarted again: every
+// A real run killed part-way, restarted, killed again, restarted again: every
 // dataset equals the uninterrupted run's, and the file says it completed.
 TEST(Restart, KilledCrystalRunContinuesBitwise) {
   const fs::path dir = scratch_dir();

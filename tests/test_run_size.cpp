@@ -61,7 +61,7 @@ InputError refusal(const YamlDocument& d, const RunSize& size, const Capacity& c
 
 }  // namespace
 
-// The typo: 250000000 increments for 250, 1000 grains with every field.
+// A typo: 250000000 increments for 250, 1000 grains with every field.
 TEST(RunSize, CrystalEstimateCountsEveryRowOfEveryGrain) {
   const YamlDocument d = YamlDocument::from_string(crystal_text(1000, "250000000"), "s.yaml");
   const RunSize size = estimate_crystal_run(parse_crystal_scene(d), 0);

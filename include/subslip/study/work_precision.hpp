@@ -10,8 +10,8 @@
 // Errors. A run reports, at every step it takes, a vector of measured values (channels). Channel 0
 // is the headline quantity: f_t/f_n (contact) or the stress component along the loading
 // direction (crystal). A crystal adds, for every grain and slip system, the loading ratio r
-// (resolved shear over the CRSS: what the extrapolated integrator's error estimate bounds, issue
-// 17), ln of the CRSS (its relative error) and r_s, which follow r where the split of slip among
+// (resolved shear over the CRSS: what the extrapolated integrator's error estimate bounds),
+// ln of the CRSS (its relative error) and r_s, which follow r where the split of slip among
 // the systems is determined.
 // At each step the reference is interpolated (PathInterpolant) and the error is the largest over
 // the channels of |value - reference| / scale, each channel with its own scale (channel 0: the
