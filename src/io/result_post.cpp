@@ -963,7 +963,11 @@ std::vector<std::string> table_names(const CaseSource& c) {
 
 Quantity quantity(const CaseSource& c, const std::string& path) {
   const auto names = derived_names();
-  if (std::find(names.begin(), names.end(), path) != names.end()) return derived(c, path);
+  if (std::find(names.begin(), names.end(), path) != names.end()) {
+    if (attribute_or(c.r.root, "scene_kind", "") == "contact")
+      c.fail("'" + path + "' is derived from a crystal run's series; this is a contact result");
+    return derived(c, path);
+  }
   if (!c.has(path)) {
     c.fail("no quantity '" + path +
            "'; stored series and derived quantities: " + join(table_names(c), ", "));
@@ -980,10 +984,13 @@ void name_columns(std::vector<Quantity>& qs, const std::vector<std::string>& pat
     if (std::find(unique_paths.begin(), unique_paths.end(), p) == unique_paths.end())
       unique_paths.push_back(p);
   }
+  std::vector<bool> shared(qs.size());
   for (std::size_t i = 0; i < qs.size(); ++i) {
-    const auto shared = std::count_if(qs.begin(), qs.end(),
-                                      [&](const Quantity& q) { return q.name == qs[i].name; });
-    if (shared > 1) qs[i].name = file_safe(join(split(unique_paths[i], '/'), "_"));
+    shared[i] = std::count_if(qs.begin(), qs.end(),
+                              [&](const Quantity& q) { return q.name == qs[i].name; }) > 1;
+  }
+  for (std::size_t i = 0; i < qs.size(); ++i) {
+    if (shared[i]) qs[i].name = file_safe(join(split(unique_paths[i], '/'), "_"));
   }
 }
 
