@@ -2,7 +2,7 @@
 """The standard pictures of a subslip result file (docs/scenes.md), as PNG, PDF or SVG files.
 
     scripts/subslip_plots.py RESULT.h5 [-o DIR] [--case NAME] [--component IJ]
-                             [--format png|pdf|svg] [--dpi DPI]
+                             [--format png,pdf,svg] [--dpi DPI] [--docs-size]
 
 Draws what the file has data for and says what it skips (names for --format png):
   stress_strain.png          crystal: the loading component sigma_ij against eps_ij and the von
@@ -18,12 +18,21 @@ Draws what the file has data for and says what it skips (names for --format png)
                              (weighted) of |slip rate| and of |accumulated slip| per slip system
                              against the loading strain
   pole_figures_<case>.png    crystal with grain orientations: {111} {100} {110} pole figures
-                             ({0001} {10-10} {11-20} for hcp) of the initial and final texture
+                             ({0001} {10-10} {11-20} for hcp) of the initial and final texture,
+                             pole density contours in multiples of a random distribution
 
-Pole figures: sample frame (x right, y up, z towards the viewer), upper hemisphere, equal-area
-(Lambert) projection scaled to the unit circle. The file stores each orientation as the
-quaternion of g with v_crystal = g v_sample (passive, Rowenhorst et al. 2015, P = -1), so a
-crystal direction c points along g^T c in the sample.
+Every picture is written as a 300 dpi PNG and a PDF (--format: any of png, pdf, svg; --dpi);
+--docs-size writes small PNGs for documentation pages (100 dpi).
+
+Axes follow the loading: a case loaded in compression (its loading strain component negative)
+is drawn as positive magnitudes, -eps_ij and -sigma_ij, and the axes say so ("compressive").
+
+Pole figures: sample frame x = RD (right), y = TD (up), z = ND (towards the viewer), the axes of
+rolling and plane-strain compression (for other loadings read them as x, y, z); upper
+hemisphere, equal-area (Lambert) projection scaled to the unit circle. The file stores each
+orientation as the quaternion of g with v_crystal = g v_sample (passive, Rowenhorst et al. 2015,
+P = -1), so a crystal direction c points along g^T c in the sample. The density is a sum of von
+Mises-Fisher kernels on the sphere (subslip.texture.pole_density), weighted by grains/weight.
 
 A hold is an interval in which the abscissa of a panel (sliding distance, loading strain) does
 not change while time runs: on that abscissa it is a vertical line, so a time panel is added
@@ -34,6 +43,7 @@ python3-numpy and python3-matplotlib; run with /usr/bin/python3.
 """
 
 import argparse
+import math
 import os
 import re
 import sys
@@ -55,7 +65,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 
 from subslip.derived import weighted_mean_abs  # noqa: E402
-from subslip.texture import pole_families, pole_figure_points  # noqa: E402
+from subslip.texture import pole_density, pole_families, pole_figure_points  # noqa: E402
 
 # The geometry and reading this script draws with, as scripts/test_subslip_plots.py checks them
 # through this module.
@@ -65,7 +75,7 @@ from subslip.texture import (cubic_family, hexagonal_family, quaternion_to_matri
 Result = subslip.Result
 __all__ = ["main", "Result", "cubic_family", "hexagonal_family", "quaternion_to_matrix",
            "sample_directions", "upper_hemisphere_projection", "pole_figure_points",
-           "hold_intervals", "holds_matter", "peak_at_start"]
+           "hold_intervals", "holds_matter", "peak_at_start", "loading_sign", "pole_density"]
 FORMATS = ("png", "pdf", "svg")
 
 
@@ -88,23 +98,53 @@ def heading(result, what=""):
 # ---------------------------------------------------------------- pictures
 
 
-class Output:
-    """Where and how pictures are saved: directory, format (png, pdf, svg), resolution."""
+# A talk's resolution, and the documentation's (PNG files of docs/ stay small).
+TALK_DPI = 300.0
+DOCS_DPI = 100.0
 
-    def __init__(self, directory, fmt="png", dpi=100.0):
-        self.directory, self.format, self.dpi = directory, fmt, dpi
+
+class Output:
+    """Where and how pictures are saved: directory, formats (png, pdf, svg), resolution."""
+
+    def __init__(self, directory, formats=("png",), dpi=TALK_DPI):
+        self.directory, self.formats, self.dpi = directory, tuple(formats), dpi
 
     def save(self, fig, stem):
-        path = os.path.join(self.directory, f"{stem}.{self.format}")
-        fig.savefig(path, dpi=self.dpi)
+        """Saves `fig` in every format; returns the first path."""
+        paths = []
+        for fmt in self.formats:
+            path = os.path.join(self.directory, f"{stem}.{fmt}")
+            # PDF and SVG are vector graphics; only their embedded images (contours) take dpi.
+            fig.savefig(path, dpi=self.dpi)
+            print(path)
+            paths.append(path)
         plt.close(fig)
-        print(path)
-        return path
+        return paths[0]
 
 
 def legend(ax, count):
     if count > 1:
-        ax.legend(fontsize="small" if count <= 8 else "x-small", ncol=1 if count <= 10 else 2)
+        ax.legend(fontsize="small" if count <= 8 else "x-small", ncol=1 if count <= 10 else 2,
+                  loc="best")
+
+
+def loading_sign(strain_component):
+    """-1 for a case loaded in compression (its loading strain component is largest where it
+    is negative), else +1: the sign that draws the loading as positive magnitudes."""
+    e = np.asarray(strain_component, dtype=float)
+    e = e[np.isfinite(e)]
+    if len(e) == 0:
+        return 1.0
+    return -1.0 if e[np.argmax(np.abs(e))] < 0.0 else 1.0
+
+
+def signed_label(symbol, ij, signs):
+    """An axis label for the loading component drawn with `signs` (one per case)."""
+    if all(s < 0 for s in signs):
+        return f"compressive {symbol[0]} $-\\{symbol[1]}_{{{ij}}}$"
+    if any(s < 0 for s in signs):
+        return f"{symbol[0]} $\\pm\\{symbol[1]}_{{{ij}}}$ (compression positive)"
+    return f"{symbol[0]} $\\{symbol[1]}_{{{ij}}}$"
 
 
 def largest_component(tensor):
@@ -173,13 +213,16 @@ def plot_stress_strain(result, cases, output, component=None):
         return None
     stress_unit = result.units.get("stress", "")
     time_unit = result.units.get("time", "")
-    curves = []  # (case, i, j, stress, strain, time)
+    curves = []  # (case, i, j, stress, strain, time), compression drawn as positive magnitudes
+    signs = []
     for name in usable:
         case = result.case(name)
         stress, strain = case.series("macro/stress"), case.series("macro/strain")  # (n, 3, 3)
         i, j = component or case.loading_component() or largest_component(strain[-1])
         time = case.time() if "macro/time" in case else None
-        curves.append((case, i, j, stress, strain, time))
+        sign = loading_sign(strain[:, i, j])
+        signs.append(sign)
+        curves.append((case, i, j, sign * stress, sign * strain, time))
     log_panel = any(peak_at_start(e[:, i, j], s[:, i, j]) for _, i, j, s, e, _ in curves)
     time_panel = any(t is not None and holds_matter(t, e[:, i, j])
                      for _, i, j, _, e, t in curves)
@@ -194,7 +237,7 @@ def plot_stress_strain(result, cases, output, component=None):
         components.add(label_ij)
         colour = f"C{k % 10}"
         ax1.plot(strain[:, i, j], stress[:, i, j], color=colour,
-                 label=f"{case.label()} ({label_ij})")
+                 label=f"{case.label()} ({label_ij}{', compression' if signs[k] < 0 else ''})")
         ax2.plot(case.von_mises_strain(), case.von_mises_stress(), color=colour,
                  label=case.label())
         if ax_log is not None:
@@ -205,8 +248,10 @@ def plot_stress_strain(result, cases, output, component=None):
             if k == 0:
                 shade_holds(ax_time, hold_intervals(time, strain[:, i, j]))
     ij = components.pop() if len(components) == 1 else "ij"
-    ax1.set_xlabel(f"strain $\\varepsilon_{{{ij}}}$ [1]")
-    ax1.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
+    strain_label = signed_label(("strain", "varepsilon"), ij, signs)
+    stress_label = signed_label(("stress", "sigma"), ij, signs)
+    ax1.set_xlabel(f"{strain_label} [1]")
+    ax1.set_ylabel(f"{stress_label} [{stress_unit}]")
     ax1.set_title("loading component (largest prescribed $L_{ij}$)")
     ax2.set_xlabel("von Mises strain [1]")
     ax2.set_ylabel(f"von Mises stress [{stress_unit}]")
@@ -214,11 +259,11 @@ def plot_stress_strain(result, cases, output, component=None):
     if ax_log is not None:
         ax_log.set_xscale("log")
         ax_log.set_xlabel(f"|strain $\\varepsilon_{{{ij}}}$| [1], logarithmic")
-        ax_log.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
+        ax_log.set_ylabel(f"{stress_label} [{stress_unit}]")
         ax_log.set_title("the start (peak)")
     if ax_time is not None:
         ax_time.set_xlabel(f"time [{time_unit}]")
-        ax_time.set_ylabel(f"stress $\\sigma_{{{ij}}}$ [{stress_unit}]")
+        ax_time.set_ylabel(f"{stress_label} [{stress_unit}]")
         ax_time.set_title("against time (holds shaded)")
     drawn = [a for a in (ax1, ax2, ax_log, ax_time) if a is not None]
     for ax in drawn:
@@ -282,7 +327,9 @@ def plot_traction_ratio(result, cases, output):
         a.grid(alpha=0.3)
     ax_log.set_xlabel(xlabel + ", logarithmic")
     drawn = len(curves)
-    legend(ax, drawn)
+    # The legend where the curves are apart: on the logarithmic panel, whose start (the peak)
+    # separates the cases, while on the linear one they crowd into the first millimetre.
+    legend(ax_log, drawn)
     if ax_time is not None:
         ax_time.set_xlabel(f"time [{result.units.get('time', '')}]")
         ax_time.set_ylabel("$f_t/f_n$ (solid), friction coefficient $\\mu$ (dotted) [1]")
@@ -314,8 +361,10 @@ def loading_strain(result, case):
     ij = case.loading_component()
     rows = case.grain_rows()  # the output rows that have grain fields (output.grains_at)
     if "macro/strain" in case and ij is not None:
-        label = f"strain $\\varepsilon_{{{ij[0] + 1}{ij[1] + 1}}}$ [1]"
-        return case.series("macro/strain")[rows, ij[0], ij[1]], label
+        strain = case.series("macro/strain")[:, ij[0], ij[1]]
+        sign = loading_sign(strain)
+        symbol = signed_label(("strain", "varepsilon"), f"{ij[0] + 1}{ij[1] + 1}", [sign])
+        return sign * strain[rows], f"{symbol} [1]"
     return case.time()[rows], f"time [{result.units.get('time', '')}]"
 
 
@@ -367,18 +416,49 @@ def plot_slip_activity(result, name, output):
     return output.save(fig, f"slip_activity_{file_safe(name)}")
 
 
-def draw_pole_figure(ax, quaternions, vectors, marker_size):
-    X, Y = pole_figure_points(quaternions, vectors)
-    ax.add_patch(plt.Circle((0, 0), 1.0, fill=False, lw=1.0, color="k"))
-    ax.plot([-1, 1], [0, 0], color="0.8", lw=0.6)
-    ax.plot([0, 0], [-1, 1], color="0.8", lw=0.6)
-    ax.scatter(X, Y, s=marker_size, c="C0", alpha=0.6, linewidths=0)
-    ax.text(1.06, 0.0, "x", ha="left", va="center")
-    ax.text(0.0, 1.06, "y", ha="center", va="bottom")
-    ax.set_xlim(-1.15, 1.15)
-    ax.set_ylim(-1.15, 1.15)
+# Kernel half-width of the pole density: wide enough that a few hundred grains give a smooth
+# density, narrow enough to resolve a rolling texture's components.
+def density_half_width(grains):
+    return 15.0 if grains < 500 else 10.0
+
+
+# Steps between density contour levels [MRD]: the finest that gives at most MAX_LEVELS levels.
+MRD_STEPS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+MAX_LEVELS = 12
+
+
+def mrd_levels(largest):
+    """Contour levels from 0 in even steps up to the first at or above `largest` (1 MRD, a
+    random texture's density, is always a level)."""
+    step = next((s for s in MRD_STEPS if largest / s <= MAX_LEVELS), MRD_STEPS[-1])
+    return list(np.arange(0.0, math.ceil(largest / step) * step + 0.5 * step, step))
+
+
+def draw_sample_axes(ax):
+    """The unit circle, the RD and TD diameters and their labels; ND is the centre."""
+    ax.add_patch(plt.Circle((0, 0), 1.0, fill=False, lw=1.0, color="k", zorder=3))
+    ax.plot([-1, 1], [0, 0], color="0.6", lw=0.5, zorder=2)
+    ax.plot([0, 0], [-1, 1], color="0.6", lw=0.5, zorder=2)
+    ax.plot([0], [0], marker="+", color="k", ms=6, zorder=3)
+    ax.text(1.05, 0.0, "RD", ha="left", va="center", fontsize="small")
+    ax.text(0.0, 1.05, "TD", ha="center", va="bottom", fontsize="small")
+    ax.text(0.06, -0.06, "ND", ha="left", va="top", fontsize="x-small")
+    ax.set_xlim(-1.2, 1.2)
+    ax.set_ylim(-1.2, 1.2)
     ax.set_aspect("equal")
     ax.axis("off")
+
+
+def draw_pole_figure(ax, density, levels, points=None, marker_size=1.0):
+    """Filled density contours (X, Y, mrd) at `levels`, the sample axes, and the poles
+    themselves when `points` (X, Y) are given. Returns the contour set (for a colour bar)."""
+    X, Y, mrd = density
+    filled = ax.contourf(X, Y, mrd, levels=levels, cmap="YlOrRd", zorder=1)
+    ax.contour(X, Y, mrd, levels=[1.0], colors="0.35", linewidths=0.6, zorder=2)
+    if points is not None:
+        ax.scatter(*points, s=marker_size, c="k", alpha=0.5, linewidths=0, zorder=2)
+    draw_sample_axes(ax)
+    return filled
 
 
 def textures(result, case):
@@ -404,18 +484,30 @@ def plot_pole_figures(result, name, output):
         message(f"pole figures ({name}): custom slip systems, lattice unknown; drawing cubic poles")
     families = pole_families(lattice)
     grains = drawn[0][1].shape[0]
-    marker = float(np.clip(6000.0 / (grains * len(families[0][1])), 1.0, 40.0))
-    fig, axes = plt.subplots(len(drawn), 3, figsize=(9, 3.1 * len(drawn) + 0.5), squeeze=False)
+    weights = case.grain_weights() if "grains/weight" in case else None
+    half_width = density_half_width(grains)
+    densities = [[pole_density(q, vectors, weights, half_width) for _, vectors in families]
+                 for _, q in drawn]
+    largest = max(np.nanmax(d[2]) for row in densities for d in row)
+    levels = mrd_levels(largest)
+    # The poles themselves only where they do not hide the contours.
+    marker = float(np.clip(3000.0 / (grains * len(families[0][1])), 0.5, 20.0))
+    show_points = grains <= 300
+    fig, axes = plt.subplots(len(drawn), 3, figsize=(9.6, 3.0 * len(drawn) + 0.6),
+                             squeeze=False, layout="constrained")
     for row, (label, q) in enumerate(drawn):
         for col, (family, vectors) in enumerate(families):
             ax = axes[row][col]
-            draw_pole_figure(ax, q, vectors, marker)
+            points = pole_figure_points(q, vectors) if show_points else None
+            filled = draw_pole_figure(ax, densities[row][col], levels, points, marker)
             ax.set_title(f"{family}, {label}", fontsize="medium")
+    bar = fig.colorbar(filled, ax=axes.ravel().tolist(), shrink=0.85)
+    bar.set_label("pole density [MRD, multiples of random]")
     grain_text = f"{grains} grain{'s' if grains != 1 else ''}"
-    frame = "sample frame, z towards the viewer, upper hemisphere, equal area"
+    frame = (f"x = RD, y = TD, z = ND towards the viewer; upper hemisphere, equal area; "
+             f"density: {half_width:g} deg kernel half-width, grey line 1 MRD")
     fig.suptitle(f"{heading(result, f'pole figures, case {name}')}\n{grain_text}; "
-                 f"{frame}", fontsize="medium")
-    fig.tight_layout()
+                 f"{frame}", fontsize="small")
     return output.save(fig, f"pole_figures_{file_safe(name)}")
 
 
@@ -423,6 +515,14 @@ def parse_component(text_ij):
     if not re.fullmatch(r"[123][123]", text_ij):
         raise argparse.ArgumentTypeError("give two digits 1-3, e.g. 33 or 12")
     return int(text_ij[0]) - 1, int(text_ij[1]) - 1
+
+
+def formats(text):
+    chosen = tuple(dict.fromkeys(f.strip().lower() for f in text.split(",") if f.strip()))
+    unknown = [f for f in chosen if f not in FORMATS]
+    if not chosen or unknown:
+        raise argparse.ArgumentTypeError(f"'{text}': give png, pdf and/or svg, comma-separated")
+    return chosen
 
 
 def positive(text):
@@ -443,6 +543,17 @@ def open_result(parser, path):
         parser.exit(2, f"subslip_plots: error: {e}\n")
 
 
+def draw_all(result, cases, output, component):
+    """Every picture the file has data for; the paths written (None for those skipped)."""
+    written = [plot_stress_strain(result, cases, output, component),
+               plot_traction_ratio(result, cases, output)]
+    if result.scene_kind == "crystal":
+        for name in cases:
+            written.append(plot_slip_activity(result, name, output))
+            written.append(plot_pole_figures(result, name, output))
+    return written
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("result", help="a subslip result file (HDF5)")
@@ -451,10 +562,15 @@ def main(argv=None):
     parser.add_argument("--case", help="only this case (default: every case)")
     parser.add_argument("--component", type=parse_component,
                         help="stress-strain component ij (default: the largest prescribed L_ij)")
-    parser.add_argument("--format", choices=FORMATS, default="png",
-                        help="picture format (default: png; pdf and svg are vector graphics)")
-    parser.add_argument("--dpi", type=positive, default=100.0,
-                        help="resolution of png pictures in dots per inch (default: 100)")
+    parser.add_argument("--format", type=formats, default=("png", "pdf"),
+                        help="picture formats, comma-separated: png, pdf, svg (default: png,pdf; "
+                        "pdf and svg are vector graphics)")
+    parser.add_argument("--dpi", type=positive, default=None,
+                        help=f"resolution of png pictures in dots per inch (default: "
+                        f"{TALK_DPI:g}, with --docs-size {DOCS_DPI:g})")
+    parser.add_argument("--docs-size", action="store_true",
+                        help=f"small PNG files for documentation pages: png only, "
+                        f"{DOCS_DPI:g} dpi unless --dpi")
     args = parser.parse_args(argv)
     result = open_result(parser, args.result)
     cases = result.cases
@@ -465,13 +581,12 @@ def main(argv=None):
         cases = [args.case]
     out_dir = args.output or os.path.splitext(args.result)[0] + "_plots"
     os.makedirs(out_dir, exist_ok=True)
-    output = Output(out_dir, args.format, args.dpi)
-    written = [plot_stress_strain(result, cases, output, args.component),
-               plot_traction_ratio(result, cases, output)]
-    if result.scene_kind == "crystal":
-        for name in cases:
-            written.append(plot_slip_activity(result, name, output))
-            written.append(plot_pole_figures(result, name, output))
+    dpi = args.dpi or (DOCS_DPI if args.docs_size else TALK_DPI)
+    output = Output(out_dir, ("png",) if args.docs_size else args.format, dpi)
+    try:
+        written = draw_all(result, cases, output, args.component)
+    except subslip.MissingCore as e:  # the von Mises and slip measures are the core's
+        parser.exit(2, f"subslip_plots: error: {e}\n")
     count = sum(p is not None for p in written)
     message(f"{count} picture{'s' if count != 1 else ''} in {out_dir}")
     return 0

@@ -187,7 +187,7 @@ class ReservedRows(unittest.TestCase):
         run = subprocess.run([sys.executable, os.path.join(HERE, "subslip_plots.py"), self.path,
                               "-o", out], capture_output=True, text=True)
         self.assertEqual(run.returncode, 0, run.stderr)
-        self.assertEqual(os.listdir(out), ["traction_ratio.png"])
+        self.assertEqual(sorted(os.listdir(out)), ["traction_ratio.pdf", "traction_ratio.png"])
 
 
 class SweepLabels(unittest.TestCase):
@@ -220,7 +220,48 @@ def png_size(path):
     return struct.unpack(">II", head[16:24])
 
 
+class LoadingSign(unittest.TestCase):
+    """Compression is drawn as positive magnitudes, and the labels say so."""
+
+    def test_sign_of_the_largest_strain(self):
+        self.assertEqual(sp.loading_sign([0.0, -0.01, -0.02]), -1.0)
+        self.assertEqual(sp.loading_sign([0.0, 0.01, 0.02]), 1.0)
+        # Tension after a smaller compression: the largest magnitude decides.
+        self.assertEqual(sp.loading_sign([0.0, -0.01, 0.0, 0.03]), 1.0)
+        self.assertEqual(sp.loading_sign([np.nan]), 1.0)
+
+    def test_labels(self):
+        self.assertEqual(sp.signed_label(("stress", "sigma"), "33", [-1.0, -1.0]),
+                         "compressive stress $-\\sigma_{33}$")
+        self.assertEqual(sp.signed_label(("strain", "varepsilon"), "33", [1.0]),
+                         "strain $\\varepsilon_{33}$")
+        self.assertIn("compression positive",
+                      sp.signed_label(("stress", "sigma"), "33", [1.0, -1.0]))
+
+
+class Kept(sp.Output):
+    """An Output that keeps the figure instead of saving it, to look at what was drawn."""
+
+    def __init__(self):
+        super().__init__(tempfile.gettempdir())
+        self.figures = {}
+
+    def save(self, fig, stem):
+        self.figures[stem] = fig
+        return stem
+
+
+def core_available():
+    try:
+        sp.subslip._native.core()
+        return True
+    except sp.subslip.MissingCore:
+        return False
+
+
 @unittest.skipUnless(os.environ.get("SUBSLIP_BINARY"), "set SUBSLIP_BINARY to the subslip binary")
+@unittest.skipUnless(core_available(), "the von Mises panels need the compiled core: set "
+                     "SUBSLIP_CORE_DIR")
 class Pictures(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -228,7 +269,7 @@ class Pictures(unittest.TestCase):
         cls.addClassCleanup(shutil.rmtree, cls.dir, ignore_errors=True)  # also if setUp fails
         cls.results = {}
         for scene in ("crystal_small", "contact_small", "single_crystal_euler", "contact_hold",
-                      "crystal_hold"):
+                      "crystal_hold", "crystal_compression"):
             out = os.path.join(cls.dir, scene + ".h5")
             subprocess.run([os.environ["SUBSLIP_BINARY"], "run", "-q", "-o", out,
                             os.path.join(SOURCE, "tests", "data", "post", scene + ".yaml")],
@@ -243,7 +284,9 @@ class Pictures(unittest.TestCase):
         return run, out
 
     def assert_pictures(self, directory, names):
-        self.assertEqual(sorted(os.listdir(directory)), sorted(names))
+        """The PNG files `names`, each beside its PDF (the default formats)."""
+        pdfs = [os.path.splitext(n)[0] + ".pdf" for n in names]
+        self.assertEqual(sorted(os.listdir(directory)), sorted(names + pdfs))
         for name in names:
             path = os.path.join(directory, name)
             size = png_size(path)
@@ -283,11 +326,23 @@ class Pictures(unittest.TestCase):
             self.assertEqual(os.listdir(out), [f"traction_ratio.{fmt}"])
             with open(os.path.join(out, f"traction_ratio.{fmt}"), "rb") as f:
                 self.assertIn(signature, f.read(4096))
+        run, out = self.draw("contact_small", "--format", "svg,png")
+        self.assertEqual(sorted(os.listdir(out)), ["traction_ratio.png", "traction_ratio.svg"])
+        run, _ = self.draw("contact_small", "--format", "png,gif")
+        self.assertEqual(run.returncode, 2)
+        self.assertIn("give png, pdf and/or svg", run.stderr)
+        # 300 dpi by default (a talk's); --dpi 150 halves the pixels; --docs-size: PNG only at
+        # 100 dpi, a third of them.
         _, default = self.draw("contact_small")
-        _, half = self.draw("contact_small", "--dpi", "50")
+        _, half = self.draw("contact_small", "--dpi", "150")
+        _, docs = self.draw("contact_small", "--docs-size")
         width, height = png_size(os.path.join(default, "traction_ratio.png"))
+        self.assertEqual((width, height), (3300, 1290))  # 11 x 4.3 inches
         self.assertEqual(png_size(os.path.join(half, "traction_ratio.png")),
                          (width // 2, height // 2))
+        self.assertEqual(os.listdir(docs), ["traction_ratio.png"])
+        self.assertEqual(png_size(os.path.join(docs, "traction_ratio.png")),
+                         (width // 3, height // 3))
 
     def test_legends_name_swept_values_with_units(self):
         run, out = self.draw("contact_small", "--format", "svg")
@@ -331,6 +386,57 @@ class Pictures(unittest.TestCase):
         self.assertEqual(svg.count('<g id="axes_'), 2)
         self.assertNotIn("logarithmic", svg)
         self.assertNotIn("time [", svg)
+
+    def test_compression_is_drawn_as_positive_magnitudes(self):
+        kept = Kept()
+        with sp.Result(self.results["crystal_compression"]) as result:
+            sp.plot_stress_strain(result, result.cases, kept)
+            sp.plot_slip_activity(result, "base", kept)
+            strain = result.case("base").series("macro/strain")[:, 2, 2]
+            stress = result.case("base").series("macro/stress")[:, 2, 2]
+        self.assertLess(strain[-1], -0.019)  # the file holds the signed values
+        self.assertLess(stress[-1], -30.0)
+        fig = kept.figures["stress_strain"]
+        x, y = fig.axes[0].lines[0].get_data()
+        np.testing.assert_array_equal(x, -strain)
+        np.testing.assert_array_equal(y, -stress)
+        self.assertEqual(fig.axes[0].get_xlabel(), "compressive strain $-\\varepsilon_{33}$ [1]")
+        self.assertEqual(fig.axes[0].get_ylabel(), "compressive stress $-\\sigma_{33}$ [MPa]")
+        self.assertIn("compression", fig.axes[0].lines[0].get_label())
+        activity = kept.figures["slip_activity_base"]
+        x, _ = activity.axes[0].lines[0].get_data()
+        self.assertGreater(np.min(x[1:]), 0.0)
+        self.assertTrue(activity.axes[0].get_xlabel().startswith("compressive strain"))
+        # Tension keeps its signs and plain labels.
+        kept = Kept()
+        with sp.Result(self.results["crystal_small"]) as result:
+            sp.plot_stress_strain(result, result.cases, kept)
+        self.assertEqual(kept.figures["stress_strain"].axes[0].get_ylabel(),
+                         "stress $\\sigma_{33}$ [MPa]")
+
+    def test_friction_legend_is_on_the_logarithmic_panel(self):
+        kept = Kept()
+        with sp.Result(self.results["contact_small"]) as result:
+            sp.plot_traction_ratio(result, result.cases, kept)
+        linear, logarithmic = kept.figures["traction_ratio"].axes
+        self.assertEqual(logarithmic.get_xscale(), "log")
+        self.assertIsNone(linear.get_legend())
+        self.assertEqual([t.get_text() for t in logarithmic.get_legend().get_texts()],
+                         ["speed=1 mm/min", "speed=200 mm/min"])
+
+    def test_pole_figures_have_sample_axes_and_density(self):
+        kept = Kept()
+        with sp.Result(self.results["crystal_compression"]) as result:
+            sp.plot_pole_figures(result, "base", kept)
+        fig = kept.figures["pole_figures_base"]
+        pole_axes, bar = fig.axes[:6], fig.axes[6]
+        self.assertEqual(len(fig.axes), 7, "2 x 3 pole figures and one colour bar")
+        for ax in pole_axes:
+            texts = {t.get_text() for t in ax.texts}
+            self.assertTrue({"RD", "TD", "ND"} <= texts, texts)
+            self.assertTrue(ax.collections, "density contours")
+        self.assertIn("MRD", bar.get_ylabel())
+        self.assertIn("x = RD, y = TD, z = ND", fig._suptitle.get_text())
 
     def test_loading_component_is_the_prescribed_one(self):
         # Tension along z with free lateral L11, L22 (which change every step): 33.

@@ -17,6 +17,7 @@
 #include "scratch_dir.hpp"
 #include "shell_command.hpp"
 #include "subslip/crystal/flow_point_batch.hpp"
+#include "subslip/crystal/measures.hpp"
 #include "subslip/crystal/rotation.hpp"
 #include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/crystal_output.hpp"
@@ -258,7 +259,7 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
   EXPECT_EQ(c.attribute_doubles("final_stress"), row_major(seen.back().macro.stress));  // [3, 3]
   EXPECT_EQ(c.attribute_size("stiffness_mandel"), 36u);
   EXPECT_NEAR(c.attribute_double("final_von_mises_stress"),
-              driver::von_mises_stress(seen.back().macro.stress), 1e-12);
+              crystal::von_mises_stress(seen.back().macro.stress), 1e-12);
   EXPECT_EQ(c.attribute_doubles("tau0"), std::vector<double>(systems, 10.0));
   EXPECT_EQ(c.attribute_string("tau0.unit"), "MPa");
   EXPECT_EQ(c.attribute_string("eta_v.unit"), "s");
@@ -294,9 +295,9 @@ TEST(CrystalOutput, LoadingComponentAndVonMises) {
   EXPECT_EQ(driver::loading_component({s}), (std::pair<int, int>{0, 1}));
   Eigen::Matrix3d uniaxial = Eigen::Matrix3d::Zero();
   uniaxial(2, 2) = 100.0;
-  EXPECT_NEAR(driver::von_mises_stress(uniaxial), 100.0, 1e-12);
+  EXPECT_NEAR(crystal::von_mises_stress(uniaxial), 100.0, 1e-12);
   Eigen::Matrix3d strain = Eigen::Vector3d(-0.5, -0.5, 1.0).asDiagonal();
-  EXPECT_NEAR(driver::von_mises_strain(strain * 0.01), 0.01, 1e-15);
+  EXPECT_NEAR(crystal::von_mises_strain(strain * 0.01), 0.01, 1e-15);
 }
 
 // ---------------------------------------------------------------- the command line

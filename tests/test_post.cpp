@@ -15,7 +15,10 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "shell_command.hpp"
+#include "subslip/crystal/measures.hpp"
 #include "subslip/driver/contact_run.hpp"
 #include "subslip/driver/crystal_run.hpp"
 #include "subslip/io/contact_output.hpp"
@@ -536,4 +539,253 @@ TEST(PostCli, SummaryExportAndErrorsWithExitCodes) {
   EXPECT_EQ(run_subslip(dir, "post missing.h5").code, 2);
   EXPECT_EQ(run_subslip(dir, "post " + file + " --dataset ratio").code, 2)
       << "--dataset needs --csv";
+}
+
+// ---------------------------------------------------------------- one table per case
+
+namespace {
+
+post::TableOptions table_options(const fs::path& dir, const std::string& case_name,
+                                 std::vector<std::string> quantities) {
+  post::TableOptions o;
+  o.directory = dir;
+  o.case_name = case_name;
+  o.quantities = std::move(quantities);
+  return o;
+}
+
+// The column of `csv` named `name`, as numbers.
+std::vector<double> column(const Csv& csv, const std::string& name) {
+  const auto it = std::find(csv.header.begin(), csv.header.end(), name);
+  EXPECT_NE(it, csv.header.end()) << "no column " << name;
+  std::vector<double> out;
+  if (it == csv.header.end()) return out;
+  const auto k = static_cast<std::size_t>(it - csv.header.begin());
+  for (const auto& row : csv.rows) out.push_back(number(row.at(k)));
+  return out;
+}
+
+const char* const kComponents[] = {"11", "12", "13", "21", "22", "23", "31", "32", "33"};
+
+}  // namespace
+
+// A stress-strain table in one go: strain and stress tensors and their von Mises measures,
+// every case in its own file, the values the file's own (bit for bit) and the measures those
+// of crystal/measures.hpp, whose last row is the run summary's attribute exactly.
+TEST(PostTable, StressStrainAndVonMisesOfEveryCaseInOneFileEach) {
+  const fs::path dir = scratch_dir();
+  const auto written = post::export_table(
+      crystal_result(), table_options(dir, "",
+                                      {"macro/strain", "macro/stress", "macro/von_mises_stress",
+                                       "macro/von_mises_strain"}));
+  ASSERT_EQ(written.size(), 2u);
+  EXPECT_EQ(written[0], dir / "L_2__2_=1.0e-3.csv");
+  EXPECT_EQ(written[1], dir / "L_2__2_=1.0e-1.csv");
+  const Csv csv = read_csv(written[0]);
+  std::vector<std::string> header{"step", "time [s]"};
+  for (const char* c : kComponents) header.push_back(std::string("strain_") + c + " [1]");
+  for (const char* c : kComponents) header.push_back(std::string("stress_") + c + " [MPa]");
+  header.push_back("von_mises_stress [MPa]");
+  header.push_back("von_mises_strain [1]");
+  EXPECT_EQ(csv.header, header);
+  const std::string path = "cases/" + kCrystalCase + "/";
+  const auto stress = read_dataset(crystal_result(), path + "macro/stress");
+  const auto strain = read_dataset(crystal_result(), path + "macro/strain");
+  const auto time = read_dataset(crystal_result(), path + "macro/time");
+  ASSERT_EQ(csv.rows.size(), 21u);
+  const auto vm_stress = column(csv, "von_mises_stress [MPa]");
+  const auto vm_strain = column(csv, "von_mises_strain [1]");
+  for (std::size_t i = 0; i < 21; ++i) {
+    EXPECT_EQ(number(csv.rows[i][0]), static_cast<double>(i));
+    EXPECT_EQ(number(csv.rows[i][1]), time[i]);
+    for (std::size_t c = 0; c < 9; ++c) {
+      EXPECT_EQ(number(csv.rows[i][2 + c]), strain[9 * i + c]);
+      EXPECT_EQ(number(csv.rows[i][11 + c]), stress[9 * i + c]);
+    }
+    const Eigen::Matrix3d s =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(&stress[9 * i]);
+    EXPECT_EQ(vm_stress[i], crystal::von_mises_stress(s));
+  }
+  const h5::File f = h5::File::open_read(crystal_result());
+  const h5::Group g = f.root().open_group(path.substr(0, path.size() - 1));
+  EXPECT_EQ(vm_stress.back(), g.attribute_double("final_von_mises_stress"));
+  EXPECT_EQ(vm_strain.back(), g.attribute_double("final_von_mises_strain"));
+  EXPECT_GT(vm_stress.back(), 30.0) << "2 % tension of copper: well past yield";
+}
+
+// Per-grain quantities: long format (a row per step and grain) or one grain; macro columns
+// beside them repeat the row's value; the equivalent plastic strain starts at 0, never
+// decreases, and its grain-weighted mean is the macro one.
+TEST(PostTable, PerGrainQuantitiesInLongFormatAndForOneGrain) {
+  const fs::path dir = scratch_dir();
+  const std::vector<std::string> quantities{"macro/von_mises_strain", "grains/von_mises_stress",
+                                            "grains/equivalent_plastic_strain"};
+  const auto written =
+      post::export_table(crystal_result(), table_options(dir / "all", kCrystalCase, quantities));
+  ASSERT_EQ(written.size(), 1u);
+  const Csv all = read_csv(written[0]);
+  EXPECT_EQ(all.header,
+            (std::vector<std::string>{"step", "time [s]", "grain", "von_mises_strain [1]",
+                                      "von_mises_stress [MPa]", "equivalent_plastic_strain [1]"}));
+  const std::size_t n = 21, grains = 20;
+  ASSERT_EQ(all.rows.size(), n * grains);
+  const std::string path = "cases/" + kCrystalCase + "/grains/";
+  const auto stress = read_dataset(crystal_result(), path + "stress");
+  const auto eps = column(all, "equivalent_plastic_strain [1]");
+  const auto vm = column(all, "von_mises_stress [MPa]");
+  const auto macro = column(all, "von_mises_strain [1]");
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t g = 0; g < grains; ++g) {
+      const std::size_t r = i * grains + g;
+      EXPECT_EQ(number(all.rows[r][0]), static_cast<double>(i));
+      EXPECT_EQ(number(all.rows[r][2]), static_cast<double>(g));
+      EXPECT_EQ(macro[r], macro[i * grains]);
+      const Eigen::Matrix3d s = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+          &stress[9 * (i * grains + g)]);
+      EXPECT_EQ(vm[r], crystal::von_mises_stress(s));
+      if (i == 0) {
+        EXPECT_EQ(eps[r], 0.0);
+      } else {
+        EXPECT_GE(eps[r], eps[r - grains]);
+      }
+    }
+  }
+  // Plastic: within 4 % of the total strain at 2 % (the elastic part is stress / E).
+  for (std::size_t g = 0; g < grains; ++g) {
+    EXPECT_GT(eps[(n - 1) * grains + g], 0.96 * macro.back());
+    EXPECT_LT(eps[(n - 1) * grains + g], macro.back());
+  }
+  auto one = table_options(dir / "one", kCrystalCase,
+                           {"grains/equivalent_plastic_strain", "macro/equivalent_plastic_strain"});
+  one.grain = 7;
+  const auto g7_files = post::export_table(crystal_result(), one);
+  ASSERT_EQ(g7_files.size(), 1u);
+  const Csv g7 = read_csv(g7_files[0]);
+  // The two share a name: each is named by its path; no grain column for one grain.
+  EXPECT_EQ(g7.header,
+            (std::vector<std::string>{"step", "time [s]", "grains_equivalent_plastic_strain [1]",
+                                      "macro_equivalent_plastic_strain [1]"}));
+  ASSERT_EQ(g7.rows.size(), n);
+  const auto weights = read_dataset(crystal_result(), path + "weight");
+  const auto mean = column(g7, "macro_equivalent_plastic_strain [1]");
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_EQ(number(g7.rows[i][2]), eps[i * grains + 7]);
+    double weighted = 0.0, total = 0.0;
+    for (std::size_t g = 0; g < grains; ++g) {
+      weighted += weights[g] * eps[i * grains + g];
+      total += weights[g];
+    }
+    EXPECT_NEAR(mean[i], weighted / total, 1e-15) << i;
+  }
+}
+
+// Output at strains with per-grain rows at a coarser spacing: a table mixing macro and
+// per-grain quantities has the per-grain rows, each with its output row and time.
+TEST(PostTable, MacroAndPerGrainQuantitiesShareThePerGrainRows) {
+  const fs::path dir = scratch_dir();
+  const fs::path file = dir / "grains_at.h5";
+  {
+    const auto scene =
+        parse_crystal_scene(YamlDocument::from_file(kData / "crystal_grains_at.yaml"));
+    h5::File f = h5::File::create(file, true);
+    CrystalResultSink sink(scene, f, {});
+    for (const auto& c : driver::run_crystal_scene(scene, sink)) EXPECT_TRUE(c.failure.empty());
+    close_and_finish(f);
+  }
+  auto options = table_options(dir / "csv", "", {"macro/strain", "macro/slip_activity"});
+  options.grain = 0;  // needless for aggregate quantities, and harmless
+  const auto written = post::export_table(file, options);
+  ASSERT_EQ(written.size(), 1u);
+  const Csv csv = read_csv(written[0]);
+  const auto time = read_dataset(file, "cases/base/macro/time");
+  const auto strain = read_dataset(file, "cases/base/macro/strain");
+  ASSERT_EQ(csv.rows.size(), 4u);
+  const std::size_t steps[] = {0, 5, 10, 20};
+  for (std::size_t r = 0; r < 4; ++r) {
+    EXPECT_EQ(number(csv.rows[r][0]), static_cast<double>(steps[r]));
+    EXPECT_EQ(number(csv.rows[r][1]), time[steps[r]]);
+    EXPECT_EQ(column(csv, "strain_33 [1]")[r], strain[9 * steps[r] + 8]);
+  }
+  // 2 + 9 strain + 12 slip systems, each named by its label.
+  ASSERT_EQ(csv.header.size(), 23u);
+  EXPECT_EQ(csv.header[11].rfind("slip_activity_fcc_111_110 ", 0), 0u) << csv.header[11];
+  EXPECT_TRUE(contains(csv.header[11], "[1/s]")) << csv.header[11];
+}
+
+TEST(PostTable, BadRequestsAreOneClearErrorAndWriteNothing) {
+  const fs::path dir = scratch_dir() / "out";
+  const auto expect_error = [&](const fs::path& file, const post::TableOptions& o,
+                                const std::string& part) {
+    try {
+      post::export_table(file, o);
+      ADD_FAILURE() << "no error; expected one containing: " << part;
+    } catch (const InputError& e) {
+      EXPECT_TRUE(contains(e.what(), part)) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir)) << "nothing may be written before every name is checked";
+  };
+  expect_error(crystal_result(), table_options(dir, "", {"macro/stress", "von_mises"}),
+               "--quantity: case 'L[2][2]=1.0e-3': no quantity 'von_mises'; stored series and "
+               "derived quantities: macro/time,");
+  expect_error(crystal_result(), table_options(dir, "", {"grains/weight"}),
+               "'grains/weight' is no time series");
+  expect_error(contact_result(), table_options(dir, "", {"ratio", "macro/von_mises_stress"}),
+               "'macro/von_mises_stress' is derived from a crystal run's series; this is a "
+               "contact result");
+  auto grain = table_options(dir, kCrystalCase, {"grains/slip_activity"});
+  grain.grain = 20;
+  expect_error(crystal_result(), grain, "--grain: grain 20 is out of range");
+  expect_error(crystal_result(), table_options(dir, "", {}), "name at least one quantity");
+}
+
+// Without grain slips the derived quantities that need them say which output setting writes
+// them; the summary lists the derived quantities a case offers.
+TEST(PostTable, MissingInputsNameTheOutputSettingAndTheSummaryListsWhatIsOffered) {
+  const fs::path dir = scratch_dir();
+  const fs::path file = dir / "macro_only.h5";
+  {
+    auto only_macro = parse_crystal_scene(YamlDocument::from_file(kData / "crystal_small.yaml"));
+    for (auto& c : only_macro.cases) c.output.grains.clear();
+    h5::File f = h5::File::create(file, true);
+    CrystalResultSink sink(only_macro, f, {});
+    for (const auto& c : driver::run_crystal_scene(only_macro, sink))
+      EXPECT_TRUE(c.failure.empty());
+    close_and_finish(f);
+  }
+  try {
+    post::export_table(file, table_options(dir / "csv", "", {"grains/equivalent_plastic_strain"}));
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_TRUE(contains(e.what(),
+                         "the equivalent plastic strain needs grains/slip, which the "
+                         "file does not hold; ask the scene for it: output: {grains: "
+                         "[slip]}"))
+        << e.what();
+  }
+  const std::string s = summary(file, kCrystalCase);
+  EXPECT_TRUE(contains(s,
+                       "derived (post --quantity): macro/von_mises_stress, "
+                       "macro/von_mises_strain\n"))
+      << s;
+  const std::string full = summary(crystal_result(), kCrystalCase);
+  EXPECT_TRUE(contains(full, " grains/equivalent_plastic_strain,\n")) << full;
+  EXPECT_TRUE(contains(full, " grains/slip_activity\n")) << full;
+}
+
+TEST(PostCli, QuantityTableAndItsErrors) {
+  const fs::path dir = scratch_dir();
+  const std::string file = std::string("'").append(crystal_result().string()).append("'");
+  const Outcome t = run_subslip(dir, "post " + file + " --csv csv --case '" + kCrystalCase +
+                                         "' --quantity macro/strain --quantity "
+                                         "macro/von_mises_stress");
+  EXPECT_EQ(t.code, 0) << t.err;
+  EXPECT_EQ(t.out, "csv/L_2__2_=1.0e-3.csv\n");
+  EXPECT_EQ(read_csv(dir / "csv" / "L_2__2_=1.0e-3.csv").header.size(), 12u);
+  const Outcome both =
+      run_subslip(dir, "post " + file + " --csv csv --quantity macro/strain --dataset ratio");
+  EXPECT_EQ(both.code, 2) << "--quantity excludes --dataset";
+  const Outcome bad = run_subslip(dir, "post " + file + " --csv x --quantity macro/stres");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_TRUE(contains(bad.err, "no quantity 'macro/stres'")) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << "one line\n" << bad.err;
 }

@@ -1,6 +1,6 @@
 """CSV files of a case: `subslip post --csv` (src/io/result_post.cpp) is the one CSV writer, and
-`Case.to_csv` runs it (the command line must export without Python, and one writer cannot
-disagree with itself). The files are described in docs/python.md and docs/scenes.md: one per
+`Case.to_csv` and `Case.to_table` run it (the command line must export without Python, and one
+writer cannot disagree with itself). The files are described in docs/python.md and docs/scenes.md: one per
 dataset, `<case>_<path>.csv`, a header of `name [unit]` columns, the valid rows only, numbers as
 the shortest text that reads back to the same double.
 
@@ -81,15 +81,16 @@ def _error(message):
         return FileExistsError(message)
     if "out of range" in message:
         return IndexError(message)
-    if "no dataset" in message:
+    if "no dataset" in message or "no quantity" in message:
         return KeyError(message)
     return ValueError(message)  # text named explicitly, rank > 3, ...
 
 
-def export_case(case, directory, names=None, grain=None, overwrite=False):
+def export_case(case, directory, names=None, grain=None, overwrite=False, quantities=None):
     """Writes the CSV files of `names` (dataset or group paths of `case`; None: every numeric
-    dataset) into `directory` with `subslip post --csv`; returns their paths. Every name and
-    target is checked before anything is written."""
+    dataset) into `directory` with `subslip post --csv`, or with `quantities` the case's one
+    table of them (`--quantity`); returns their paths. Every name and target is checked before
+    anything is written."""
     binary = subslip_binary()
     if not binary:
         raise MissingBinary("CSV export runs `subslip post --csv`: build subslip (./build.sh) "
@@ -101,14 +102,18 @@ def export_case(case, directory, names=None, grain=None, overwrite=False):
             path = os.path.join(copy, "result.h5")
             with builtins.open(path, "wb") as f:
                 f.write(case.result.image)
-            return _post_csv(binary, path, case, directory, names, grain, overwrite)
-    return _post_csv(binary, case.result.path, case, directory, names, grain, overwrite)
+            return _post_csv(binary, path, case, directory, names, grain, overwrite,
+                             quantities)
+    return _post_csv(binary, case.result.path, case, directory, names, grain, overwrite,
+                     quantities)
 
 
-def _post_csv(binary, path, case, directory, names, grain, overwrite):
+def _post_csv(binary, path, case, directory, names, grain, overwrite, quantities=None):
     command = [binary, "post", path, "--csv", os.fspath(directory), "--case", case.name]
     for name in [names] if isinstance(names, str) else (names or []):
         command += ["--dataset", name]
+    for name in [quantities] if isinstance(quantities, str) else (quantities or []):
+        command += ["--quantity", name]
     if grain is not None:
         command += ["--grain", str(grain)]
     if overwrite:

@@ -1,9 +1,16 @@
 """Quantities derived from a case's arrays: slip activity, equivalent plastic strain, the
-loading component, units of swept values."""
+loading component, units of swept values.
+
+The measures (von Mises, equivalent plastic strain, grain-weighted means) are computed by the
+compiled core (subslip._core over crystal/measures.hpp), the one implementation the run summary
+and `subslip post --quantity` use too, so that the package and the program cannot disagree.
+"""
 
 import re
 
 import numpy as np
+
+from . import _native
 
 
 def schmid_tensors(slip_systems):
@@ -14,22 +21,18 @@ def schmid_tensors(slip_systems):
 
 
 def weighted_mean_abs(values, weights):
-    """sum_g w_g |values[:, g, ...]|: (n, G, N) -> (n, N)."""
-    return np.einsum("ng...,g->n...", np.abs(values), np.asarray(weights, dtype=float))
+    """sum_g w_g |values[:, g, ...]| / sum_g w_g: (n, G, ...) -> (n, ...); by the core."""
+    return _native.core().weighted_mean_abs(np.asarray(values, dtype=float),
+                                            np.asarray(weights, dtype=float))
 
 
-def equivalent_plastic_strain(slip, schmid):
+def equivalent_plastic_strain(slip, slip_systems):
     """Accumulated equivalent plastic strain (n, G) from accumulated signed slip (n, G, N) and
-    the Schmid tensors (N, 3, 3): sum over rows of sqrt(2/3 dE:dE), dE = sum_a dgamma_a P_a.
-    The measure is invariant under rotation, so lattice-frame P_a serve every grain and step.
-    Row 0 (the initial state) is 0."""
-    slip = np.asarray(slip, dtype=float)
-    if len(slip) == 0:
-        return np.zeros(slip.shape[:2])
-    increments = np.diff(slip, axis=0)  # slip between successive output steps
-    d_strain = np.einsum("nga,aij->ngij", increments, schmid)
-    d_eq = np.sqrt(2.0 / 3.0 * np.sum(d_strain * d_strain, axis=(-2, -1)))
-    return np.concatenate([np.zeros((1,) + slip.shape[1:2]), np.cumsum(d_eq, axis=0)])
+    the grains/slip_systems rows (N, 6): the sum over rows of sqrt(2/3 dE:dE), dE = sum_a
+    dgamma_a sym(s_a (x) m_a); row 0 (the initial state) is 0. By the core
+    (crystal/measures.hpp), as `subslip post --quantity grains/equivalent_plastic_strain`."""
+    return _native.core().equivalent_plastic_strain(np.asarray(slip, dtype=float),
+                                                    np.asarray(slip_systems, dtype=float))
 
 
 def loading_component(L, segment=None):

@@ -304,12 +304,18 @@ class Case:
     def time(self):
         return self.series("macro/time" if "macro/time" in self else "time")
 
-    def von_mises_stress(self):
-        """Von Mises stress of the aggregate at every valid row (n,)."""
+    def von_mises_stress(self, per_grain=False, grain=None):
+        """Von Mises stress (n,) of the aggregate at every valid row; with `per_grain`, of
+        every grain's grains/stress (n_g, G), or of grain `grain` (n_g,), at the per-grain
+        rows (grain_rows())."""
+        if per_grain or grain is not None:
+            stress = self.series(self._need("grains/stress"))
+            return self._of_grain(tensors.von_mises_stress(stress), grain)
         return tensors.von_mises_stress(self.series(self._need("macro/stress")))
 
     def von_mises_strain(self):
-        """Von Mises (equivalent) strain of the aggregate at every valid row (n,)."""
+        """Von Mises (equivalent) strain of the aggregate at every valid row (n,); every grain
+        of a Taylor aggregate has the aggregate's strain."""
         return tensors.von_mises_strain(self.series(self._need("macro/strain")))
 
     def grain_weights(self):
@@ -325,19 +331,41 @@ class Case:
         """sym(s (x) m) of every slip system, lattice frame (N, 3, 3)."""
         return derived.schmid_tensors(self.raw(self._need("grains/slip_systems", field=False)))
 
-    def slip_activity(self):
-        """Grain-weighted mean |slip rate| per slip system (n, N), unit of grains/slip_rate."""
+    def slip_activity(self, per_grain=False, grain=None):
+        """|slip rate| per slip system at the per-grain rows, unit of grains/slip_rate: the
+        grain-weighted mean (n_g, N); with `per_grain`, of every grain (n_g, G, N), or of grain
+        `grain` (n_g, N)."""
         rates = self.series(self._need("grains/slip_rate"))
+        if per_grain or grain is not None:
+            return self._of_grain(np.abs(rates), grain)
         return derived.weighted_mean_abs(rates, self.grain_weights())
 
-    def equivalent_plastic_strain(self, per_grain=False):
-        """Accumulated von Mises equivalent plastic strain, (n,) grain-weighted or (n, G):
-        the sum over output steps of sqrt(2/3 dE:dE), dE = sum_a dgamma_a sym(s_a (x) m_a)
-        with dgamma the change of grains/slip between rows (exact while no system reverses
-        within an output step). Needs grains/slip and grains/slip_systems."""
+    def equivalent_plastic_strain(self, per_grain=False, grain=None):
+        """Accumulated von Mises equivalent plastic strain at the per-grain rows: the
+        grain-weighted mean (n_g,), with `per_grain` every grain's (n_g, G), or grain
+        `grain`'s (n_g,). The sum over output rows of sqrt(2/3 dE:dE), dE = sum_a dgamma_a
+        sym(s_a (x) m_a), dgamma the change of grains/slip between rows (exact while no
+        system reverses within an output step). Needs grains/slip and grains/slip_systems."""
         slip = self.series(self._need("grains/slip"))
-        eps = derived.equivalent_plastic_strain(slip, self.schmid_tensors())
-        return eps if per_grain else eps @ self.grain_weights()
+        systems = self.raw(self._need("grains/slip_systems", field=False))
+        eps = derived.equivalent_plastic_strain(slip, systems)
+        if per_grain or grain is not None:
+            return self._of_grain(eps, grain)
+        return derived.weighted_mean_abs(eps, self.grain_weights())
+
+    def _of_grain(self, per_grain_values, grain):
+        """(n_g, G, ...) values as they are, or of one grain (n_g, ...), checked."""
+        if grain is None:
+            return per_grain_values
+        count = per_grain_values.shape[1]
+        if not -count <= grain < count:
+            raise IndexError(f"case '{self.name}': grain {grain} is out of range "
+                             f"(0 to {count - 1})")
+        return per_grain_values[:, grain]
+
+    def grain_time(self):
+        """The time of every per-grain row (n_g,): macro/time at grain_rows()."""
+        return self.time()[self.grain_rows()]
 
     def loading_component(self):
         """(i, j) of the largest prescribed L_ij (None without macro/L)."""
@@ -390,6 +418,15 @@ class Case:
         dataset) as CSV files `<case>_<path>.csv` in `directory`, as `subslip post --csv`
         does. Returns the paths written."""
         return csv_export.export_case(self, directory, names, grain, overwrite)
+
+    def to_table(self, directory, quantities, grain=None, overwrite=False):
+        """Writes one CSV `<case>.csv` in `directory` with a column (or one per component) for
+        each of `quantities`: time series of the case ("macro/strain") and derived quantities
+        ("macro/von_mises_stress", "grains/equivalent_plastic_strain", ...), as `subslip post
+        --csv DIR --quantity ...` does. Returns its path."""
+        written = csv_export.export_case(self, directory, grain=grain, overwrite=overwrite,
+                                         quantities=quantities)
+        return written[0] if written else None
 
     # ------------------------------------------------------------ helpers
 

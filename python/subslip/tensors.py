@@ -1,4 +1,5 @@
-"""Second-order tensors of a result file as (..., 3, 3) arrays, and their von Mises measures.
+"""Second-order tensors of a result file as (..., 3, 3) arrays, and their von Mises measures
+(computed by the compiled core, subslip._core, the one implementation `subslip post` uses too).
 
 Format 3 stores every tensor as it is used: [n, 3, 3] (macro) and [n, G, 3, 3] (per grain),
 [..., i, j] the component ij, symmetric ones in full, with the attribute `components` =
@@ -12,6 +13,8 @@ layout this module does not know stops with a message instead of silently wrong 
 import re
 
 import numpy as np
+
+from . import _native
 
 # The `components` attribute of a format-3 tensor dataset (h5::kTensorConvention).
 TENSOR_CONVENTION = ("3x3 tensor: [..., i, j] is the component ij (i the row, j the column); "
@@ -100,14 +103,18 @@ def deviator(t):
 
 
 def von_mises_stress(stress):
-    """sqrt(3/2 s:s), s the stress deviator: equals |sigma| for uniaxial stress. (..., 3, 3)
-    -> (...). The formula of `final_von_mises_stress` (src/io/crystal_output.cpp)."""
-    s = deviator(stress)
-    return np.sqrt(1.5 * np.sum(s * s, axis=(-2, -1)))
+    """sqrt(3/2 s:s), s the deviator of the symmetric part: equals |sigma| for uniaxial stress.
+    (..., 3, 3) -> (...). Computed by the core (crystal/measures.hpp), as the run summary's
+    `final_von_mises_stress` and `subslip post --quantity` are."""
+    return _measure(_native.core().von_mises_stress, stress)
 
 
 def von_mises_strain(strain):
-    """sqrt(2/3 e:e), e the strain deviator: equals |eps| for isochoric uniaxial strain
-    (lateral -eps/2). (..., 3, 3) -> (...). As `final_von_mises_strain`."""
-    e = deviator(strain)
-    return np.sqrt(2.0 / 3.0 * np.sum(e * e, axis=(-2, -1)))
+    """sqrt(2/3 e:e), e the deviator of the symmetric part: equals |eps| for isochoric uniaxial
+    strain (lateral -eps/2). (..., 3, 3) -> (...). As `final_von_mises_strain`."""
+    return _measure(_native.core().von_mises_strain, strain)
+
+
+def _measure(function, tensors):
+    out = function(np.asarray(tensors, dtype=float))
+    return out[()] if out.ndim == 0 else out  # one tensor: a scalar, as numpy reduces

@@ -180,3 +180,50 @@ def inverse_pole_figure_points(quaternions, sample_direction=(0.0, 0.0, 1.0), la
     else:
         v = v * np.where(v[:, 2:3] < 0.0, -1.0, 1.0)  # d and -d are the same axis
     return project(v, projection)
+
+
+def kernel_concentration(half_width_deg):
+    """The concentration kappa of the von Mises-Fisher kernel exp(kappa cos(angle)) that falls
+    to half its peak `half_width_deg` away from it."""
+    return math.log(2.0) / (1.0 - math.cos(math.radians(half_width_deg)))
+
+
+def equal_area_inverse(X, Y):
+    """Upper-hemisphere unit vectors (..., 3) of equal-area points (X, Y) with X^2 + Y^2 <= 1:
+    the inverse of project(v, "equal_area"), z = 1 - r^2."""
+    X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
+    r2 = np.minimum(X * X + Y * Y, 1.0)
+    scale = np.sqrt(2.0 - r2)
+    return np.stack([X * scale, Y * scale, 1.0 - r2], axis=-1)
+
+
+def pole_density(quaternions, crystal_vectors, weights=None, half_width_deg=10.0,
+                 resolution=101):
+    """The pole density of `crystal_vectors` (both signs, as cubic_family gives them) of the
+    orientations, in multiples of a random distribution (MRD), on a grid of the equal-area
+    projection: (X, Y, mrd), each (resolution, resolution), mrd NaN outside the unit disk.
+
+    Every pole p spreads as a von Mises-Fisher kernel on the sphere, C exp(kappa x.p) with
+    C = kappa / (4 pi sinh kappa) (its integral is 1), kappa from the half-width
+    (kernel_concentration); a random texture gives 1 everywhere, and since the projection is
+    equal-area the mean over the disk is 1 for any texture. The kernel lives on the sphere, so
+    poles near the rim count on both sides of it (p and -p), as they must."""
+    g = quaternion_to_matrix(quaternions).reshape(-1, 3, 3)
+    w = np.ones(len(g)) if weights is None else np.asarray(weights, dtype=float)
+    poles = sample_directions(g, crystal_vectors).reshape(len(g), -1, 3)
+    pole_weights = np.repeat(w / (np.sum(w) * poles.shape[1]), poles.shape[1])
+    poles = poles.reshape(-1, 3)
+    kappa = kernel_concentration(half_width_deg)
+    t = np.linspace(-1.0, 1.0, resolution)
+    X, Y = np.meshgrid(t, t)
+    inside = X * X + Y * Y <= 1.0
+    x = equal_area_inverse(X[inside], Y[inside])
+    mrd = np.full(X.shape, np.nan)
+    values = np.empty(len(x))
+    # 4 pi C exp(kappa c) = 2 kappa exp(kappa (c - 1)) / (1 - exp(-2 kappa)): no overflow.
+    factor = 2.0 * kappa / -math.expm1(-2.0 * kappa)
+    for start in range(0, len(x), 512):  # blocks: (512, poles) at a time
+        c = x[start:start + 512] @ poles.T
+        values[start:start + 512] = factor * (np.exp(kappa * (c - 1.0)) @ pole_weights)
+    mrd[inside] = values
+    return X, Y, mrd

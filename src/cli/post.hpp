@@ -1,4 +1,5 @@
-// subslip post: summary of a result file and CSV export of chosen datasets.
+// subslip post: summary of a result file, CSV export of chosen datasets, and one CSV table per
+// case of chosen stored and derived quantities.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -12,7 +13,8 @@ struct PostArgs {
   std::string csv_dir;  // empty: print the summary only
   std::string case_name;
   std::vector<std::string> datasets;
-  long grain = -1;  // < 0: every grain (long format)
+  std::vector<std::string> quantities;  // one table per case instead of a file per dataset
+  long grain = -1;                      // < 0: every grain (long format)
   bool force = false;
   bool quiet = false;
 };

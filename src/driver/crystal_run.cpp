@@ -7,6 +7,7 @@
 #include <string>
 
 #include "packing.hpp"
+#include "subslip/crystal/measures.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/driver/checkpoint_policy.hpp"
 #include "subslip/driver/team_crystal_sink.hpp"
@@ -34,18 +35,6 @@ std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& s
   return best;
 }
 
-double von_mises_stress(const Eigen::Matrix3d& stress) {
-  const Mat3 sym = 0.5 * (stress + stress.transpose());
-  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
-  return std::sqrt(1.5 * dev.squaredNorm());
-}
-
-double von_mises_strain(const Eigen::Matrix3d& strain) {
-  const Mat3 sym = 0.5 * (strain + strain.transpose());
-  const Mat3 dev = sym - sym.trace() / 3.0 * Mat3::Identity();
-  return std::sqrt(2.0 / 3.0 * dev.squaredNorm());
-}
-
 namespace {
 
 CrystalSummary summarise(const model::CrystalCase& c, const crystal::MacroState& last,
@@ -53,8 +42,8 @@ CrystalSummary summarise(const model::CrystalCase& c, const crystal::MacroState&
   CrystalSummary s;
   s.final_state = last;
   s.axis = loading_component(c.segments);
-  s.final_von_mises_stress = von_mises_stress(last.stress);
-  s.final_von_mises_strain = von_mises_strain(last.strain);
+  s.final_von_mises_stress = crystal::von_mises_stress(last.stress);
+  s.final_von_mises_strain = crystal::von_mises_strain(last.strain);
   s.stats = stats;
   if (stats.wall_seconds > 0.0)
     s.grain_steps_per_second = static_cast<double>(stats.grain_steps) / stats.wall_seconds;

@@ -7,6 +7,9 @@
 // * ContactPoint, GrainPoint, TaylorPoint: the material-point API (material_point.hpp) with the
 //   parameters of a scene's case (parsed by io, so that names, units, checks and messages are a
 //   scene's), driven along paths given as numpy arrays; states as dicts of arrays.
+// * von_mises_stress, von_mises_strain, equivalent_plastic_strain, weighted_mean_abs: the
+//   derived measures of crystal/measures.hpp on numpy arrays, the package's only implementation
+//   of them (python/subslip/tensors.py, derived.py), so that they are `subslip post`'s numbers.
 // The GIL is released while the core computes (OpenMP inside); no failure of the core ends the
 // interpreter: bad input raises SceneError (a ValueError) with the command line's message, a
 // step that cannot be completed StepFailure (a RuntimeError).
@@ -16,6 +19,7 @@
 
 #include <exception>
 #include <mutex>
+#include <span>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -23,6 +27,7 @@
 #include "../cli/run_scene.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
+#include "subslip/crystal/measures.hpp"
 #include "subslip/history/contact_history.hpp"
 #include "subslip/integrators/step_control.hpp"
 #include "subslip/io/contact_scene.hpp"
@@ -127,6 +132,48 @@ Array array_of(const std::vector<double>& values, const std::vector<py::ssize_t>
   Array out(shape);
   std::copy(values.begin(), values.end(), out.mutable_data());
   return out;
+}
+
+// ---- derived measures (crystal/measures.hpp, as `subslip post` computes them) -----------------
+
+std::span<const double> values_of(const Array& a) {
+  return {a.data(), static_cast<std::size_t>(a.size())};
+}
+
+// The leading axes of `a`, without its last `drop`.
+std::vector<py::ssize_t> leading(const Array& a, py::ssize_t drop) {
+  return {a.shape(), a.shape() + a.ndim() - drop};
+}
+
+// The von Mises measure of every tensor of (..., 3, 3) -> (...).
+Array von_mises(const py::handle& tensors, bool stress) {
+  Array t = Array::ensure(tensors);
+  if (!t || t.ndim() < 2 || t.shape(t.ndim() - 1) != 3 || t.shape(t.ndim() - 2) != 3)
+    throw py::value_error("von Mises: an array of 3x3 tensors (..., 3, 3) expected");
+  const auto out = stress ? cr::von_mises_stress(values_of(t)) : cr::von_mises_strain(values_of(t));
+  return array_of(out, leading(t, 2));
+}
+
+// Accumulated equivalent plastic strain (n, G) of slips (n, G, N) and systems (N, 6).
+Array equivalent_plastic_strain(const py::handle& slip, const py::handle& systems) {
+  const Array s = checked(slip, {-1, -1, -1}, "slip (n, G, N)");
+  const Array m = checked(systems, {s.shape(2), 6}, "slip systems (N, 6)");
+  const auto rows = static_cast<std::size_t>(s.shape(0));
+  const auto grains = static_cast<std::size_t>(s.shape(1));
+  return array_of(cr::equivalent_plastic_strain(values_of(s), rows, grains, values_of(m)),
+                  {s.shape(0), s.shape(1)});
+}
+
+// Weighted grain mean of |values| (n, G, ...) -> (n, ...), weights (G,) of any sum.
+Array weighted_mean_abs(const py::handle& values, const py::handle& weights) {
+  const Array v = Array::ensure(values);
+  if (!v || v.ndim() < 2) throw py::value_error("values: an array (n, G, ...) expected");
+  const Array w = checked(weights, {v.shape(1)}, "weights (G,)");
+  std::vector<py::ssize_t> shape{v.shape(0)};
+  for (py::ssize_t k = 2; k < v.ndim(); ++k) shape.push_back(v.shape(k));
+  return array_of(cr::weighted_mean_abs(values_of(v), static_cast<std::size_t>(v.shape(0)),
+                                        static_cast<std::size_t>(v.shape(1)), values_of(w)),
+                  shape);
 }
 
 template <class Matrix>
@@ -537,6 +584,15 @@ PYBIND11_MODULE(_core, m) {
         return array_of(h, {static_cast<py::ssize_t>(h.size())});
       },
       py::arg("duration"), py::arg("increments"), py::arg("growth") = 1.0);
+  m.def(
+      "von_mises_stress", [](const py::handle& t) { return von_mises(t, true); },
+      py::arg("stress"));
+  m.def(
+      "von_mises_strain", [](const py::handle& t) { return von_mises(t, false); },
+      py::arg("strain"));
+  m.def("equivalent_plastic_strain", &equivalent_plastic_strain, py::arg("slip"),
+        py::arg("systems"));
+  m.def("weighted_mean_abs", &weighted_mean_abs, py::arg("values"), py::arg("weights"));
   py::class_<ContactPoint>(m, "ContactPoint")
       .def(py::init<std::string, std::string, std::string>())
       .def("initial_state", &ContactPoint::initial_state)

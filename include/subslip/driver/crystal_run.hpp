@@ -25,10 +25,6 @@ namespace subslip::driver {
 // along it.
 std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& segments);
 
-// sqrt(3/2 s:s) of the deviator s of sym(t); for a strain, sqrt(2/3 e:e).
-double von_mises_stress(const Eigen::Matrix3d& stress);
-double von_mises_strain(const Eigen::Matrix3d& strain);
-
 // What a restart finds of case `index` from the sessions before it (a run continued with
 // --restart), reported before the case is run or skipped.
 struct EarlierWork {
