@@ -485,8 +485,8 @@ TEST(Cli, SettingsAndBaseScenes) {
   const fs::path dir = scratch_dir();
   write(dir / "tiny.yaml", kScene);
   write(dir / "over.yaml", "base: tiny.yaml\ntitle: \"over\"\n");
-  const Outcome r =
-      run(dir, "run --set 'loading[0].increments=20' over.yaml --set law.friction.mu_s=0.1 -o o.h5");
+  const Outcome r = run(
+      dir, "run --set 'loading[0].increments=20' over.yaml --set law.friction.mu_s=0.1 -o o.h5");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(contains(r.out, "subslip: over.yaml: 2 cases - over\n")) << r.out;
   EXPECT_TRUE(contains(r.out, "\nspeed=1 ")) << r.out;
