@@ -371,3 +371,190 @@ TEST(InputErrors, SecondDocumentsAreFoundInTheText) {
   EXPECT_EQ(second_line("# c\n---\na: 1\n...\n"), 0);  // one document, marked
   EXPECT_EQ(second_line("a: |\n  ---\n  text\n"), 0);  // '---' inside a block scalar
 }
+
+// ---------------------------------------------------------------- several errors in one scene
+
+namespace {
+
+// A contact scene with five independent mistakes: a misspelt key (whose correct spelling is
+// then missing: that follows from it and is not reported), a value out of range in another
+// block, two segments with one error each and a misspelt method.
+const std::string kFiveErrors = R"(scene: contact
+units: {stress: MPa, length: mm, time: min}
+law:
+  friction: {mu_s: 0.097, mu_k: 0.085, kapa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: exponential, eta_v: 950, n: 16, r_hat: 0.9}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e6, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.2}
+    increments: 0
+  - slide: {speed: -1, distance: 0.2}
+    increments: 10
+integrator: {method: implicitt}
+)";
+
+struct Expected {
+  int line;
+  const char* key;
+  const char* fragment;
+};
+
+// The errors `text` raises, all of them (none: the test fails).
+std::vector<InputError> errors_of(const std::string& text, bool* stopped = nullptr) {
+  try {
+    const YamlDocument document = YamlDocument::from_string(text, "s.yaml");
+    if (scene_kind(document, {"contact", "crystal"}) == "contact") {
+      parse_contact_scene(document);
+    } else {
+      describe_crystal_scene(document);
+    }
+  } catch (const InputErrors& e) {
+    if (stopped) *stopped = e.stopped;
+    return e.all;
+  } catch (const InputError& e) {
+    if (stopped) *stopped = false;
+    return {e};
+  }
+  ADD_FAILURE() << "no InputError for:\n" << text;
+  return {};
+}
+
+void expect_errors(const std::vector<InputError>& got, const std::vector<Expected>& wanted) {
+  std::string all;
+  for (const InputError& e : got) all += std::string(e.what()) + "\n";
+  ASSERT_EQ(got.size(), wanted.size()) << all;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(got[k].file, "s.yaml");
+    EXPECT_EQ(got[k].line, wanted[k].line) << all;
+    EXPECT_EQ(got[k].key, wanted[k].key) << all;
+    EXPECT_NE(got[k].message.find(wanted[k].fragment), std::string::npos) << all;
+  }
+}
+
+}  // namespace
+
+// Every error of a scene in one reading, each with its file, line and key, in the order the
+// scene is read; the first is the error itself (what a caller of one error sees), what() has
+// one line for each.
+TEST(InputErrors, EveryErrorOfASceneIsReportedOnce) {
+  try {
+    parse_contact_scene(YamlDocument::from_string(kFiveErrors, "s.yaml"));
+    FAIL() << "accepted";
+  } catch (const InputErrors& e) {
+    expect_errors(e.all, {{4, "law.friction.kapa", "unknown key 'kapa'; did you mean 'kappa'?"},
+                          {6, "law.overstress.r_hat", "must be > 1, got 0.9"},
+                          {10, "loading[0].increments", "must be >= 1, got 0"},
+                          {11, "loading[1].slide.speed", "must be >= 0"},
+                          {13, "integrator.method", "did you mean 'implicit'?"}});
+    EXPECT_FALSE(e.stopped);
+    EXPECT_EQ(e.line, 4);  // the first
+    EXPECT_EQ(e.key, "law.friction.kapa");
+    const std::string what = e.what();
+    EXPECT_EQ(std::count(what.begin(), what.end(), '\n'), 4) << what;
+    EXPECT_EQ(what.rfind(e.all[0].what(), 0), 0u) << what;
+    EXPECT_EQ(what.find("missing required key"), std::string::npos) << what;
+  }
+}
+
+// A crystal scene: blocks independent of each other are all read; one that needs a failed one
+// is not (the integrator's checks need the phase), so that no error only follows from another.
+TEST(InputErrors, CrystalBlocksAreReadIndependently) {
+  const std::string scene = subslip::testing::copper_scene_start() +
+                            R"(orientations: {random: {count: 0, seed: 1}}
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: -20
+    increments: 50
+    growth: 0
+output: {macro: [stress]}
+)";
+  std::string text = scene;
+  text.replace(text.find("tau0: 10.0"), 10, "tau0: -1");
+  expect_errors(errors_of(text), {{6, "phase.tau0", "must be > 0"},
+                                  {11, "orientations.random.count", "must be"},
+                                  {15, "loading[0].duration", "must be > 0"},
+                                  {17, "loading[0].growth", "must be > 0"},
+                                  {18, "output.macro", "must include 'time'"}});
+  // The phase fails as a whole (its law): the integrator, which checks against it, is skipped.
+  text = scene + "integrator: {method: forward_euler, tolerance: 1.0e-3}\n";
+  text.replace(text.find("r_hat: 1.6"), 10, "r_hat: 0.5");
+  const auto errors = errors_of(text);
+  ASSERT_FALSE(errors.empty());
+  EXPECT_EQ(errors[0].key, "phase.law.overstress.r_hat");
+  for (const InputError& e : errors) EXPECT_NE(e.key.rfind("integrator", 0), 0u) << e.what();
+}
+
+// A sweep: an error only some cases have names them; one every case has (a key no swept value
+// touches) names none, wherever it comes in the order of reading.
+TEST(InputErrors, SweepTagsOnlyWhatDependsOnTheCase) {
+  const std::string scene = subslip::testing::contact_scene_start() + R"(loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.1}
+    increments: 10
+integrator: {method: implicitt}
+sweep:
+  "law.overstress.r_hat": [1.8, 0.9, 0.8]
+)";
+  const auto errors = errors_of(scene);
+  ASSERT_EQ(errors.size(), 3u);
+  // Case 1 fails on the method only, cases 2 and 3 first on r_hat: the method's error is every
+  // case's and comes once, untagged; each r_hat error names its case.
+  EXPECT_EQ(errors[0].key, "integrator.method");
+  EXPECT_EQ(errors[0].message.find("(in sweep case"), std::string::npos) << errors[0].what();
+  EXPECT_EQ(errors[1].key, "law.overstress.r_hat");
+  EXPECT_EQ(errors[1].line, 13);  // in the sweep block
+  EXPECT_NE(errors[1].message.find("got 0.9 (in sweep case 'r_hat=0.9')"), std::string::npos)
+      << errors[1].what();
+  EXPECT_NE(errors[2].message.find("got 0.8 (in sweep case 'r_hat=0.8')"), std::string::npos)
+      << errors[2].what();
+  // The same wrong value reached by two cases: one line naming both.
+  const auto shared = errors_of(subslip::testing::contact_scene_start() + R"(loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.1}
+    increments: 10
+sweep:
+  "loading[0].increments": [0, 10]
+  "law.overstress.n": [16, 8]
+)");
+  ASSERT_EQ(shared.size(), 1u);
+  EXPECT_NE(shared[0].message.find("(in sweep cases 'increments=0,n=16', 'increments=0,n=8')"),
+            std::string::npos)
+      << shared[0].what();
+}
+
+// At most 20 errors: the reading stops there, saying so.
+TEST(InputErrors, ReadingStopsAtTheLimit) {
+  std::string scene = subslip::testing::contact_scene_start() + "loading:\n";
+  for (int k = 0; k < 30; ++k) scene += "  - slide: {speed: 1, distance: 0.1}\n    increments: 0\n";
+  bool stopped = false;
+  const auto errors = errors_of(scene, &stopped);
+  ASSERT_EQ(errors.size(), InputErrorList::kDefaultLimit);
+  EXPECT_TRUE(stopped);
+  EXPECT_EQ(errors.back().key, "loading[19].increments");
+  try {
+    parse_contact_scene(YamlDocument::from_string(scene, "s.yaml"));
+  } catch (const InputErrors& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("\n(stopped after 20 errors; correct these and run again"),
+              std::string::npos)
+        << what;
+  }
+}
+
+// The executable prints each error on its own "subslip: error:" line, exit code 2.
+TEST(BadInputCli, EveryErrorOnItsOwnLine) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "s.yaml") << kFiveErrors;
+  const Outcome o = run(dir, "run s.yaml -o out.h5");
+  EXPECT_EQ(o.code, 2) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 5) << o.err;
+  for (const char* line : {"subslip: error: s.yaml:4: law.friction.kapa: unknown key 'kapa'",
+                           "\nsubslip: error: s.yaml:6: law.overstress.r_hat: must be > 1",
+                           "\nsubslip: error: s.yaml:10: loading[0].increments: must be >= 1",
+                           "\nsubslip: error: s.yaml:11: loading[1].slide.speed: must be >= 0",
+                           "\nsubslip: error: s.yaml:13: integrator.method: unknown value"})
+    EXPECT_NE(o.err.find(line), std::string::npos) << line << "\n" << o.err;
+  EXPECT_FALSE(fs::exists(dir / "out.h5"));
+  fs::remove_all(dir);
+}

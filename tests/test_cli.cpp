@@ -412,7 +412,7 @@ TEST(Cli, BenchTakesTheStressTolerance) {
   fs::remove_all(dir);
 }
 
-// The tables of `subslip run` (contact and crystal, long case names cut in the middle), of
+// The tables of `subslip run` (contact and crystal, long case names wrapped whole), of
 // `subslip bench` and the summary of `subslip post` fit 80 columns, units in the headers.
 TEST(Cli, TablesFitEightyColumns) {
   const fs::path dir = scratch_dir();
@@ -430,9 +430,11 @@ TEST(Cli, TablesFitEightyColumns) {
   expect_lines_fit_80(crystal.out);
   EXPECT_TRUE(contains(crystal.out, "stress[MPa]")) << crystal.out;
   EXPECT_TRUE(contains(crystal.out, "wall[s]")) << crystal.out;
-  // The name column cut in the middle keeps the ends that tell the cases apart.
-  EXPECT_TRUE(contains(crystal.out, "\nkappa=2...=1.0e-3 ")) << crystal.out;
-  EXPECT_TRUE(contains(crystal.out, "\nkappa=2...=2.0e-3 ")) << crystal.out;
+  // A name wider than its column (18 of 80 here) goes on over further lines, after its commas.
+  EXPECT_TRUE(contains(crystal.out, "\nkappa=20.0, ")) << crystal.out;
+  EXPECT_TRUE(contains(crystal.out, "\nu_tilde=200,\neta_v=1.0e-3\n")) << crystal.out;
+  EXPECT_TRUE(contains(crystal.out, "\nu_tilde=200,\neta_v=2.0e-3\n")) << crystal.out;
+  EXPECT_FALSE(contains(crystal.out, "...")) << crystal.out;
 
   const Outcome bench = run(dir, "bench --grains 4 --steps 2 --threads 1");
   ASSERT_EQ(bench.code, 0) << bench.err;
@@ -443,6 +445,67 @@ TEST(Cli, TablesFitEightyColumns) {
   ASSERT_EQ(post.code, 0) << post.err;
   expect_lines_fit_80(post.out);
   EXPECT_TRUE(contains(post.out, "macro/stress")) << post.out;
+  fs::remove_all(dir);
+}
+
+// A swept value with a unit keeps it in the case's name ("speed=1 mm/min"), in the table, in
+// `post` and in `post --case`; the group stores '/' as '_' and says so.
+TEST(Cli, SweepNamesKeepTheirUnits) {
+  const fs::path dir = scratch_dir();
+  write(dir / "units.yaml", subslip::testing::contact_scene_start() + R"(loading:
+  - slide: {speed: 10, direction: [1, 0], distance: 0.2}
+    increments: 50
+sweep:
+  "loading[0].slide.speed": [1 mm/min, 0.5 mm/s]
+)");
+  const Outcome r = run(dir, "run units.yaml -o u.h5");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "\nspeed=1 mm/min ")) << r.out;
+  EXPECT_TRUE(contains(r.out, "\nspeed=0.5 mm/s ")) << r.out;
+  const Outcome post = run(dir, "post u.h5");
+  ASSERT_EQ(post.code, 0) << post.err;
+  EXPECT_TRUE(contains(post.out, "2: speed=1 mm/min, speed=0.5 mm/s\n")) << post.out;
+  EXPECT_TRUE(contains(post.out, "\ncase speed=1 mm/min (group /cases/speed=1 mm_min, index 0)"))
+      << post.out;
+  const Outcome one = run(dir, "post u.h5 --case 'speed=0.5 mm/s'");
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_TRUE(contains(one.out, "\ncase speed=0.5 mm/s (group /cases/speed=0.5 mm_s, index 1)"))
+      << one.out;
+  EXPECT_FALSE(contains(one.out, "case speed=1 mm/min (")) << one.out;
+  EXPECT_EQ(run(dir, "post u.h5 --case 'speed=0.5 mm_s'").code, 0);
+  const Outcome bad = run(dir, "post u.h5 --case 'speed=2 mm/min'");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_TRUE(contains(bad.err, "the file has: speed=1 mm/min, speed=0.5 mm/s")) << bad.err;
+  fs::remove_all(dir);
+}
+
+// `--set` (before or after the scene, repeatable) and a base scene: the run uses both, `post`
+// names both, and a bad setting is an error naming the argument.
+TEST(Cli, SettingsAndBaseScenes) {
+  const fs::path dir = scratch_dir();
+  write(dir / "tiny.yaml", kScene);
+  write(dir / "over.yaml", "base: tiny.yaml\ntitle: \"over\"\n");
+  const Outcome r = run(
+      dir, "run --set 'loading[0].increments=20' over.yaml --set law.friction.mu_s=0.1 -o o.h5");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "subslip: over.yaml: 2 cases - over\n")) << r.out;
+  EXPECT_TRUE(contains(r.out, "\nspeed=1 ")) << r.out;
+  EXPECT_TRUE(contains(r.out, ": 2 cases, 40 increments,")) << r.out;
+  const Outcome post = run(dir, "post o.h5");
+  ASSERT_EQ(post.code, 0) << post.err;
+  EXPECT_TRUE(contains(post.out, "\nbase scene:  tiny.yaml (/scene_bases/1)\n")) << post.out;
+  EXPECT_TRUE(contains(post.out, "\nset:         loading[0].increments=20\n")) << post.out;
+  EXPECT_TRUE(contains(post.out, "\nset:         law.friction.mu_s=0.1\n")) << post.out;
+
+  const Outcome bad = run(dir, "run over.yaml --set law.friction.mu_ss=0.1 --set kappa -o b.h5");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_TRUE(contains(bad.err, "subslip: error: --set kappa: expected PATH=VALUE")) << bad.err;
+  EXPECT_FALSE(fs::exists(dir / "b.h5"));
+  const Outcome unknown = run(dir, "run over.yaml --set law.friction.mu_ss=0.1 -o b.h5");
+  EXPECT_EQ(unknown.code, 2);
+  EXPECT_EQ(unknown.err,
+            "subslip: error: --set law.friction.mu_ss=0.1: law.friction.mu_ss: unknown key "
+            "'mu_ss'; did you mean 'mu_s'?\n");
   fs::remove_all(dir);
 }
 

@@ -488,17 +488,16 @@ TEST(Restart, SigtermStopsWithACheckpointThatTheRestartContinues) {
       increments_before = stop->state.stats.increments;
     }
     // The restart says where the case continues, and its summary counts what it computed.
-    ASSERT_EQ(run_subslip(dir, {"run", "--restart", "out.h5"}, dir / "run.log"), 0)
-        << log_of(dir);
+    ASSERT_EQ(run_subslip(dir, {"run", "--restart", "out.h5"}, dir / "run.log"), 0) << log_of(dir);
     const std::string resumed = log_of(dir);
     EXPECT_NE(resumed.find("case 'base': continues from its checkpoint after increment " +
                            std::to_string(stopped_at.increment) + " of loading[" +
                            std::to_string(stopped_at.segment) + "]"),
               std::string::npos)
         << resumed;
-    EXPECT_NE(resumed.find(" with the " + std::to_string(increments_before) +
-                           " before the restart)"),
-              std::string::npos)
+    EXPECT_NE(
+        resumed.find(" with the " + std::to_string(increments_before) + " before the restart)"),
+        std::string::npos)
         << resumed;
   } else {
     GTEST_LOG_(INFO) << "the run ended before the signal";
@@ -657,6 +656,45 @@ TEST(Restart, RefusesWhatItCannotContinue) {
   fs::remove_all(dir);
 }
 
+// A scene made of a base scene and --set settings records both (/scene_bases, scene_set), and
+// --restart continues it from them, not from the files on the disk: the base may be gone or
+// changed since. A restart given other settings is refused.
+TEST(Restart, ContinuesAComposedSceneFromItsStoredSources) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "base.yaml") << crystal_scene(2, 6, "output:\n  checkpoint_every: 2\n");
+  std::ofstream(dir / "scene.yaml") << "base: base.yaml\ntitle: \"composed\"\n";
+  const std::vector<std::string> set = {"--set", "phase.tau0=12", "--set",
+                                        "loading[1].increments=5"};
+  std::vector<std::string> args = {"run", "scene.yaml", "-o", "done.h5", "-q"};
+  args.insert(args.end(), set.begin(), set.end());
+  ASSERT_EQ(run_subslip(dir, args, dir / "run.log"), 0) << log_of(dir);
+  {
+    const h5::File f = h5::File::open_read(dir / "done.h5");
+    const h5::Group root = f.root();
+    EXPECT_EQ(root.open_dataset("scene").read_string(), read_text(dir / "scene.yaml"));
+    const h5::Dataset base = root.open_group("scene_bases").open_dataset("1");
+    EXPECT_EQ(base.read_string(), read_text(dir / "base.yaml"));
+    EXPECT_EQ(base.attribute_string("file"), "base.yaml");  // as named, beside scene.yaml
+    EXPECT_FALSE(root.open_group("scene_bases").has("2"));
+    EXPECT_EQ(root.attribute_strings("scene_set"),
+              (std::vector<std::string>{"phase.tau0=12", "loading[1].increments=5"}));
+    EXPECT_EQ(root.attribute_string("title"), "composed");
+    for (double tau0 : root.open_group("cases/base").attribute_doubles("tau0"))
+      EXPECT_EQ(tau0, 12.0);
+  }
+  fs::copy_file(dir / "done.h5", dir / "cut.h5");
+  mark_interrupted(dir / "cut.h5");
+  std::ofstream(dir / "base.yaml") << "an edit that is no scene\n";
+  expect_refused(dir, {"run", "--restart", "cut.h5", "--set", "phase.tau0=13"},
+                 "cut.h5: --set: a restart continues the run with the settings it started with "
+                 "(phase.tau0=12, loading[1].increments=5); drop --set");
+  std::vector<std::string> same = {"run", "--restart", "cut.h5", "-q"};
+  same.insert(same.end(), set.begin(), set.end());
+  EXPECT_EQ(run_subslip(dir, same, dir / "run.log"), 0) << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "done.h5", dir / "cut.h5");
+  fs::remove_all(dir);
+}
+
 // What lies at a result path says what to do with it: an interrupted run is continued with
 // --restart (a new run there is refused, pointing at it); a restart file no run can continue
 // (its run finished, or its result file is gone) is named as such by `post`, by a refused
@@ -680,8 +718,7 @@ TEST(Restart, InterruptedAndLeftOverFilesSayWhatToDo) {
 
   fs::copy_file(dir / "done.h5", dir / "cut.h5");
   mark_interrupted(dir / "cut.h5");
-  expect_refused(dir, {"run", "scene.yaml", "-o", "cut.h5"},
-                 "cut.h5: holds an interrupted run (");
+  expect_refused(dir, {"run", "scene.yaml", "-o", "cut.h5"}, "cut.h5: holds an interrupted run (");
   EXPECT_NE(log_of(dir).find("continue it with: subslip run --restart cut.h5"), std::string::npos)
       << log_of(dir);
   ASSERT_EQ(run_subslip(dir, {"post", "cut.h5"}, dir / "run.log"), 0) << log_of(dir);
@@ -696,8 +733,7 @@ TEST(Restart, InterruptedAndLeftOverFilesSayWhatToDo) {
   expect_refused(dir, {"run", "scene.yaml", "-o", "done.h5"},
                  "done.restart.h5: already exists, left over from a run of done.h5 whose result "
                  "file is gone: no run continues from it; delete it, or use --force");
-  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "done.h5", "--force"}, dir / "run.log"),
-            0)
+  ASSERT_EQ(run_subslip(dir, {"run", "scene.yaml", "-o", "done.h5", "--force"}, dir / "run.log"), 0)
       << log_of(dir);
   EXPECT_FALSE(fs::exists(dir / "done.restart.h5"));
   subslip::testing::expect_same_datasets(dir / "cut.h5", dir / "done.h5");

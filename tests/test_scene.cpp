@@ -5,14 +5,17 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <ostream>
 #include <string>
 #include <vector>
 
 #include "scene_text.hpp"
+#include "scratch_dir.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_common.hpp"
+#include "subslip/io/scene_compose.hpp"
 #include "subslip/io/sweep.hpp"
 #include "subslip/io/yaml_checked.hpp"
 
@@ -234,11 +237,156 @@ sweep:
   EXPECT_FALSE(c.overrides[3].number.has_value());
 }
 
+// A value written with its unit keeps it in the case's name; the group that stores the case
+// writes '/' as '_', and two names that would share a group are refused.
+TEST(ContactScene, SweepNamesKeepTheUnitsAsWritten) {
+  const ContactScene scene =
+      parse(kTiny + "sweep:\n  \"loading[0].slide.speed\": [1 mm/min, 0.5 mm/s]\n");
+  ASSERT_EQ(scene.cases.size(), 2u);
+  EXPECT_EQ(scene.cases[0].name, "speed=1 mm/min");
+  EXPECT_EQ(scene.cases[1].name, "speed=0.5 mm/s");
+  EXPECT_EQ(case_group_name(scene.cases[1].name), "speed=0.5 mm_s");
+  EXPECT_NEAR(scene.cases[1].segments[0].velocity.norm(), 30.0, 1e-13);  // mm/min
+  const InputError e =
+      error_of(kTiny + "sweep:\n  \"loading[0].slide.speed\": [1 mm/min, 1 mm_min]\n");
+  EXPECT_EQ(e.key, "sweep");
+  EXPECT_NE(e.message.find("stored as group 'speed=1 mm_min'"), std::string::npos) << e.what();
+}
+
 TEST(ContactScene, SweepErrorsNameTheCase) {
   const InputError e = error_of(kTiny + "sweep:\n  \"law.friction.mu_k\": [0.08, -1]\n");
   EXPECT_EQ(e.key, "law.friction.mu_k");
   EXPECT_EQ(e.line, 17);  // the sweep block's line
   EXPECT_NE(std::string(e.what()).find("mu_k=-1"), std::string::npos) << e.what();
+}
+
+// ---------------------------------------------------------------- base scenes and settings
+
+namespace {
+
+// The InputError composing and parsing `scene` with `settings` raises.
+InputError compose_error(const YamlDocument& scene, const std::vector<std::string>& settings) {
+  try {
+    parse_contact_scene(compose_scene(scene, settings));
+  } catch (const InputError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "no InputError for:\n" << scene.text();
+  return InputError("", 0, "", "");
+}
+
+}  // namespace
+
+// A scene over a base: its own keys win, mappings are merged key by key (a list is replaced
+// whole), the base's relative to the file that names it; errors name the file they are in.
+TEST(SceneBase, MergesKeyByKeyAndErrorsNameTheirFile) {
+  const fs::path dir = subslip::testing::scratch_dir("scene_base");
+  fs::create_directories(dir / "bases");
+  std::ofstream(dir / "bases/tiny.yaml") << kTiny;
+  std::ofstream(dir / "fast.yaml") << R"(base: bases/tiny.yaml
+title: "fast"
+law:
+  friction: {mu_s: 0.2}
+loading:
+  - slide: {speed: 8, distance: 0.4}
+    increments: 10
+)";
+  const ContactScene scene = load_contact_scene(dir / "fast.yaml");
+  EXPECT_EQ(scene.title, "fast");
+  const ContactCase& c = scene.cases.at(0);
+  EXPECT_EQ(c.model.law.friction.mu_s, 0.2);     // the scene's
+  EXPECT_EQ(c.model.law.friction.mu_k, 0.085);   // the base's, beside it
+  EXPECT_EQ(c.model.law.overstress.eta_v, 950);  // a block only the base has
+  ASSERT_EQ(c.segments.size(), 1u);              // the list is the scene's
+  EXPECT_DOUBLE_EQ(c.segments[0].duration, 0.05);
+  EXPECT_EQ(c.segments[0].increments, 10);
+  ASSERT_EQ(scene.makeup.bases.size(), 1u);
+  EXPECT_EQ(scene.makeup.bases[0].first, (dir / "bases/tiny.yaml").string());
+  EXPECT_EQ(scene.makeup.bases[0].second, kTiny);
+
+  // A bad value from the base names the base file and its line; one of the scene, the scene.
+  std::string bad_base = kTiny;
+  bad_base.replace(bad_base.find("normal_traction: 5.56"), 21, "normal_traction: -1");
+  std::ofstream(dir / "bases/tiny.yaml") << bad_base;
+  const InputError in_base = compose_error(YamlDocument::from_file(dir / "fast.yaml"), {});
+  EXPECT_EQ(in_base.file, (dir / "bases/tiny.yaml").string());
+  EXPECT_EQ(in_base.line, 11);
+  EXPECT_EQ(in_base.key, "contact.normal_traction");
+  std::ofstream(dir / "bases/tiny.yaml") << kTiny;
+  const auto in_scene = compose_error(
+      YamlDocument::from_string("base: bases/tiny.yaml\nlaw:\n  friction: {mu_s: -2}\n",
+                                (dir / "neg.yaml").string()),
+      {});
+  EXPECT_EQ(in_scene.file, (dir / "neg.yaml").string());
+  EXPECT_EQ(in_scene.line, 3);
+  EXPECT_EQ(in_scene.key, "law.friction.mu_s");
+  // A base that cannot be read, and bases that name each other, at the `base:` key.
+  const auto missing = compose_error(
+      YamlDocument::from_string("title: \"x\"\nbase: nowhere.yaml\n", (dir / "m.yaml").string()),
+      {});
+  EXPECT_EQ(missing.line, 2);
+  EXPECT_EQ(missing.key, "base");
+  EXPECT_NE(missing.message.find("cannot read the base scene " + (dir / "nowhere.yaml").string()),
+            std::string::npos)
+      << missing.what();
+  std::ofstream(dir / "a.yaml") << "base: b.yaml\n";
+  std::ofstream(dir / "b.yaml") << "title: \"b\"\nbase: a.yaml\n";
+  const auto loop = compose_error(YamlDocument::from_file(dir / "a.yaml"), {});
+  EXPECT_EQ(loop.file, (dir / "b.yaml").string());
+  EXPECT_EQ(loop.line, 2);
+  EXPECT_NE(loop.message.find("in a loop"), std::string::npos) << loop.what();
+}
+
+// `--set PATH=VALUE`: the value replaces the scene's, or is added where the scene has none,
+// before the sweep; it is checked as any value, its errors naming the argument.
+TEST(SceneSettings, SetValuesAreCheckedAsTheScenesOwn) {
+  const YamlDocument tiny = YamlDocument::from_string(kTiny, "tiny.yaml");
+  const ContactScene scene = parse_contact_scene(
+      compose_scene(tiny, {"law.friction.mu_s=0.3", "loading[0].slide.speed=3 mm/s",
+                           "integrator.method=implicit", "loading[*].increments=7"}));
+  const ContactCase& c = scene.cases.at(0);
+  EXPECT_EQ(c.model.law.friction.mu_s, 0.3);
+  EXPECT_DOUBLE_EQ(c.segments[0].velocity.norm(), 180.0);  // mm/min
+  EXPECT_EQ(c.segments[0].increments, 7);
+  EXPECT_EQ(scene.makeup.settings.size(), 4u);
+  EXPECT_EQ(scene.makeup.settings[1], "loading[0].slide.speed=3 mm/s");
+
+  struct Bad {
+    const char* setting;
+    const char* key;
+    const char* fragment;
+  };
+  for (const Bad& b : {Bad{"law.friction.mu_s=-1", "law.friction.mu_s", "must be > 0, got -1"},
+                       Bad{"law.friction.mu_ss=1", "law.friction.mu_ss", "did you mean 'mu_s'?"},
+                       Bad{"lawz.friction.mu_s=1", "lawz", "did you mean 'law'?"},
+                       Bad{"loading[3].increments=1", "loading[3].increments", "no element 3"},
+                       Bad{"law.friction.mu_s.x=1", "law.friction.mu_s.x", "is not a mapping"},
+                       Bad{"law..mu_s=1", "law..mu_s", "malformed --set path"},
+                       Bad{"law.friction.mu_s", "", "expected PATH=VALUE"},
+                       Bad{"law.friction.mu_s=[1", "law.friction.mu_s", "no YAML value"}}) {
+    SCOPED_TRACE(b.setting);
+    const InputError e = compose_error(tiny, {b.setting});
+    EXPECT_EQ(e.file, std::string("--set ") + b.setting);
+    EXPECT_EQ(e.line, 0);  // a command line argument has no lines
+    EXPECT_EQ(e.key, b.key);
+    EXPECT_NE(e.message.find(b.fragment), std::string::npos) << e.what();
+  }
+  // A later setting and a sweep win over an earlier one.
+  const ContactScene swept = parse_contact_scene(
+      compose_scene(YamlDocument::from_string(
+                        kTiny + "sweep:\n  \"law.friction.mu_k\": [0.05, 0.06]\n", "t.yaml"),
+                    {"law.friction.mu_k=0.07", "law.friction.mu_s=0.1", "law.friction.mu_s=0.2"}));
+  ASSERT_EQ(swept.cases.size(), 2u);
+  EXPECT_EQ(swept.cases[1].model.law.friction.mu_k, 0.06);
+  EXPECT_EQ(swept.cases[1].model.law.friction.mu_s, 0.2);
+  // A swept value of a base scene's sweep block names the base in its errors.
+  const fs::path dir = subslip::testing::scratch_dir("scene_settings");
+  std::ofstream(dir / "base.yaml") << kTiny + "sweep:\n  \"law.friction.mu_k\": [0.05, -1]\n";
+  std::ofstream(dir / "s.yaml") << "base: base.yaml\n";
+  const InputError e = compose_error(YamlDocument::from_file(dir / "s.yaml"), {});
+  EXPECT_EQ(e.file, (dir / "base.yaml").string());
+  EXPECT_EQ(e.line, 17);
+  EXPECT_NE(e.message.find("(in sweep case 'mu_k=-1')"), std::string::npos) << e.what();
 }
 
 // ---------------------------------------------------------------- broken scenes

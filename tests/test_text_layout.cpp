@@ -53,7 +53,7 @@ TEST(TextLayout, NumbersFitTheirColumn) {
 }
 
 // A table whose name column must share 80 columns: the separators narrow to one space, then
-// names are cut in the middle; no line is ever wider than the table.
+// names are wrapped onto further lines, whole; no line is ever wider than the table.
 TEST(TextLayout, TableRowsNeverExceedTheirWidth) {
   text::Table t({{"case", 0, true}, {"strain_33", 9}, {"stress[MPa]", 10}, {"wall[s]", 7}});
   t.fit_column(0, 12);
@@ -69,8 +69,35 @@ TEST(TextLayout, TableRowsNeverExceedTheirWidth) {
   for (double x : {0.0, -1.0e-300, 1.0e300, -123456789.0, std::nan(""), HUGE_VAL}) {
     const std::string row =
         t.row({long_name + "-end", t.number(1, x), t.number(2, x), t.number(3, x)});
-    EXPECT_LE(columns_of(row), 80) << row;
-    EXPECT_NE(row.find("...x"), std::string::npos) << row;
-    EXPECT_NE(row.find("-end "), std::string::npos) << row;
+    std::string name;  // the name column of every line, read back
+    std::size_t lines = 0;
+    for (std::size_t at = 0; at <= row.size(); ++lines) {
+      const std::size_t end = std::min(row.find('\n', at), row.size());
+      const std::string line = row.substr(at, end - at);
+      EXPECT_LE(columns_of(line), 80) << line;
+      name += line.substr(0, line.find(' '));
+      at = end + 1;
+    }
+    EXPECT_EQ(name, long_name + "-end") << row;
+    EXPECT_EQ(lines, 3u) << row;  // 124 characters in a column of 80 - 9 - 11 - 7 - 3 = 50
+    EXPECT_EQ(row.find("-end"), row.rfind('\n') + 1 + 20) << row;
   }
+}
+
+// Names are wrapped after their commas, a part wider than the column at its spaces, a word
+// wider than it where it reaches the width; every character stays.
+TEST(TextLayout, NamesWrapWholeAtCommas) {
+  EXPECT_EQ(text::wrap_name("speed=1 mm/min", 20), std::vector<std::string>{"speed=1 mm/min"});
+  EXPECT_EQ(text::wrap_name("speed=1 mm/min,eta_v=950 s/mm", 20),
+            (std::vector<std::string>{"speed=1 mm/min,", "eta_v=950 s/mm"}));
+  EXPECT_EQ(text::wrap_name("a=1,b=2,speed=1 mm/min", 10),
+            (std::vector<std::string>{"a=1,b=2,", "speed=1", "mm/min"}));
+  EXPECT_EQ(text::wrap_name("direction=[1, 0]", 6),
+            (std::vector<std::string>{"direct", "ion=[1", ", 0]"}));
+  EXPECT_EQ(text::wrap_name("direction=[1, 0]", 13),
+            (std::vector<std::string>{"direction=[1,", "0]"}));
+  const std::string wide = "\u9285\u306e\u901f\u3055";  // 4 x 2 columns
+  for (const auto& line : text::wrap_name(wide, 3)) EXPECT_EQ(text::display_width(line), 2);
+  text::Table t({{"case", 6, true}, {"peak", 5}});
+  EXPECT_EQ(t.row({"a=1,b=22", "0.5"}), "a=1,      0.5\nb=22");
 }

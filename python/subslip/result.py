@@ -138,10 +138,23 @@ class Result:
         return 0 if self.state(name) == "not_started" else self._grain_rows[name]
 
     def case(self, name):
-        """The case `name`; a case the run never started has no rows (empty series)."""
+        """The case `name`, by its name as the run showed it ("speed=1 mm/min") or as its
+        group is named ("speed=1 mm_min"); a case the run never started has no rows."""
+        name = self._group_of(name)
         self._check_name(name)
         group = self.file["cases"].get(name)
         return Case(self, name, group, self.valid_rows(name), self.valid_grain_rows(name))
+
+    def shown_name(self, name):
+        """The name the run showed for the case stored as group `name` (its `name`
+        attribute: a '/' of a value's unit is stored as '_' in the group's name)."""
+        group = self.file.get("cases", {}).get(name)
+        return text_attribute(group, "name", name) if group is not None else name
+
+    def _group_of(self, name):
+        if name in self.all_cases:
+            return name
+        return next((c for c in self.all_cases if self.shown_name(c) == name), name)
 
     def _check_name(self, name):
         if name not in self.all_cases:

@@ -36,3 +36,10 @@ def scene_source(scene):
     if isinstance(scene, (str, os.PathLike)):
         return os.fspath(scene), ""
     raise TypeError(f"a scene is a dict or the path of a YAML file, not {type(scene).__name__}")
+
+
+def yaml_value(value):
+    """`value` (a number, a list, ...) as one line of YAML in flow style, as a `--set` value."""
+    yaml = require("yaml")
+    text = yaml.safe_dump(plain(value), default_flow_style=True, width=float("inf"))
+    return text.strip().removesuffix("...").strip()

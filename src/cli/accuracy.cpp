@@ -16,6 +16,7 @@
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/scene_compose.hpp"
 #include "subslip/io/text_layout.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/study/work_precision.hpp"
@@ -299,7 +300,7 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
 }
 
 int run_accuracy(const AccuracyArgs& a) {
-  const io::YamlDocument document = io::YamlDocument::from_file(a.scene);
+  const io::YamlDocument document = io::compose_scene(io::YamlDocument::from_file(a.scene));
   const std::string kind = io::scene_kind(document, {"contact", "crystal"});
   io::AccuracyReport report;
   report.scene_file = a.scene;

@@ -41,6 +41,11 @@ void add_run_command(CLI::App& app, RunArgs& a) {
   run->add_option("scene", a.scene,
                   "Scene file (YAML, see docs/scenes.md); with --restart optional (then it must "
                   "be the scene the run started with)");
+  run->add_option("--set", a.settings,
+                  "PATH=VALUE: the value at PATH (a key path as in a sweep, "
+                  "loading[0].increments) set over the scene's, checked as the scene's own; "
+                  "repeatable, applied in order; recorded in the result file")
+      ->allow_extra_args(false);
   run->add_option("-o,--output", a.output, "Result file (default: results/<scene stem>.h5)");
   run->add_flag("-f,--force", a.force, "Overwrite an existing result file");
   run->add_flag("-q,--quiet", a.quiet, "Print nothing but errors");
@@ -138,6 +143,15 @@ int report(const char* message, int code) {
   return code;
 }
 
+// Several input errors: one "subslip: error:" line each, as a single one has.
+int report(const std::exception& e, int code) {
+  const auto* several = dynamic_cast<const InputErrors*>(&e);
+  if (several == nullptr) return report(e.what(), code);
+  for (const InputError& one : several->all) report(one.what(), code);
+  if (several->stopped) report(InputErrors::limit_line(several->all.size()).c_str(), code);
+  return code;
+}
+
 // What the run stopped on, reported once (by the root) with its exit status. Over MPI ranks, a
 // failure every rank meets alike (bad input, a failed grain: the ranks agree on it, or the
 // root's, shared by parallel::on_root) ends each rank with the same status; any other failure
@@ -150,10 +164,10 @@ int stop_on(const std::exception& e, const parallel::Team& team) {
     if (team.is_root()) std::fprintf(stderr, "subslip: %s\n", e.what());
     return code;
   }
-  if (team.size() == 1) return report(e.what(), code);
+  if (team.size() == 1) return report(e, code);
   const bool shared = code != 1 || dynamic_cast<const parallel::StoppedByRoot*>(&e) != nullptr ||
                       (team.is_root() && parallel::root_failure_shared());
-  if (team.is_root()) report(e.what(), code);
+  if (team.is_root()) report(e, code);
   if (shared) return code;
   if (!team.is_root())
     std::fprintf(stderr, "subslip: error on MPI rank %d: %s\n", team.rank(), e.what());

@@ -42,7 +42,9 @@
 #include "subslip/io/result_file.hpp"
 #include "subslip/io/run_output.hpp"
 #include "subslip/io/scene_common.hpp"
+#include "subslip/io/scene_compose.hpp"
 #include "subslip/io/scene_warnings.hpp"
+#include "subslip/io/sweep.hpp"
 #include "subslip/io/text_layout.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/parallel/team.hpp"
@@ -89,10 +91,11 @@ io::RunOutput open_output(const RunArgs& a, const io::YamlDocument& document,
   return io::open_output(request, document, case_names, restart, inputs, size, checkpoints);
 }
 
+// The names of the cases' groups, as the result file lists them.
 template <class Case>
 std::vector<std::string> names_of(const std::vector<Case>& cases) {
   std::vector<std::string> names;
-  for (const auto& c : cases) names.push_back(c.name);
+  for (const auto& c : cases) names.push_back(io::case_group_name(c.name));
   return names;
 }
 
@@ -105,10 +108,12 @@ void print_warnings(const RunArgs& a, const std::vector<std::string>& warnings) 
   for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
-// The scene file, for a contact run (none for a scene given as text).
-std::vector<fs::path> input_files(const RunArgs& a) {
-  if (a.scene_text.empty()) return {a.scene};
-  return {};
+// The scene file (none for a scene given as text) and its base scenes, for a contact run.
+std::vector<fs::path> input_files(const RunArgs& a, const model::SceneMakeup& makeup) {
+  std::vector<fs::path> files;
+  if (a.scene_text.empty()) files.emplace_back(a.scene);
+  for (const auto& base : makeup.bases) files.emplace_back(base.first);
+  return files;
 }
 
 // The progress goes to stderr (stdout keeps the results, redirected or not): a bar when stderr
@@ -228,8 +233,8 @@ int run_contact(const RunArgs& a, const io::YamlDocument& document, const io::Re
   parallel::on_root(
       team,
       [&] {
-        output.emplace(open_output(a, document, names_of(scene.cases), restart, input_files(a),
-                                   io::estimate_contact_run(scene)));
+        output.emplace(open_output(a, document, names_of(scene.cases), restart,
+                                   input_files(a, scene.makeup), io::estimate_contact_run(scene)));
         print_warnings(a, io::contact_scene_warnings(scene));
       },
       exit_code_of);
@@ -396,10 +401,10 @@ std::vector<double> crystal_work(const io::CrystalScene& scene) {
   return work;
 }
 
-// The scene file (none for a scene given as text) and the orientation files it reads.
+// The scene file (none for a scene given as text), its base scenes and the orientation files
+// it reads.
 std::vector<fs::path> input_files(const RunArgs& a, const io::CrystalScene& scene) {
-  std::vector<fs::path> files;
-  if (a.scene_text.empty()) files.emplace_back(a.scene);
+  std::vector<fs::path> files = input_files(a, scene.makeup);
   for (const auto& c : scene.cases)
     if (c.orientation_source.kind == "file") files.emplace_back(c.orientation_source.description);
   return files;
@@ -626,11 +631,49 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
   return 0;
 }
 
+// The bases and settings of the root's restart file, on every rank (each composes the scene).
+void broadcast(const parallel::Team& team, model::SceneMakeup& makeup) {
+  const auto share_count = [&](std::size_t& n) {
+    std::string text = std::to_string(n);
+    team.broadcast(text, 0);
+    n = std::stoul(text);
+  };
+  std::size_t bases = makeup.bases.size();
+  share_count(bases);
+  makeup.bases.resize(bases);
+  for (auto& [file, text] : makeup.bases) {
+    team.broadcast(file, 0);
+    team.broadcast(text, 0);
+  }
+  std::size_t settings = makeup.settings.size();
+  share_count(settings);
+  makeup.settings.resize(settings);
+  for (std::string& setting : makeup.settings) team.broadcast(setting, 0);
+}
+
+// A restart continues the run as it was set: settings given again must be the same.
+void check_restart_settings(const RunArgs& a, const io::RestartInfo& restart) {
+  if (a.settings.empty() || a.settings == restart.makeup.settings) return;
+  std::string stored;
+  for (const auto& s : restart.makeup.settings) stored += (stored.empty() ? "" : ", ") + s;
+  throw InputError(a.restart, 0, "--set",
+                   "a restart continues the run with the settings it started with (" +
+                       (stored.empty() ? std::string("none") : stored) + "); drop --set");
+}
+
+// The scene the interrupted run read, from what its file stores (/scene, its bases, settings):
+// the base files on the disk are not read again.
+io::YamlDocument stored_scene(const io::RestartInfo& restart) {
+  io::SceneSources sources{{restart.scene_file, restart.scene_text}, {}, restart.makeup.settings};
+  for (const auto& [file, text] : restart.makeup.bases) sources.bases.push_back({file, text});
+  return io::YamlDocument::compose(sources);
+}
+
 }  // namespace
 
 // The dispatch on `scene:`. A new scene kind adds its name to the list and a branch here.
-// With --restart the scene is the one stored in the file (/scene); a scene file named as well
-// must have the same text.
+// With --restart the scene is the one stored in the file (/scene, with its bases and settings);
+// a scene file named as well must have the same text.
 // Run over MPI ranks, every rank runs this: the scene file is read by each; a restart file is
 // inspected by the root, which shares the scene it holds.
 int run_scene(const RunArgs& a, const parallel::Team& team) {
@@ -659,11 +702,13 @@ int run_scene(const RunArgs& a, const parallel::Team& team) {
     }
     for (std::string* text : {&restart->scene_kind, &restart->scene_file, &restart->scene_text})
       team.broadcast(*text, 0);
+    broadcast(team, restart->makeup);
+    check_restart_settings(a, *restart);
   } else if (!given) {
     throw InputError("run", 0, "", "give a scene file (or --restart FILE)");
   }
   const io::YamlDocument document =
-      restart ? io::YamlDocument::from_string(restart->scene_text, restart->scene_file) : *given;
+      restart ? stored_scene(*restart) : io::compose_scene(*given, a.settings);
   const io::RestartInfo* info = restart ? &*restart : nullptr;
   const std::string kind = io::scene_kind(document, {"contact", "crystal"});
   if (restart && kind != restart->scene_kind)

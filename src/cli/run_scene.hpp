@@ -15,6 +15,8 @@ struct RunArgs {
   // The scene's YAML text when it comes as text rather than a file (a Python dict); empty: read
   // the file `scene`.
   std::string scene_text;
+  // --set PATH=VALUE, in order: values set over the scene's (io/scene_compose.hpp).
+  std::vector<std::string> settings;
   std::string output;  // empty: results/<scene stem>.h5
   bool force = false;
   bool quiet = false;

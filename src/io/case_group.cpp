@@ -97,7 +97,7 @@ std::string sweep_unit(SceneKind kind, std::string_view path, const Units& units
 h5::Group create_case_group(const h5::Group& cases, const std::string& name, int index,
                             std::span<const SweepOverride> overrides, SceneKind kind,
                             const Units& units) {
-  h5::Group group = cases.create_group(name);
+  h5::Group group = cases.create_group(case_group_name(name));
   group.set_attribute("name", name);
   group.set_attribute("index", index);
   write_sweep_overrides(group, overrides, kind, units);

@@ -152,7 +152,7 @@ void ContactCaseWriter::lay_out(const h5::Group& cases, const ContactCase& c, in
 
 ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& c, int index,
                                      const Units& units, h5::CaseProgress& progress)
-    : group_(cases.open_group(c.name)),
+    : group_(cases.open_group(case_group_name(c.name))),
       units_(units),
       progress_(progress),
       index_(static_cast<std::size_t>(index)) {
@@ -244,12 +244,18 @@ namespace {
 // The whole layout before any computation (h5_writer.hpp, crash safety).
 ContactRunFiles lay_out(const ContactScene& scene, h5::File& file) {
   const h5::Group root = file.root();
-  h5::write_result_header(
-      file, {"contact", scene.file, scene.text, scene.title, scene.units.entries(), {},
-             scene.compression.gzip_level});
+  h5::ResultHeader header{"contact",
+                          scene.file,
+                          scene.text,
+                          scene.title,
+                          scene.units.entries(),
+                          {},
+                          scene.compression.gzip_level};
+  header.makeup = scene.makeup;
+  h5::write_result_header(file, header);
   h5::Group cases = root.create_group("cases");
   std::vector<std::string> names;
-  for (const auto& c : scene.cases) names.push_back(c.name);
+  for (const auto& c : scene.cases) names.push_back(case_group_name(c.name));
   cases.set_attribute("names", names);
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     ContactCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
@@ -279,7 +285,7 @@ driver::CaseStatus ContactResultSink::status(std::size_t index) const {
 
 // Read back from the case's summary attributes.
 driver::StoredContactCase ContactResultSink::stored_case(std::size_t index) const {
-  const h5::Group g = run_.cases.open_group(scene_.cases[index].name);
+  const h5::Group g = run_.cases.open_group(case_group_name(scene_.cases[index].name));
   auto number = [&](const char* name) {
     return g.has_attribute(name) ? g.attribute_double(name) : ContactSummary::kNone;
   };

@@ -3,6 +3,7 @@
 #include "subslip/history/contact_history.hpp"
 #include "subslip/io/law_block.hpp"
 #include "subslip/io/output_points.hpp"
+#include "subslip/io/scene_compose.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -13,10 +14,18 @@ namespace {
 
 void parse_contact_block(const CheckedNode& node, contact::ContactModel& model, SceneValues& v) {
   node.allow_keys({"alpha_n", "alpha_t", "normal_traction"});
-  model.stiffness.alpha_n = v.get(node, "alpha_n", dimension::stiffness, Range::positive());
-  model.stiffness.alpha_t = v.get(node, "alpha_t", dimension::stiffness, Range::positive());
-  model.initial_normal_traction = v.get_noted(node, "normal_traction", dimension::stress,
-                                              Magnitude::normal_traction, Range::positive());
+  InputErrorList errors;
+  errors.attempt([&] {
+    model.stiffness.alpha_n = v.get(node, "alpha_n", dimension::stiffness, Range::positive());
+  });
+  errors.attempt([&] {
+    model.stiffness.alpha_t = v.get(node, "alpha_t", dimension::stiffness, Range::positive());
+  });
+  errors.attempt([&] {
+    model.initial_normal_traction = v.get_noted(node, "normal_traction", dimension::stress,
+                                                Magnitude::normal_traction, Range::positive());
+  });
+  errors.throw_if_any();
 }
 
 void parse_initial(const std::optional<CheckedNode>& node, contact::ContactModel& model) {
@@ -94,38 +103,56 @@ void parse_normal(const std::optional<CheckedNode>& node, const contact::Contact
   }
 }
 
-void parse_stepping(const CheckedNode& node, contact::Segment& seg) {
-  seg.increments = node.get_int("increments", Range::at_least(1));
-  seg.growth = node.get_double("growth", 1.0, Range::positive());
-  seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
-  check_increment_lengths(node, seg.duration, seg.increments, seg.growth);
+// Increments, growth and output_every, each error reported; the increment lengths are checked
+// once the segment's duration (`duration_known`) and the first two are read.
+void parse_stepping(const CheckedNode& node, contact::Segment& seg, bool duration_known) {
+  InputErrorList errors;
+  bool lengths = errors.attempt([&] {
+    seg.increments = node.get_int("increments", Range::at_least(1));
+  }) && duration_known;
+  lengths = errors.attempt([&] {
+    seg.growth = node.get_double("growth", 1.0, Range::positive());
+  }) && lengths;
+  errors.attempt([&] { seg.output_every = node.get_int("output_every", 1, Range::at_least(1)); });
+  if (lengths)
+    errors.attempt(
+        [&] { check_increment_lengths(node, seg.duration, seg.increments, seg.growth); });
+  errors.throw_if_any();
 }
 
 contact::Segment parse_segment(const CheckedNode& node, const contact::ContactModel& model,
                                double& fn, SceneValues& v) {
   node.allow_keys({"slide", "hold", "increments", "growth", "output_every", "normal"});
   contact::Segment seg;
-  if (*node.one_of({"slide", "hold"}, true) == "slide") {
-    parse_slide(node.required("slide"), seg, v);
-  } else {
-    const CheckedNode hold = node.required("hold");
-    hold.allow_keys({"duration"});
-    seg.velocity.setZero();
-    seg.duration =
-        v.get_noted(hold, "duration", dimension::time, Magnitude::duration, Range::positive());
-  }
-  parse_stepping(node, seg);
-  parse_normal(node.optional("normal"), model, seg, fn, v);
+  InputErrorList errors;
+  const bool motion = errors.attempt([&] {
+    if (*node.one_of({"slide", "hold"}, true) == "slide") {
+      parse_slide(node.required("slide"), seg, v);
+    } else {
+      const CheckedNode hold = node.required("hold");
+      hold.allow_keys({"duration"});
+      seg.velocity.setZero();
+      seg.duration =
+          v.get_noted(hold, "duration", dimension::time, Magnitude::duration, Range::positive());
+    }
+  });
+  errors.attempt([&] { parse_stepping(node, seg, motion); });
+  // (a normal velocity needs the duration)
+  if (motion) errors.attempt([&] { parse_normal(node.optional("normal"), model, seg, fn, v); });
+  errors.throw_if_any();
   return seg;
 }
 
+// Every segment is read, each error reported.
 std::vector<contact::Segment> parse_loading(const CheckedNode& node,
                                             const contact::ContactModel& model, SceneValues& v) {
   if (node.size() == 0) node.fail("needs at least one segment");
   std::vector<contact::Segment> segments;
   double fn = model.initial_normal_traction;
+  InputErrorList errors;
   for (const CheckedNode& element : node.elements())
-    segments.push_back(parse_segment(element, model, fn, v));
+    errors.attempt([&] { segments.push_back(parse_segment(element, model, fn, v)); });
+  errors.throw_if_any();
   return segments;
 }
 
@@ -210,23 +237,29 @@ void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& seg
 void check_top_level(const CheckedNode& root) {
   root.allow_keys({"scene", "title", "units", "law", "contact", "initial", "loading", "integrator",
                    "output", "sweep"});
-  root.get_choice("scene", {"contact"});
 }
 
+// Every block is read and each error reported; a block that needs a failed one (the initial
+// state needs the law, the loading the contact, output.at the loading) is skipped.
 ContactCase parse_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
-  check_top_level(root);
   ContactCase c;
   c.name = std::move(swept.name);
   c.overrides = std::move(swept.overrides);
   SceneValues values(units);
-  c.model.law = parse_law_block(root.required("law"), contact_law_units(units));
-  parse_contact_block(root.required("contact"), c.model, values);
-  parse_initial(root.optional("initial"), c.model);
-  c.segments = parse_loading(root.required("loading"), c.model, values);
-  c.integrator = parse_integrator(root.optional("integrator"));
-  c.fields = parse_output(root.optional("output"));
-  parse_output_at(root, c.segments, units);
+  InputErrorList errors;
+  const bool law = errors.attempt(
+      [&] { c.model.law = parse_law_block(root.required("law"), contact_law_units(units)); });
+  const bool contact =
+      errors.attempt([&] { parse_contact_block(root.required("contact"), c.model, values); });
+  if (law) errors.attempt([&] { parse_initial(root.optional("initial"), c.model); });
+  const bool loading = contact && errors.attempt([&] {
+    c.segments = parse_loading(root.required("loading"), c.model, values);
+  });
+  errors.attempt([&] { c.integrator = parse_integrator(root.optional("integrator")); });
+  const bool output = errors.attempt([&] { c.fields = parse_output(root.optional("output")); });
+  if (loading && output) errors.attempt([&] { parse_output_at(root, c.segments, units); });
+  errors.throw_if_any();
   c.magnitudes = values.take_magnitudes();
   return c;
 }
@@ -234,22 +267,30 @@ ContactCase parse_case(SweepCase swept, const Units& units) {
 }  // namespace
 
 ContactScene load_contact_scene(const std::filesystem::path& path) {
-  return parse_contact_scene(YamlDocument::from_file(path));
+  return parse_contact_scene(compose_scene(YamlDocument::from_file(path)));
 }
 
 ContactScene parse_contact_scene(const YamlDocument& document) {
   const CheckedNode root = document.root();
-  check_top_level(root);
   ContactScene scene;
   scene.file = document.file();
   scene.text = document.text();
-  scene.title = root.get_string("title", "");
-  scene.units = parse_units(root.required("units"));
-  scene.compression = parse_compression(root.optional("output"));
-  const Units& units = scene.units;
-  scene.cases = parse_sweep_cases(document, kContactSweepable, [&units](SweepCase swept) {
-    return parse_case(std::move(swept), units);
-  });
+  scene.makeup = makeup_of(document);
+  InputErrorList errors;
+  root.get_choice("scene", {"contact"});  // a scene of another kind is read no further
+  errors.attempt([&] { check_top_level(root); });
+  errors.attempt([&] { scene.title = root.get_string("title", ""); });
+  const bool units = errors.attempt([&] { scene.units = parse_units(root.required("units")); });
+  errors.attempt([&] { scene.compression = parse_compression(root.optional("output")); });
+  if (units) {
+    const Units& u = scene.units;
+    errors.attempt([&] {
+      scene.cases = parse_sweep_cases(document, kContactSweepable, [&u](SweepCase swept) {
+        return parse_case(std::move(swept), u);
+      });
+    });
+  }
+  errors.throw_if_any();
   return scene;
 }
 

@@ -149,12 +149,15 @@ void write_law_parameters(const h5::Group& g, const CrystalCase& c, const Units&
     for (const auto& k : law::kLawParameters) {
       if (k.block != b.block) continue;
       // NaN for rate-independent systems, which have no overstress constants.
-      set_with_unit(g, std::string(k.name), per_system(s, [&k](const auto& x) {
-                      return k.rate_dependent_only &&
-                                     x.law.overstress.form == law::OverstressForm::rate_independent
-                                 ? std::nan("")
-                                 : k.value(x.law);
-                    }),
+      set_with_unit(g, std::string(k.name),
+                    per_system(s,
+                               [&k](const auto& x) {
+                                 return k.rate_dependent_only &&
+                                                x.law.overstress.form ==
+                                                    law::OverstressForm::rate_independent
+                                            ? std::nan("")
+                                            : k.value(x.law);
+                               }),
                     law_unit_name(k.unit, true, u));
     }
   }
@@ -442,7 +445,7 @@ void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, in
 CrystalCaseWriter::CrystalCaseWriter(const h5::Group& cases, const CrystalCase& c, int index,
                                      const Units& units, h5::CaseProgress& progress,
                                      std::size_t rows, const parallel::Block* block)
-    : group_(cases.open_group(c.name)),
+    : group_(cases.open_group(case_group_name(c.name))),
       units_(units),
       progress_(progress),
       index_(static_cast<std::size_t>(index)) {
@@ -580,12 +583,18 @@ Mat3 matrix_attribute(const h5::Group& g, const char* name) {
 CrystalRunFiles lay_out(const CrystalScene& scene, h5::File& file,
                         const CrystalSinkOptions& options) {
   const h5::Group root = file.root();
-  h5::write_result_header(file, {"crystal", scene.file, scene.text, scene.title,
-                                 crystal_units(scene.units), options.computed_with,
-                                 scene.compression.gzip_level});
+  h5::ResultHeader header{"crystal",
+                          scene.file,
+                          scene.text,
+                          scene.title,
+                          crystal_units(scene.units),
+                          options.computed_with,
+                          scene.compression.gzip_level};
+  header.makeup = scene.makeup;
+  h5::write_result_header(file, header);
   h5::Group cases = root.create_group("cases");
   std::vector<std::string> names;
-  for (const auto& c : scene.cases) names.push_back(c.name);
+  for (const auto& c : scene.cases) names.push_back(case_group_name(c.name));
   cases.set_attribute("names", names);
   for (std::size_t k = 0; k < scene.cases.size(); ++k)
     CrystalCaseWriter::lay_out(cases, scene.cases[k], static_cast<int>(k), scene.units);
@@ -657,7 +666,7 @@ void CrystalResultSink::write_grain_statics_again() {
   const bool writes_all = !options_.mpi || options_.mpi->rank == 0;
   for (const CrystalCase& c : scene_.cases) {
     if (c.output.grains.empty()) continue;
-    const h5::Group grains = run_.cases.open_group(c.name).open_group("grains");
+    const h5::Group grains = run_.cases.open_group(case_group_name(c.name)).open_group("grains");
     const bool block = c.orientation_block.has_value();
     const std::size_t first = block ? c.orientation_block->offset : 0;
     const bool writes = block || writes_all;  // (under MPI every rank takes part, collectively)
@@ -679,7 +688,7 @@ driver::CaseStatus CrystalResultSink::status(std::size_t index) const {
 
 // Read back from the case's summary attributes.
 driver::StoredCrystalCase CrystalResultSink::stored_case(std::size_t index) const {
-  const h5::Group g = run_.cases.open_group(scene_.cases[index].name);
+  const h5::Group g = run_.cases.open_group(case_group_name(scene_.cases[index].name));
   auto count = [&](const char* name) {
     return g.has_attribute(name) ? static_cast<long>(g.attribute_int(name)) : 0L;
   };

@@ -2,6 +2,7 @@
 
 #include "subslip/io/law_block.hpp"
 #include "subslip/io/output_points.hpp"
+#include "subslip/io/scene_compose.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -228,38 +229,64 @@ void parse_per_family(const CheckedNode& phase, const crystal::SlipGroupSettings
     d.custom_settings = family_settings({}, settings, phase_initial_mu, v);
 }
 
+// Every independent part is read, each error reported; a part that needs a failed one (the
+// elasticity and c/a need the families, per_family the law) is skipped.
 void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
   node.allow_keys({"families", "slip_systems", "c_over_a", "elasticity", "tau0", "law",
                    "initial_mu", "per_family", "latent", "pressure_sensitive", "kinematics"});
   crystal::PhaseDescription& d = c.phase;
-  if (*node.one_of({"families", "slip_systems"}, true) == "families") {
-    d.families = parse_families(node.required("families"));
-  } else {
-    d.custom_systems = parse_custom_systems(node.required("slip_systems"));
+  InputErrorList errors;
+  const bool systems = errors.attempt([&] {
+    if (*node.one_of({"families", "slip_systems"}, true) == "families") {
+      d.families = parse_families(node.required("families"));
+    } else {
+      d.custom_systems = parse_custom_systems(node.required("slip_systems"));
+    }
+  });
+  if (systems) {
+    errors.attempt([&] { parse_c_over_a(node, d); });
+    errors.attempt([&] {
+      d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type, v);
+    });
   }
-  parse_c_over_a(node, d);
-  d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type, v);
   crystal::SlipGroupSettings settings;
-  settings.tau0 = v.get_noted(node, "tau0", dimension::stress, Magnitude::tau0, Range::positive());
-  settings.law = parse_law_block(node.required("law"), crystal_law_units(v.units()), {}, false);
+  bool group = errors.attempt([&] {
+    settings.tau0 =
+        v.get_noted(node, "tau0", dimension::stress, Magnitude::tau0, Range::positive());
+  });
+  group = errors.attempt([&] {
+    settings.law = parse_law_block(node.required("law"), crystal_law_units(v.units()), {}, false);
+  }) && group;
   const auto initial_mu = node.optional("initial_mu");
-  if (initial_mu) settings.initial_mu = initial_mu->as_double(Range::positive());
-  parse_per_family(node, settings, initial_mu.has_value(), d, v);
-  if (auto latent = node.optional("latent")) d.latent = parse_latent(*latent);
-  if (auto p = node.optional("pressure_sensitive")) d.pressure_sensitive = p->as_bool();
-  if (auto k = node.optional("kinematics")) {
-    d.kinematics =
-        k->as_enum<crystal::Kinematics>({{"finite_rotation", crystal::Kinematics::finite_rotation},
-                                         {"small_strain", crystal::Kinematics::small_strain}});
-  }
+  group = errors.attempt([&] {
+    if (initial_mu) settings.initial_mu = initial_mu->as_double(Range::positive());
+  }) && group;
+  if (systems && group)
+    errors.attempt([&] { parse_per_family(node, settings, initial_mu.has_value(), d, v); });
+  errors.attempt([&] {
+    if (auto latent = node.optional("latent")) d.latent = parse_latent(*latent);
+  });
+  errors.attempt([&] {
+    if (auto p = node.optional("pressure_sensitive")) d.pressure_sensitive = p->as_bool();
+  });
+  errors.attempt([&] {
+    if (auto k = node.optional("kinematics")) {
+      d.kinematics = k->as_enum<crystal::Kinematics>(
+          {{"finite_rotation", crystal::Kinematics::finite_rotation},
+           {"small_strain", crystal::Kinematics::small_strain}});
+    }
+  });
+  errors.throw_if_any();
 }
 
 // ---------------------------------------------------------------- orientations
 
-std::filesystem::path resolve_relative(const std::string& file, const std::string& scene_file) {
+// `file` relative to `directory` (that of the scene file, or of the base scene, naming it).
+std::filesystem::path resolve_relative(const std::string& file,
+                                       const std::filesystem::path& directory) {
   const std::filesystem::path p(file);
   if (p.is_absolute()) return p;
-  return std::filesystem::path(scene_file).parent_path() / p;
+  return directory / p;
 }
 
 // Where a scene names an orientation file: errors about the file as a whole are reported here.
@@ -278,7 +305,7 @@ struct SceneKey {
 model::OrientationFile orientation_file(const CheckedNode& node,
                                         const OrientationFileLayout& layout,
                                         OrientationSource& source) {
-  const std::string path = resolve_relative(node.as_string(), node.file()).string();
+  const std::string path = resolve_relative(node.as_string(), node.directory()).string();
   source = {"file", path};
   const SceneKey key{node.file(), node.line(), node.path()};
   model::OrientationFile file;
@@ -508,33 +535,54 @@ void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg, SceneVal
     strain.fail("strain / rate is not a usable duration (over- or underflow)");
 }
 
-void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v) {
-  parse_duration(node, seg, v);
-  seg.increments = node.get_int("increments", Range::at_least(1));
-  seg.growth = node.get_double("growth", 1.0, Range::positive());
-  seg.output_every = node.get_int("output_every", 1, Range::at_least(1));
-  check_increment_lengths(node, seg.duration, seg.increments, seg.growth);
+// The duration (a strain needs the segment's L), increments, growth and output_every, each
+// error reported; the increment lengths are checked once the first three are read.
+void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v,
+                    bool rate_known) {
+  InputErrorList errors;
+  bool lengths = rate_known && errors.attempt([&] { parse_duration(node, seg, v); });
+  lengths = errors.attempt([&] {
+    seg.increments = node.get_int("increments", Range::at_least(1));
+  }) && lengths;
+  lengths = errors.attempt([&] {
+    seg.growth = node.get_double("growth", 1.0, Range::positive());
+  }) && lengths;
+  errors.attempt([&] { seg.output_every = node.get_int("output_every", 1, Range::at_least(1)); });
+  if (lengths)
+    errors.attempt(
+        [&] { check_increment_lengths(node, seg.duration, seg.increments, seg.growth); });
+  errors.throw_if_any();
 }
 
 crystal::LoadSegment parse_segment(const CheckedNode& node, SceneValues& v) {
   node.allow_keys({"L", "stress", "duration", "strain", "increments", "growth", "output_every"});
-  const MatrixInput l =
-      read_matrix(node.required("L"), dimension::per_time, v, Magnitude::strain_rate);
+  InputErrorList errors;
+  MatrixInput l;
+  const bool have_l = errors.attempt(
+      [&] { l = read_matrix(node.required("L"), dimension::per_time, v, Magnitude::strain_rate); });
   std::optional<MatrixInput> stress;
-  if (auto s = node.optional("stress")) stress = read_matrix(*s, dimension::stress, v, {});
-  check_mixed_control(l, stress);
+  const bool have_stress = errors.attempt([&] {
+    if (auto s = node.optional("stress")) stress = read_matrix(*s, dimension::stress, v, {});
+  });
+  const bool controlled =
+      have_l && have_stress && errors.attempt([&] { check_mixed_control(l, stress); });
   crystal::LoadSegment seg;
   seg.velocity_gradient = l.value;
   seg.free = l.free;
   if (stress) seg.stress_target = stress->value;
-  parse_stepping(node, seg, v);
+  errors.attempt([&] { parse_stepping(node, seg, v, controlled); });
+  errors.throw_if_any();
   return seg;
 }
 
+// Every segment is read, each error reported.
 std::vector<crystal::LoadSegment> parse_loading(const CheckedNode& node, SceneValues& v) {
   if (node.size() == 0) node.fail("needs at least one segment");
   std::vector<crystal::LoadSegment> segments;
-  for (const CheckedNode& element : node.elements()) segments.push_back(parse_segment(element, v));
+  InputErrorList errors;
+  for (const CheckedNode& element : node.elements())
+    errors.attempt([&] { segments.push_back(parse_segment(element, v)); });
+  errors.throw_if_any();
   return segments;
 }
 
@@ -672,22 +720,28 @@ void parse_output_at(const CheckedNode& root, CrystalCase& c, const Units& units
 void check_top_level(const CheckedNode& root) {
   root.allow_keys({"scene", "title", "units", "phase", "orientations", "loading", "integrator",
                    "output", "sweep"});
-  root.get_choice("scene", {"crystal"});
 }
 
+// Every block is read and each error reported; a block that needs a failed one (the
+// integrator's checks need the phase, output.at the loading) is skipped.
 CrystalCase parse_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
-  check_top_level(root);
   CrystalCase c;
   c.name = std::move(swept.name);
   c.overrides = std::move(swept.overrides);
   SceneValues values(units);
-  parse_phase(root.required("phase"), c, values);
-  c.orientation_origin = parse_orientations(root.required("orientations"), c.orientation_source);
-  c.segments = parse_loading(root.required("loading"), values);
-  c.options = parse_integrator(root.optional("integrator"), c.phase);
-  c.output = parse_output(root.optional("output"));
-  parse_output_at(root, c, units);
+  InputErrorList errors;
+  const bool phase = errors.attempt([&] { parse_phase(root.required("phase"), c, values); });
+  errors.attempt([&] {
+    c.orientation_origin = parse_orientations(root.required("orientations"), c.orientation_source);
+  });
+  const bool loading =
+      errors.attempt([&] { c.segments = parse_loading(root.required("loading"), values); });
+  if (phase)
+    errors.attempt([&] { c.options = parse_integrator(root.optional("integrator"), c.phase); });
+  const bool output = errors.attempt([&] { c.output = parse_output(root.optional("output")); });
+  if (loading && output) errors.attempt([&] { parse_output_at(root, c, units); });
+  errors.throw_if_any();
   c.magnitudes = values.take_magnitudes();
   return c;
 }
@@ -695,7 +749,7 @@ CrystalCase parse_case(SweepCase swept, const Units& units) {
 }  // namespace
 
 CrystalScene load_crystal_scene(const std::filesystem::path& path) {
-  return parse_crystal_scene(YamlDocument::from_file(path));
+  return parse_crystal_scene(compose_scene(YamlDocument::from_file(path)));
 }
 
 CrystalScene parse_crystal_scene(const YamlDocument& document) {
@@ -706,17 +760,26 @@ CrystalScene parse_crystal_scene(const YamlDocument& document) {
 
 CrystalScene describe_crystal_scene(const YamlDocument& document) {
   const CheckedNode root = document.root();
-  check_top_level(root);
   CrystalScene scene;
   scene.file = document.file();
   scene.text = document.text();
-  scene.title = root.get_string("title", "");
-  scene.units = parse_units_without_length(root.required("units"));
-  scene.compression = parse_compression(root.optional("output"));
-  const Units& units = scene.units;
-  scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&units](SweepCase swept) {
-    return parse_case(std::move(swept), units);
-  });
+  scene.makeup = makeup_of(document);
+  InputErrorList errors;
+  root.get_choice("scene", {"crystal"});  // a scene of another kind is read no further
+  errors.attempt([&] { check_top_level(root); });
+  errors.attempt([&] { scene.title = root.get_string("title", ""); });
+  const bool units =
+      errors.attempt([&] { scene.units = parse_units_without_length(root.required("units")); });
+  errors.attempt([&] { scene.compression = parse_compression(root.optional("output")); });
+  if (units) {
+    const Units& u = scene.units;
+    errors.attempt([&] {
+      scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&u](SweepCase swept) {
+        return parse_case(std::move(swept), u);
+      });
+    });
+  }
+  errors.throw_if_any();
   return scene;
 }
 

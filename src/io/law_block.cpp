@@ -75,14 +75,19 @@ void allow_block_keys(const CheckedNode& node, law::LawBlock block) {
   node.allow_keys(std::span<const std::string_view>(keys));
 }
 
-// Reads every constant of `block` (each inherited when partial and not given).
+// Reads every constant of `block` (each inherited when partial and not given); reports every
+// bad one.
 void read_constants(const CheckedNode& node, law::LawBlock block, law::LawParameters& p,
                     bool partial, const LawUnits& units) {
+  InputErrorList errors;
   for (const auto& c : law::kLawParameters) {
     if (c.block != block) continue;
-    c.ref(p) = read_number(node, c.name, c.value(p), partial, range_of(c.bound),
-                           unit_of(units, c.unit));
+    errors.attempt([&] {
+      c.ref(p) =
+          read_number(node, c.name, c.value(p), partial, range_of(c.bound), unit_of(units, c.unit));
+    });
   }
+  errors.throw_if_any();
 }
 
 void parse_friction(const CheckedNode& node, law::LawParameters& p, bool partial,
@@ -94,13 +99,17 @@ void parse_friction(const CheckedNode& node, law::LawParameters& p, bool partial
 void parse_subloading(const CheckedNode& node, law::LawParameters& p, bool partial,
                       const LawUnits& units) {
   allow_block_keys(node, law::LawBlock::subloading);
-  if (auto f = node.optional("function")) {
-    p.subloading.function =
-        f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
-                                        {"neg_log", SubloadingFunction::neg_log},
-                                        {"reciprocal", SubloadingFunction::reciprocal}});
-  }
-  read_constants(node, law::LawBlock::subloading, p, partial, units);
+  InputErrorList errors;
+  errors.attempt([&] {
+    if (auto f = node.optional("function")) {
+      p.subloading.function =
+          f->as_enum<SubloadingFunction>({{"cot", SubloadingFunction::cot},
+                                          {"neg_log", SubloadingFunction::neg_log},
+                                          {"reciprocal", SubloadingFunction::reciprocal}});
+    }
+  });
+  errors.attempt([&] { read_constants(node, law::LawBlock::subloading, p, partial, units); });
+  errors.throw_if_any();
 }
 
 void parse_overstress(const CheckedNode& node, law::LawParameters& p, bool partial,
@@ -117,7 +126,8 @@ void parse_overstress(const CheckedNode& node, law::LawParameters& p, bool parti
     // Silently ignoring them would let a reader believe they act.
     for (const auto& c : law::kLawParameters) {
       if (!c.rate_dependent_only) continue;
-      if (auto v = node.optional(c.name)) v->fail("not used by the rate_independent form; remove it");
+      if (auto v = node.optional(c.name))
+        v->fail("not used by the rate_independent form; remove it");
     }
     return;
   }
@@ -155,12 +165,20 @@ std::string law_unit_name(law::ParameterUnit kind, bool crystal, const Units& un
 law::LawParameters parse_law_block(const CheckedNode& node, const LawUnits& units,
                                    law::LawParameters base, bool partial) {
   node.allow_keys({"friction", "subloading", "overstress"});
-  read_block(node, "friction", partial,
-             [&](const CheckedNode& n) { parse_friction(n, base, partial, units); });
-  read_block(node, "subloading", partial,
-             [&](const CheckedNode& n) { parse_subloading(n, base, partial, units); });
-  read_block(node, "overstress", partial,
-             [&](const CheckedNode& n) { parse_overstress(n, base, partial, units); });
+  InputErrorList errors;  // the three blocks are independent: every one is read
+  errors.attempt([&] {
+    read_block(node, "friction", partial,
+               [&](const CheckedNode& n) { parse_friction(n, base, partial, units); });
+  });
+  errors.attempt([&] {
+    read_block(node, "subloading", partial,
+               [&](const CheckedNode& n) { parse_subloading(n, base, partial, units); });
+  });
+  errors.attempt([&] {
+    read_block(node, "overstress", partial,
+               [&](const CheckedNode& n) { parse_overstress(n, base, partial, units); });
+  });
+  errors.throw_if_any();
   return base;
 }
 

@@ -76,6 +76,7 @@ RestartInfo inspect_for_restart(const std::filesystem::path& file,
   info.scene_kind = string_attribute(root, file, "scene_kind");
   info.scene_file = string_attribute(root, file, "scene_file");
   info.scene_text = root.open_dataset("scene").read_string();
+  info.makeup = h5::read_scene_makeup(root);
   info.case_names = root.open_group("cases").attribute_strings("names");
   const h5::CaseProgress progress = h5::CaseProgress::open(root);
   if (progress.size() != info.case_names.size())

@@ -71,10 +71,19 @@ struct ResultFile {
     const bool has_group = root.has("cases") && root.open_group("cases").has(c);
     return has_group && state(c) != CaseState::not_started;
   }
+  // The name of case `c` (its group's name) as the run showed it: the group's `name`
+  // attribute ("speed=1 mm/min" for the group "speed=1 mm_min"), else `c`.
+  std::string shown_name(const std::string& c) const;
 };
 
 bool has_string_attribute(const h5::Object& o, const std::string& name) {
   return o.has_attribute(name) && o.attribute_class(name) == h5::ValueClass::string;
+}
+
+std::string ResultFile::shown_name(const std::string& c) const {
+  if (!root.has("cases") || !root.open_group("cases").has(c)) return c;
+  const h5::Group g = root.open_group("cases/" + c);
+  return has_string_attribute(g, "name") ? g.attribute_string("name") : c;
 }
 
 // The case names in run order (`/cases` attribute `names`), plus any group it does not list.
@@ -177,19 +186,28 @@ void collect_datasets(const h5::Group& g, const std::string& prefix,
   }
 }
 
-// The cases to work on: `wanted`, or every case that has a group (was started).
+// The group of the case `wanted` names, by its name as shown or as stored; nullopt if none.
+std::optional<std::string> find_case(const ResultFile& r, const std::string& wanted) {
+  for (const auto& c : r.cases) {
+    if (c == wanted || r.shown_name(c) == wanted) return c;
+  }
+  return std::nullopt;
+}
+
+// The cases to work on (their groups): `wanted`, or every case that has a group (was started).
 std::vector<std::string> select_cases(const ResultFile& r, const std::string& wanted) {
-  const auto& names = r.cases;
   std::vector<std::string> started;
-  for (const auto& n : names) {
+  for (const auto& n : r.cases) {
     if (r.started(n)) started.push_back(n);
   }
   if (wanted.empty()) return started;
-  if (std::find(started.begin(), started.end(), wanted) != started.end()) return {wanted};
-  const bool listed = std::find(names.begin(), names.end(), wanted) != names.end();
+  const std::optional<std::string> c = find_case(r, wanted);
+  if (c && r.started(*c)) return {*c};
+  std::vector<std::string> shown;
+  for (const auto& n : r.cases) shown.push_back(r.shown_name(n));
   throw InputError(r.name, 0, "--case",
-                   listed ? "case '" + wanted + "' was not started (the run stopped before it)"
-                          : "no case '" + wanted + "'; the file has: " + join(names, ", "));
+                   c ? "case '" + wanted + "' was not started (the run stopped before it)"
+                     : "no case '" + wanted + "'; the file has: " + join(shown, ", "));
 }
 
 std::string attribute_or(const h5::Object& o, const std::string& name, const std::string& dflt) {
@@ -301,6 +319,15 @@ void print_finished(std::ostream& out, const ResultFile& r) {
   }
 }
 
+// The base scenes and settings the scene was made of (none: nothing printed).
+void print_scene_makeup(std::ostream& out, const model::SceneMakeup& makeup) {
+  for (std::size_t k = 0; k < makeup.bases.size(); ++k) {
+    print_hanging(out, "base scene:  ",
+                  makeup.bases[k].first + " (/scene_bases/" + std::to_string(k + 1) + ")");
+  }
+  for (const std::string& setting : makeup.settings) print_hanging(out, "set:         ", setting);
+}
+
 void print_file_header(std::ostream& out, const ResultFile& r) {
   const h5::Group& root = r.root;
   const auto text = [&](const char* name) { return attribute_or(root, name, "-"); };
@@ -339,6 +366,7 @@ void print_file_header(std::ostream& out, const ResultFile& r) {
   }
   print_hanging(out, "units:       ", units.empty() ? "-" : join(units, ", "));
   if (root.has("scene")) out << "scene:       /scene (the scene YAML; h5dump -d /scene FILE)\n";
+  print_scene_makeup(out, h5::read_scene_makeup(root));
 }
 
 void print_case_attributes(std::ostream& out, const h5::Group& g) {
@@ -346,7 +374,9 @@ void print_case_attributes(std::ostream& out, const h5::Group& g) {
   for (const auto& n : g.attribute_names()) {
     if (n == "name" || n == "index" || ends_with(n, ".unit")) continue;
     std::string value = attribute_text(g, n);
-    const std::string unit = attribute_or(g, n + ".unit", "");
+    // (a swept value stored as text is as written, its own unit included: "1 mm/min")
+    const bool text = g.attribute_class(n) == h5::ValueClass::string;
+    const std::string unit = text ? "" : attribute_or(g, n + ".unit", "");
     if (!unit.empty() && unit != "1") value += " " + unit;
     lines.emplace_back(n, value);
   }
@@ -1100,13 +1130,18 @@ void print_summary(std::ostream& out, const fs::path& file, const std::string& c
   const auto selected = select_cases(r, case_name);
   print_file_header(out, r);
   const auto& all = r.cases;
+  std::vector<std::string> shown;
+  for (const auto& c : all) shown.push_back(r.shown_name(c));
   print_hanging(out, "cases:       ",
-                std::to_string(all.size()) + (all.empty() ? "" : ": " + join(all, ", ")));
+                std::to_string(all.size()) + (all.empty() ? "" : ": " + join(shown, ", ")));
   for (const auto& c : selected) {
     const h5::Group g = r.root.open_group("cases/" + c);
-    out << "\ncase " << c;
-    if (g.has_attribute("index")) out << " (index " << attribute_text(g, "index") << ")";
-    out << case_state_text(r, c, g) << "\n";
+    const std::string name = r.shown_name(c);
+    std::vector<std::string> where;
+    if (name != c) where.push_back("group /cases/" + c);  // a '/' of the name, stored as '_'
+    if (g.has_attribute("index")) where.push_back("index " + attribute_text(g, "index"));
+    out << "\ncase " << name << (where.empty() ? "" : " (" + join(where, ", ") + ")")
+        << case_state_text(r, c, g) << "\n";
     print_case_attributes(out, g);
     print_case_datasets(out, g, r, c);
     const auto derived = derived_available(g);
@@ -1114,7 +1149,7 @@ void print_summary(std::ostream& out, const fs::path& file, const std::string& c
   }
   for (const auto& c : all) {
     if (std::find(selected.begin(), selected.end(), c) == selected.end() && case_name.empty()) {
-      out << "\ncase " << c << ": not started\n";
+      out << "\ncase " << r.shown_name(c) << ": not started\n";
     }
   }
 }

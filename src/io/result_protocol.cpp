@@ -93,6 +93,39 @@ std::string failure_message(const Group& case_group) {
 
 // ---------------------------------------------------------------- result header
 
+namespace {
+
+// What else the scene was made of (none: nothing is written, as for a scene of its own).
+void write_scene_makeup(const Group& root, const model::SceneMakeup& makeup) {
+  if (!makeup.bases.empty()) {
+    const Group bases = root.create_group(kSceneBases);
+    for (std::size_t k = 0; k < makeup.bases.size(); ++k) {
+      const auto& [file, text] = makeup.bases[k];
+      bases
+          .write_text(std::to_string(k + 1), text,
+                      k == 0 ? "the base scene /scene names, verbatim"
+                             : "the base scene the one before names, verbatim")
+          .set_attribute("file", file);
+    }
+  }
+  if (!makeup.settings.empty()) root.set_attribute(kSceneSettings, makeup.settings);
+}
+
+}  // namespace
+
+model::SceneMakeup read_scene_makeup(const Group& root) {
+  model::SceneMakeup makeup;
+  if (root.has(kSceneBases)) {
+    const Group bases = root.open_group(kSceneBases);
+    for (std::size_t k = 1; bases.has(std::to_string(k)); ++k) {
+      const Dataset base = bases.open_dataset(std::to_string(k));
+      makeup.bases.emplace_back(base.attribute_string("file"), base.read_string());
+    }
+  }
+  if (root.has_attribute(kSceneSettings)) makeup.settings = root.attribute_strings(kSceneSettings);
+  return makeup;
+}
+
 void write_result_header(File& file, const ResultHeader& header) {
   const Group root = file.root();
   root.set_attribute("format", "subslip");
@@ -111,6 +144,7 @@ void write_result_header(File& file, const ResultHeader& header) {
   root.reserve_string_attribute("write_error", kFailureMessageBytes);
   root.set_attribute("gzip_level", header.gzip_level);
   root.write_text("scene", header.scene_text, "the scene file, verbatim");
+  write_scene_makeup(root, header.makeup);
   const Group units = root.create_group("units");
   for (const auto& [name, unit] : header.units) units.set_attribute(name, unit);
   file.flush("the result's header");

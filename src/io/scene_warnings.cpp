@@ -23,8 +23,10 @@ std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   return buf;
 }
 
-// Warnings per case, merged: a sweep gives one line per distinct message listing its cases.
-// A warning about a written value carries its line ("FILE:LINE: KEY: ..."), as errors do.
+// Warnings per case, merged: a sweep gives one line per distinct message listing its cases,
+// none when every case has it (a value no swept value touches: naming cases would suggest the
+// sweep caused it). A warning about a written value carries its line ("FILE:LINE: KEY: ..."),
+// as errors do.
 class Collector {
  public:
   void add(const std::string& case_name, std::string message, int line = 0) {
@@ -36,14 +38,10 @@ class Collector {
     std::vector<std::string> out;
     for (const auto& [line, message, cases] : order_) {
       std::string where;
-      if (case_count > 1) {
-        if (cases.size() == case_count) {
-          where = " (every case)";
-        } else {
-          where = " (case" + std::string(cases.size() == 1 ? " " : "s ");
-          for (std::size_t k = 0; k < cases.size(); ++k) where += (k ? ", " : "") + cases[k];
-          where += ")";
-        }
+      if (cases.size() < case_count) {
+        where = " (case" + std::string(cases.size() == 1 ? " " : "s ");
+        for (std::size_t k = 0; k < cases.size(); ++k) where += (k ? ", " : "") + cases[k];
+        where += ")";
       }
       std::string text = file;
       if (line > 0) text.append(":").append(std::to_string(line));

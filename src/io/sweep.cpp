@@ -13,23 +13,24 @@ namespace {
 // More cases than this is almost certainly a mistake in the sweep block.
 constexpr std::size_t kMaxCases = 100000;
 
-struct PathStep {
-  enum class Kind { key, index, all } kind;
-  std::string key;
-  std::size_t index = 0;
-};
+using detail::PathStep;
 
 bool is_name_char(char c) {
   return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
 }
 
-// "loading[0].slide.speed" -> key loading, index 0, key slide, key speed.
-std::vector<PathStep> parse_path(const std::string& path, const CheckedNode& at) {
+}  // namespace
+
+namespace detail {
+
+std::vector<PathStep> parse_path(const std::string& path, const CheckedNode& at,
+                                 std::string_view what) {
   std::vector<PathStep> steps;
   std::size_t i = 0;
   auto bad = [&](const std::string& why) {
-    at.fail("malformed sweep path '" + path + "' at character " + std::to_string(i + 1) + ": " +
-            why + " (use keys joined by '.', with [i] or [*] for sequence elements)");
+    at.fail("malformed " + std::string(what) + " path '" + path + "' at character " +
+            std::to_string(i + 1) + ": " + why +
+            " (use keys joined by '.', with [i] or [*] for sequence elements)");
   };
   auto read_name = [&] {
     const std::size_t start = i;
@@ -62,6 +63,12 @@ std::vector<PathStep> parse_path(const std::string& path, const CheckedNode& at)
   }
   return steps;
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::parse_path;
 
 std::vector<std::string> map_keys(const YAML::Node& node) {
   std::vector<std::string> keys;
@@ -158,7 +165,7 @@ std::vector<SweepEntry> read_entries(const CheckedNode& root, const CheckedNode&
   for (const std::string& path : sweep.keys()) {
     const CheckedNode values = sweep.required(path).renamed("sweep[\"" + path + "\"]");
     if (values.size() == 0) values.fail("a sweep needs at least one value");
-    auto steps = parse_path(path, values);
+    auto steps = parse_path(path, values, "sweep");
     const std::string& first = steps.front().key;
     if (std::find(sweepable.begin(), sweepable.end(), first) == sweepable.end()) {
       values.fail("'" + first + "' cannot be swept; sweepable: " + [&] {
@@ -180,21 +187,16 @@ std::vector<SweepEntry> read_entries(const CheckedNode& root, const CheckedNode&
   return entries;
 }
 
-// HDF5 group names cannot contain '/'.
-std::string group_safe(std::string name) {
-  std::replace(name.begin(), name.end(), '/', '_');
-  return name;
-}
-
 SweepCase make_case(const YamlDocument& scene, const std::vector<SweepEntry>& entries,
                     const std::vector<std::size_t>& choice) {
-  SweepCase out{{}, {}, YamlDocument::from_string(scene.text(), scene.file())};
+  SweepCase out{{}, {}, scene.copy()};
   // A fresh parse per case keeps each case's tree (and its line numbers) separate.
   const YAML::Node root = out.document.root().yaml();
   const YAML::Node sweep = root["sweep"];
   for (std::size_t k = 0; k < entries.size(); ++k) {
     const SweepEntry& e = entries[k];
     YAML::Node value = sweep[e.path][choice[k]];
+    out.document.note_origin(value, e.values.origin());  // (a sweep block of a base scene)
     for (YAML::Node target : resolve(root, e.steps, e.values)) {
       // Node assignment makes the target share the sweep value's node, line number included.
       target = value;
@@ -203,7 +205,6 @@ SweepCase make_case(const YamlDocument& scene, const std::vector<SweepEntry>& en
     out.overrides.push_back({e.path, text, number_of(value)});
     out.name += (out.name.empty() ? "" : ",") + e.label + "=" + text;
   }
-  out.name = group_safe(out.name);
   return out;
 }
 
@@ -211,11 +212,58 @@ SweepCase make_case(const YamlDocument& scene, const std::vector<SweepEntry>& en
 
 namespace detail {
 
-bool same_input_error(const InputError& a, const InputError& b) {
-  return a.file == b.file && a.line == b.line && a.key == b.key && a.message == b.message;
+namespace {
+
+// " (in sweep case 'a')", " (in sweep cases 'a', 'b', 'c' and 4 more)".
+std::string case_tag(const std::vector<std::string>& names) {
+  constexpr std::size_t kListed = 3;
+  std::string tag = names.size() == 1 ? " (in sweep case " : " (in sweep cases ";
+  for (std::size_t k = 0; k < names.size() && k < kListed; ++k)
+    tag.append(k > 0 ? ", '" : "'").append(names[k]).append("'");
+  if (names.size() > kListed)
+    tag.append(" and " + std::to_string(names.size() - kListed) + " more");
+  return tag + ")";
+}
+
+}  // namespace
+
+void throw_case_errors(const std::vector<SweepCase>& cases,
+                       const std::vector<std::vector<InputError>>& errors, bool stopped) {
+  struct Seen {
+    InputError error;
+    std::vector<std::string> cases;  // the names of the cases that have it
+  };
+  std::vector<Seen> seen;
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    for (const InputError& e : errors[k]) {
+      auto it = std::find_if(seen.begin(), seen.end(),
+                             [&](const Seen& s) { return InputErrorList::same(s.error, e); });
+      if (it == seen.end()) it = seen.insert(seen.end(), {e, {}});
+      it->cases.push_back(cases[k].name);
+    }
+  }
+  std::vector<InputError> out;
+  for (const Seen& s : seen) {
+    const InputError& e = s.error;
+    if (s.cases.size() == cases.size()) {
+      out.push_back(e);
+    } else {
+      out.emplace_back(e.file, e.line, e.key, e.message + case_tag(s.cases));
+    }
+  }
+  InputErrorList list;
+  for (const InputError& e : out) list.add(e);  // (throws at the limit)
+  if (stopped) throw InputErrors(list.errors(), true);
+  list.throw_if_any();
+  throw InputError(cases.front().document.file(), 0, "", "internal error: no case failed");
 }
 
 }  // namespace detail
+
+std::string case_group_name(std::string name) {
+  std::replace(name.begin(), name.end(), '/', '_');
+  return name;
+}
 
 std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
                                     std::span<const std::string_view> sweepable) {
@@ -233,7 +281,7 @@ std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
   }
   std::vector<SweepCase> cases;
   cases.reserve(total);
-  std::set<std::string> names;
+  std::set<std::string> groups;
   std::vector<std::size_t> choice(entries.size(), 0);
   for (std::size_t c = 0; c < total; ++c) {
     // Mixed-radix digits of c, the last entry varying fastest.
@@ -243,8 +291,13 @@ std::vector<SweepCase> expand_sweep(const YamlDocument& scene,
       rest /= entries[k].count;
     }
     cases.push_back(make_case(scene, entries, choice));
-    if (!names.insert(cases.back().name).second) {
-      sweep.fail("two cases would both be named '" + cases.back().name + "' (repeated value?)");
+    const std::string& name = cases.back().name;
+    if (!groups.insert(case_group_name(name)).second) {
+      const bool same = std::any_of(cases.begin(), cases.end() - 1,
+                                    [&](const SweepCase& c) { return c.name == name; });
+      sweep.fail(same ? "two cases would both be named '" + name + "' (repeated value?)"
+                      : "two cases would both be stored as group '" + case_group_name(name) +
+                            "' (their names differ only in '/' and '_')");
     }
   }
   return cases;

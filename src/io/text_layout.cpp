@@ -134,6 +134,52 @@ std::string fit_middle(std::string_view s, int width) {
   return front(s, (kept + 1) / 2) + std::string(kEllipsis) + back(s, kept / 2);
 }
 
+namespace {
+
+// `part` in lines of at most `width` columns: at its spaces, a word too wide where it reaches
+// the width. The spaces a break replaces are dropped.
+void break_part(std::string_view part, int width, std::vector<std::string>& lines) {
+  for (const std::string& line : wrap_words(part, width, "")) {
+    std::string_view rest = line;
+    while (display_width(rest) > width) {
+      std::string head = front(rest, width);
+      if (head.empty()) head = front(rest, display_width(rest));  // a glyph wider than `width`
+      lines.push_back(head);
+      rest.remove_prefix(head.size());
+    }
+    lines.emplace_back(rest);
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> wrap_name(std::string_view s, int width) {
+  width = std::max(width, 2);      // (a double-width character fits)
+  std::vector<std::string> parts;  // each ending after a comma, but the last
+  for (std::size_t at = 0; at < s.size();) {
+    const std::size_t comma = s.find(',', at);
+    const std::size_t end = comma == std::string_view::npos ? s.size() : comma + 1;
+    parts.emplace_back(s.substr(at, end - at));
+    at = end;
+  }
+  std::vector<std::string> lines{""};
+  for (std::string_view part : parts) {
+    if (display_width(lines.back()) + display_width(part) <= width) {
+      lines.back() += part;
+      continue;
+    }
+    // A part that starts a line leaves its spaces behind ("[1," / "0]"), as a break at them.
+    part.remove_prefix(std::min(part.find_first_not_of(' '), part.size()));
+    if (lines.back().empty()) lines.pop_back();
+    if (display_width(part) <= width) {
+      lines.emplace_back(part);
+    } else {
+      break_part(part, width, lines);
+    }
+  }
+  return lines;
+}
+
 std::vector<std::string> wrap_words(std::string_view text, int width, std::string_view indent) {
   if (display_width(text) <= width) return {std::string(text)};
   const std::size_t first_word = std::min(text.find_first_not_of(' '), text.size());
@@ -230,17 +276,30 @@ std::string Table::header() const {
 }
 
 std::string Table::row(const std::vector<std::string>& cells) const {
-  std::string line;
+  std::vector<std::vector<std::string>> shown;  // per column, its lines
+  std::size_t lines = 1;
   for (std::size_t k = 0; k < columns_.size(); ++k) {
     const Column& c = columns_[k];
     const std::string cell = printable(k < cells.size() ? cells[k] : "");
-    const std::string shown = c.left_aligned ? fit_middle(cell, c.width) : fit_end(cell, c.width);
-    const std::string pad(static_cast<std::size_t>(c.width - display_width(shown)), ' ');
-    if (k > 0) line.append(static_cast<std::size_t>(separator_), ' ');
-    line += c.left_aligned ? shown + pad : pad + shown;
+    shown.push_back(c.left_aligned ? wrap_name(cell, c.width)
+                                   : std::vector<std::string>{fit_end(cell, c.width)});
+    lines = std::max(lines, shown.back().size());
   }
-  line.erase(line.find_last_not_of(' ') + 1);
-  return line;
+  std::string out;
+  for (std::size_t l = 0; l < lines; ++l) {
+    std::string line;
+    for (std::size_t k = 0; k < columns_.size(); ++k) {
+      const Column& c = columns_[k];
+      const std::string text = l < shown[k].size() ? shown[k][l] : "";
+      const std::string pad(static_cast<std::size_t>(std::max(0, c.width - display_width(text))),
+                            ' ');
+      if (k > 0) line.append(static_cast<std::size_t>(separator_), ' ');
+      line += c.left_aligned ? text + pad : pad + text;
+    }
+    line.erase(line.find_last_not_of(' ') + 1);
+    out += (l > 0 ? "\n" : "") + line;
+  }
+  return out;
 }
 
 std::string Table::number(std::size_t column, double x, int digits) const {

@@ -266,9 +266,21 @@ std::string suggestion(std::string_view word, std::span<const std::string_view> 
 
 // ---------------------------------------------------------------- YamlDocument
 
-YamlDocument::YamlDocument(std::shared_ptr<const std::string> file, std::string text,
-                           YAML::Node root)
-    : file_(std::move(file)), text_(std::move(text)), root_(std::move(root)) {}
+YamlDocument::YamlDocument(std::shared_ptr<const SceneSources> sources, YAML::Node root)
+    : sources_(std::move(sources)),
+      origin_(std::make_shared<const SceneOrigin>(SceneOrigin{
+          sources_->scene.file, std::filesystem::path(sources_->scene.file).parent_path(), true})),
+      origins_(std::make_shared<Origins>()),
+      root_(std::move(root)) {}
+
+YamlDocument YamlDocument::copy() const {
+  return compose(*sources_);
+}
+
+void YamlDocument::note_origin(const YAML::Node& node,
+                               std::shared_ptr<const SceneOrigin> origin) const {
+  origins_->emplace_back(node, std::move(origin));
+}
 
 YamlDocument YamlDocument::from_file(const std::filesystem::path& path) {
   std::error_code ec;
@@ -295,7 +307,9 @@ YamlDocument YamlDocument::from_string(std::string bytes, std::string file_name)
                        "a second YAML document starts here (a scene is one document): remove "
                        "the '---' line or split the file");
     }
-    return YamlDocument(file, std::move(text), std::move(root));
+    return YamlDocument(
+        std::make_shared<const SceneSources>(SceneSources{{*file, std::move(text)}, {}, {}}),
+        std::move(root));
   } catch (const YAML::DeepRecursion& e) {
     // (yaml-cpp gives this one the message "bad file".)
     throw InputError(*file, e.mark.is_null() ? 0 : e.mark.line + 1, "",
@@ -309,28 +323,48 @@ YamlDocument YamlDocument::from_string(std::string bytes, std::string file_name)
 }
 
 CheckedNode YamlDocument::root() const {
-  return CheckedNode(root_, file_, "", 0);
+  return CheckedNode(root_, origin_, origins_, "", 0);
 }
 
 // ---------------------------------------------------------------- CheckedNode: basics
 
-CheckedNode::CheckedNode(YAML::Node node, std::shared_ptr<const std::string> file, std::string path,
+CheckedNode::CheckedNode(YAML::Node node, std::shared_ptr<const SceneOrigin> origin,
+                         std::shared_ptr<const YamlDocument::Origins> origins, std::string path,
                          int key_line)
-    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)), key_line_(key_line) {}
+    : node_(std::move(node)),
+      origin_(std::move(origin)),
+      origins_(std::move(origins)),
+      path_(std::move(path)),
+      key_line_(key_line) {}
 
 int CheckedNode::line() const {
+  if (!origin_->has_lines) return 0;
   // An empty value is positioned by yaml-cpp after its key, often on the next line.
   if (is_null()) return key_line_;
   const int own = line_of(node_);
   return own > 0 ? own : key_line_;
 }
 
+std::shared_ptr<const SceneOrigin> CheckedNode::origin_of(const YAML::Node& n) const {
+  if (origins_ && n.IsDefined()) {
+    // The latest note first: a value set over one taken from a base is the setting's.
+    for (auto it = origins_->rbegin(); it != origins_->rend(); ++it) {
+      if (it->first.is(n)) return it->second;
+    }
+  }
+  return origin_;
+}
+
+int CheckedNode::line_in_source(const YAML::Node& n) const {
+  return origin_of(n)->has_lines ? line_of(n) : 0;
+}
+
 CheckedNode CheckedNode::renamed(std::string path) const {
-  return CheckedNode(node_, file_, std::move(path), key_line_);
+  return CheckedNode(node_, origin_, origins_, std::move(path), key_line_);
 }
 
 InputError CheckedNode::error(const std::string& message) const {
-  return InputError(*file_, line(), path_, message);
+  return InputError(origin_->label, line(), path_, message);
 }
 
 void CheckedNode::fail(const std::string& message) const {
@@ -375,7 +409,10 @@ std::string CheckedNode::child_path(std::string_view key) const {
 }
 
 CheckedNode CheckedNode::child(const YAML::Node& key, const YAML::Node& value) const {
-  return CheckedNode(value, file_, child_path(key.Scalar()), line_of(key));
+  // A key taken from another source brings its value; a value set anew keeps its key's line.
+  std::shared_ptr<const SceneOrigin> origin = origin_of(value);
+  if (origin == origin_) origin = origin_of(key);
+  return CheckedNode(value, std::move(origin), origins_, child_path(key.Scalar()), line_of(key));
 }
 
 // ---------------------------------------------------------------- mappings
@@ -387,20 +424,24 @@ void CheckedNode::allow_keys(std::initializer_list<std::string_view> allowed) co
 void CheckedNode::allow_keys(std::span<const std::string_view> allowed) const {
   expect_map();
   std::set<std::string, std::less<>> seen;
+  InputErrorList errors;  // every bad key of the mapping
   for (const auto& kv : node_) {
     const YAML::Node& key = kv.first;
+    const std::string& where = origin_of(key)->label;  // (a key a setting added names it)
     if (!key.IsScalar()) {
-      throw InputError(*file_, line_of(key), path_, "mapping keys must be plain names");
+      errors.add(InputError(where, line_in_source(key), path_, "mapping keys must be plain names"));
+      continue;
     }
     const std::string& name = key.Scalar();
     if (std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
-      throw InputError(*file_, line_of(key), child_path(name),
-                       "unknown key " + in_quotes(name) + "; " + suggestion(name, allowed));
-    }
-    if (!seen.insert(name).second) {
-      throw InputError(*file_, line_of(key), child_path(name), "duplicate key");
+      errors.add(InputError(where, line_in_source(key), child_path(name),
+                            std::string(InputErrorList::kUnknownKey) + in_quotes(name) + "; " +
+                                suggestion(name, allowed)));
+    } else if (!seen.insert(name).second) {
+      errors.add(InputError(where, line_in_source(key), child_path(name), "duplicate key"));
     }
   }
+  errors.throw_if_any();
 }
 
 bool CheckedNode::has(std::string_view key) const {
@@ -423,7 +464,7 @@ CheckedNode CheckedNode::required(std::string_view key) const {
 InputError CheckedNode::missing(std::string_view key, const std::string& message) const {
   // Located at the key that opened this mapping; the root mapping has no such line.
   const int at = path_.empty() ? 0 : line();
-  return InputError(*file_, at, child_path(key), message);
+  return InputError(origin_->label, at, child_path(key), message);
 }
 
 std::vector<std::string> CheckedNode::keys() const {
@@ -431,7 +472,8 @@ std::vector<std::string> CheckedNode::keys() const {
   std::vector<std::string> out;
   for (const auto& kv : node_) {
     if (!kv.first.IsScalar())
-      throw InputError(*file_, line_of(kv.first), path_, "mapping keys must be plain names");
+      throw InputError(origin_->label, line_in_source(kv.first), path_,
+                       "mapping keys must be plain names");
     out.push_back(kv.first.Scalar());
   }
   return out;
@@ -452,7 +494,7 @@ std::optional<std::string> CheckedNode::one_of(std::initializer_list<std::string
     if (!has(name)) continue;
     if (present) {
       throw InputError(
-          *file_, key_line(name), child_path(name),
+          origin_->label, origin_->has_lines ? key_line(name) : 0, child_path(name),
           "give either " + in_quotes(*present) + " or " + in_quotes(name) + ", not both");
     }
     present = std::string(name);
@@ -475,7 +517,8 @@ CheckedNode CheckedNode::element(std::size_t i) const {
   expect_sequence();
   const YAML::Node item = node_[i];
   const int at = line_of(item);
-  return CheckedNode(item, file_, path_ + "[" + std::to_string(i) + "]", at > 0 ? at : line());
+  return CheckedNode(item, origin_of(item), origins_, path_ + "[" + std::to_string(i) + "]",
+                     at > 0 ? at : line());
 }
 
 std::vector<CheckedNode> CheckedNode::elements() const {

@@ -33,6 +33,7 @@
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/scene_compose.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/material_point.hpp"
 #include "subslip/parallel/team.hpp"
@@ -56,10 +57,12 @@ std::mutex g_run_mutex;
 // message, warnings); status 0 and no message when it completed. The statuses are the command
 // line's (cli::exit_code_of), the message what it prints after "subslip: error: ".
 py::tuple run_scene(const std::string& scene, const std::string& scene_text,
-                    const std::string& output, bool force, int threads) {
+                    const std::string& output, bool force, int threads,
+                    const std::vector<std::string>& settings) {
   subslip::cli::RunArgs a;
   a.scene = scene;
   a.scene_text = scene_text;
+  a.settings = settings;
   a.output = output;
   a.force = force;
   a.quiet = true;
@@ -87,9 +90,11 @@ py::tuple run_scene(const std::string& scene, const std::string& scene_text,
 
 // ---- scenes as point parameters ---------------------------------------------------------------
 
+// (with its base scenes, as a run reads it)
 subslip::io::YamlDocument scene_document(const std::string& scene, const std::string& text) {
-  return text.empty() ? subslip::io::YamlDocument::from_file(scene)
-                      : subslip::io::YamlDocument::from_string(text, scene);
+  return subslip::io::compose_scene(text.empty()
+                                        ? subslip::io::YamlDocument::from_file(scene)
+                                        : subslip::io::YamlDocument::from_string(text, scene));
 }
 
 // The case named `name` of `cases` (empty: the only case).
@@ -576,7 +581,7 @@ PYBIND11_MODULE(_core, m) {
     }
   });
   m.def("run_scene", &run_scene, py::arg("scene"), py::arg("scene_text"), py::arg("output"),
-        py::arg("force"), py::arg("threads"));
+        py::arg("force"), py::arg("threads"), py::arg("settings") = std::vector<std::string>{});
   m.def(
       "increment_lengths",
       [](double duration, int increments, double growth) {

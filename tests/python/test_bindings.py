@@ -50,6 +50,10 @@ def numeric_datasets(f):
     return found
 
 
+def text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
 def cli_run(scene, directory):
     """Runs `subslip run` into directory/cli.h5: (exit status, stderr, path)."""
     out = os.path.join(directory, "cli.h5")
@@ -159,6 +163,35 @@ class RunEqualsTheCommandLine(unittest.TestCase):
             self.assertIn("--force", str(caught.exception))
             with subslip.run(CONTACT_SCENE, output=out, force=True) as r:
                 self.assertEqual(r.case("base").series("mu").tobytes(), mu.tobytes())
+
+    def test_overrides_are_the_command_lines_set(self):
+        overrides = {"law.friction.mu_s": 0.1, "loading[1].slide.direction": [1, 0.25],
+                     "loading[2].hold.duration": "1 min"}
+        edited = copy.deepcopy(CONTACT_SCENE)
+        edited["law"]["friction"]["mu_s"] = 0.1
+        edited["loading"][1]["slide"]["direction"] = [1, 0.25]
+        edited["loading"][2]["hold"]["duration"] = 60
+        with subslip.run(CONTACT_SCENE, overrides=overrides) as a, subslip.run(edited) as b:
+            self.assert_bitwise(numeric_datasets(b.file), numeric_datasets(a.file), "overrides")
+            self.assertEqual([text(v) for v in a.file.attrs["scene_set"]],
+                             ["law.friction.mu_s=0.1", "loading[1].slide.direction=[1, 0.25]",
+                              "loading[2].hold.duration=1 min"])
+            self.assertNotIn("scene_set", b.file.attrs)
+        with self.assertRaises(subslip.SceneError) as caught:
+            subslip.run(CONTACT_SCENE, overrides={"law.friction.mu_ss": 0.1})
+        self.assertTrue(str(caught.exception).startswith(
+            "--set law.friction.mu_ss=0.1: law.friction.mu_ss: unknown key 'mu_ss'"),
+            str(caught.exception))
+
+    def test_a_case_is_found_by_its_name_with_units(self):
+        scene = copy.deepcopy(CONTACT_SCENE)
+        scene["sweep"] = {"loading[0].slide.speed": ["0.01 mm/s", "1 mm/min"]}
+        with subslip.run(scene) as r:
+            self.assertEqual(r.all_cases, ["speed=0.01 mm_s", "speed=1 mm_min"])
+            self.assertEqual(r.shown_name("speed=1 mm_min"), "speed=1 mm/min")
+            self.assertEqual(r.case("speed=1 mm/min").name, "speed=1 mm_min")
+            self.assertEqual(r.case("speed=1 mm/min").series("mu").tobytes(),
+                             r.case("speed=1 mm_min").series("mu").tobytes())
 
     def test_an_in_memory_result_leaves_no_file(self):
         def ours():

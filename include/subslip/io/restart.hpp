@@ -8,12 +8,15 @@
 #include <string>
 #include <vector>
 
+#include "subslip/model/case_common.hpp"
+
 namespace subslip::io {
 
 struct RestartInfo {
-  std::string scene_kind;  // "contact", "crystal"
-  std::string scene_file;  // as the interrupted run was given it
-  std::string scene_text;  // /scene, verbatim
+  std::string scene_kind;     // "contact", "crystal"
+  std::string scene_file;     // as the interrupted run was given it
+  std::string scene_text;     // /scene, verbatim
+  model::SceneMakeup makeup;  // its base scenes and settings as the run read them
   std::vector<std::string> case_names;
   std::filesystem::path restart_file;  // where its checkpoints are (io/result_file.hpp)
   // How the interrupted run computed (root attributes build and simd_kernels; empty where the

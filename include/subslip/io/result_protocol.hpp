@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "subslip/io/h5_writer.hpp"
+#include "subslip/model/case_common.hpp"
 
 namespace subslip::io::h5 {
 
@@ -66,14 +67,26 @@ struct ResultHeader {
   // deflate at that level after the byte shuffle), kept until the file is finished, also by a
   // later session (--restart).
   int gzip_level = 0;
+  // The scene's base scenes and --set settings (io/scene_compose.hpp), when it has any.
+  model::SceneMakeup makeup{};
 };
 
 // Root attributes format = "subslip", format_version, program_version, build (SUBSLIP_BUILD:
 // "portable" or "native"), the header's computed_with, scene_kind,
 // scene_file, title, created (ISO-8601 UTC), run_id (new_run_id), completed = 0, finished = 0,
 // layout_complete = 0, write_error (reserved, empty: see mark_write_failed), gzip_level; dataset
-// /scene; group /units with one string attribute per unit. Flushes.
+// /scene; group /units with one string attribute per unit; for a scene made with base scenes
+// or settings, the group /scene_bases (text datasets "1", "2", ... with attribute `file`: the
+// base /scene names first) and the string list attribute scene_set (the settings, in
+// order). Flushes.
 void write_result_header(File& file, const ResultHeader& header);
+
+// Where a result file keeps a scene's bases and settings (write_result_header).
+inline constexpr const char* kSceneBases = "scene_bases";
+inline constexpr const char* kSceneSettings = "scene_set";
+
+// The bases and settings a result file records (none for a scene of its own).
+model::SceneMakeup read_scene_makeup(const Group& root);
 // Flushes the layout, then sets layout_complete = 1 and flushes: from here on the run writes
 // values only (a restart refuses a file whose layout is not complete).
 void mark_layout_complete(File& file);

@@ -25,8 +25,14 @@ std::string printable(std::string_view s);
 std::string fit_end(std::string_view s, int width);
 
 // `s` when it fits `width` columns; else its start, "..." and its end: the names of sweep cases
-// ("rate=1e-3,grains=10") differ at their ends, which a cut at the end would lose.
+// ("rate=1e-3,grains=10") differ at their ends, which a cut at the end would lose (the progress
+// line, which must stay one line).
 std::string fit_middle(std::string_view s, int width);
+
+// `s` in lines of at most `width` columns (at least one), every character kept: broken after
+// its commas ("speed=1 mm/min," / "eta_v=950"), a part wider than a line after its spaces, a
+// word wider than a line wherever it reaches the width. For names that must be read whole.
+std::vector<std::string> wrap_name(std::string_view s, int width);
 
 // `text` broken at spaces into lines of at most `width` columns, every line after the first
 // starting with `indent`. A word longer than a line stays whole: a path cut in two could not be
@@ -50,8 +56,8 @@ struct Column {
 };
 
 // Columns of fixed width, two spaces apart (one when a column of names needs the room): the
-// header and every row are at most width() columns whatever the cells hold, since a cell wider
-// than its column is shortened.
+// header and every line of a row are at most width() columns whatever the cells hold, since a
+// name wider than its column is wrapped onto further lines and any other cell shortened.
 class Table {
  public:
   explicit Table(std::vector<Column> columns);
@@ -63,8 +69,9 @@ class Table {
   int width() const;
   int column_width(std::size_t column) const { return columns_.at(column).width; }
   std::string header() const;
-  // The cells in their columns, trailing spaces dropped; left-aligned text that does not fit is
-  // cut in the middle (fit_middle), anything else at its end.
+  // The cells in their columns, trailing spaces dropped. Left-aligned text (a name) that does
+  // not fit is wrapped (wrap_name): the row then takes several lines ('\n' between them), the
+  // other cells on the first. Anything else that does not fit is cut at its end.
   std::string row(const std::vector<std::string>& cells) const;
   // `x` in the width of `column` (fit_number).
   std::string number(std::size_t column, double x, int digits = 4) const;

@@ -66,22 +66,59 @@ std::optional<double> parse_number(std::string_view text);
 
 class CheckedNode;
 
-// A parsed YAML file with its name and text. Parse errors become InputError with the line.
+// Where a part of a scene was written: a file (the scene, a base scene it names) or a command
+// line argument (`--set PATH=VALUE`), so that an error names it.
+struct SceneOrigin {
+  std::string label;                // what messages name: the file, or "--set PATH=VALUE"
+  std::filesystem::path directory;  // file names written there are relative to it
+  bool has_lines = true;            // false for a command line argument: no line to name
+};
+
+// A scene file as read (text() of a YamlDocument: UTF-8).
+struct SceneText {
+  std::string file;
+  std::string text;
+};
+
+// What a scene is made of (io/scene_compose.hpp): the scene file, the base scenes it names one
+// after another (its base first), and the `--set PATH=VALUE` settings, in order.
+struct SceneSources {
+  SceneText scene;
+  std::vector<SceneText> bases;
+  std::vector<std::string> settings;
+};
+
+// A parsed YAML file with its name and text. Parse errors become InputError with the line. A
+// composed scene (YamlDocument::compose) holds nodes of several sources; each node's errors
+// name its own (CheckedNode::file()).
 class YamlDocument {
  public:
+  // Nodes of other sources than the scene file, each with where it was written.
+  using Origins = std::vector<std::pair<YAML::Node, std::shared_ptr<const SceneOrigin>>>;
+
   static YamlDocument from_file(const std::filesystem::path& path);
   // `file_name` is what error messages show. The text is decoded first (text_encoding.hpp):
   // a byte-order mark is dropped, UTF-16/32 converted; text() is UTF-8.
   static YamlDocument from_string(std::string text, std::string file_name);
+  // The scene `sources` make: the bases merged under the scene key by key, then the settings
+  // applied (src/io/scene_compose.cpp; io/scene_compose.hpp says how).
+  static YamlDocument compose(const SceneSources& sources);
 
-  const std::string& file() const { return *file_; }
-  const std::string& text() const { return text_; }
+  // The scene file's name and text (a composed scene's other sources: sources()).
+  const std::string& file() const { return sources_->scene.file; }
+  const std::string& text() const { return sources_->scene.text; }
+  const SceneSources& sources() const { return *sources_; }
   CheckedNode root() const;
+  // The same scene parsed anew from its sources: a tree of its own (each sweep case's).
+  YamlDocument copy() const;
+  // Errors at `node` and below name `origin` (a value taken from another source).
+  void note_origin(const YAML::Node& node, std::shared_ptr<const SceneOrigin> origin) const;
 
  private:
-  YamlDocument(std::shared_ptr<const std::string> file, std::string text, YAML::Node root);
-  std::shared_ptr<const std::string> file_;
-  std::string text_;
+  YamlDocument(std::shared_ptr<const SceneSources> sources, YAML::Node root);
+  std::shared_ptr<const SceneSources> sources_;
+  std::shared_ptr<const SceneOrigin> origin_;  // the scene file's
+  std::shared_ptr<Origins> origins_;           // nodes from other sources, where each starts
   YAML::Node root_;
 };
 
@@ -89,11 +126,16 @@ class CheckedNode {
  public:
   // `key_line` is the 1-based line of the key that introduced this node (0 for the root); it
   // locates "missing key" errors and empty values, which have no position of their own.
-  CheckedNode(YAML::Node node, std::shared_ptr<const std::string> file, std::string path,
-              int key_line);
+  // `origins`: the nodes of other sources below (YamlDocument::note_origin), or null.
+  CheckedNode(YAML::Node node, std::shared_ptr<const SceneOrigin> origin,
+              std::shared_ptr<const YamlDocument::Origins> origins, std::string path, int key_line);
 
   const std::string& path() const { return path_; }
-  const std::string& file() const { return *file_; }
+  // The file (or command line argument) this node was written in, as messages name it.
+  const std::string& file() const { return origin_->label; }
+  // The directory file names written in this node are relative to.
+  const std::filesystem::path& directory() const { return origin_->directory; }
+  const std::shared_ptr<const SceneOrigin>& origin() const { return origin_; }
   // 1-based line of the value (or of its key when the value is empty); 0 = unknown.
   int line() const;
   const YAML::Node& yaml() const { return node_; }
@@ -115,7 +157,9 @@ class CheckedNode {
 
   // ---- mappings
   // Rejects keys not in `allowed` (with the nearest valid key as a suggestion), non-scalar
-  // keys and duplicated keys. Also requires this node to be a mapping.
+  // keys and duplicated keys, all of them at once (InputErrors when several). Also requires
+  // this node to be a mapping. A mapping with a bad key is read no further by the parsers: a
+  // misspelt key would make its correct spelling look missing.
   void allow_keys(std::initializer_list<std::string_view> allowed) const;
   void allow_keys(std::span<const std::string_view> allowed) const;
   bool has(std::string_view key) const;
@@ -127,7 +171,7 @@ class CheckedNode {
   int key_line(std::string_view key) const;
   // An error for a missing key, located at this mapping.
   InputError missing(std::string_view key,
-                     const std::string& message = "missing required key") const;
+                     const std::string& message = std::string(InputErrorList::kMissingKey)) const;
   // Of the keys in `group`, exactly one (or, when !required, at most one) may appear. Returns
   // the one present.
   std::optional<std::string> one_of(std::initializer_list<std::string_view> group,
@@ -179,6 +223,9 @@ class CheckedNode {
 
  private:
   CheckedNode child(const YAML::Node& key, const YAML::Node& value) const;
+  // Where `n` (a node below this one) was written: its own origin if noted, else this node's.
+  std::shared_ptr<const SceneOrigin> origin_of(const YAML::Node& n) const;
+  int line_in_source(const YAML::Node& n) const;
   std::string child_path(std::string_view key) const;
   void expect_scalar(std::string_view expected) const;
   // A sequence of `size` numbers (any count >= 1 when 0), each read by `read`.
@@ -186,7 +233,8 @@ class CheckedNode {
   std::vector<double> numbers(std::size_t size, Read read) const;
 
   YAML::Node node_;
-  std::shared_ptr<const std::string> file_;
+  std::shared_ptr<const SceneOrigin> origin_;
+  std::shared_ptr<const YamlDocument::Origins> origins_;
   std::string path_;
   int key_line_;
 };

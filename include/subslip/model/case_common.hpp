@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace subslip::model {
@@ -15,6 +16,14 @@ struct SweepOverride {
   std::string path;              // as written in the sweep block
   std::string value;             // the value's text (flow style for non-scalars)
   std::optional<double> number;  // the value when it is a number
+};
+
+// What a scene was made of besides its own file (io/scene_compose.hpp): the base scenes it
+// names, one over another (file, text), and the `--set PATH=VALUE` settings, in order.
+struct SceneMakeup {
+  std::vector<std::pair<std::string, std::string>> bases;
+  std::vector<std::string> settings;
+  bool empty() const { return bases.empty() && settings.empty(); }
 };
 
 // A value whose magnitude the plausibility warnings check (io/scene_warnings.hpp): what it is,

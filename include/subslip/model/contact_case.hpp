@@ -50,9 +50,10 @@ struct ContactCase {
 };
 
 struct ContactScene {
-  std::string file;   // as given
-  std::string text;   // the YAML text, verbatim
-  std::string title;  // "" when the scene has none
+  std::string file;    // as given
+  std::string text;    // the YAML text, verbatim
+  SceneMakeup makeup;  // its base scenes and settings, when it has any
+  std::string title;   // "" when the scene has none
   Units units;
   SeriesCompression compression;   // of the finished file (output.compression)
   std::vector<ContactCase> cases;  // in sweep order (first swept key slowest)

@@ -125,9 +125,10 @@ struct CrystalCase {
 };
 
 struct CrystalScene {
-  std::string file;   // as given
-  std::string text;   // the YAML text, verbatim
-  std::string title;  // "" when the scene has none
+  std::string file;    // as given
+  std::string text;    // the YAML text, verbatim
+  SceneMakeup makeup;  // its base scenes and settings, when it has any
+  std::string title;   // "" when the scene has none
   Units units;  // stress and time; length is not used (slip is dimensionless): empty unless given
   SeriesCompression compression;   // of the finished file (output.compression)
   std::vector<CrystalCase> cases;  // in sweep order (first swept key slowest)
