@@ -1,24 +1,18 @@
-// The implicit grain step: backward Euler of one grain over a step, solved in stress space.
+// The implicit grain step: backward Euler of one grain over a step. solve_grain_step (below)
+// chooses the formulation by the phase's laws; its rule and each formulation's argument for
+// convergence are in docs/grain_step.md.
 //
-// Unknowns: the lattice stress sigma (6 numbers), plus, only where the phase needs them, one
-// number per slip system (latent hardening: the slip the other systems contribute to its
-// hardening; an open slip plane: its slip). For a given stress every slip system's slip
-// increment is the root of its own scalar flow rule at its resolved shear tau_a = P_a : sigma
-// (and normal traction f_n,a), so the outer residual
+// The stress-space solve (stress_space_solve, below) is the globally convergent formulation of
+// the phases with a growing resistance and no plane pressure. Unknowns: the lattice stress sigma
+// (6 numbers), plus, with a latent matrix, its latent drives (latent-rank numbers). For a given
+// stress every slip system's slip increment is the root of its own scalar flow rule at its
+// resolved shear tau_a = P_a : sigma, so the outer residual
 //   R(sigma) = sigma - sigma_trial + sum_a C P_a dgamma_a(sigma)
 // has a Jacobian I + sum_a C P_a (d dgamma_a / d sigma) whose size does not grow with the slip
 // count and which stays regular where the slips themselves are not determined (the Taylor
-// ambiguity of FCC and BCC). docs/grain_step.md gives the argument for convergence, its
-// assumptions and what happens outside them. It is used where those assumptions hold
-// (implicit_grain_step, below); other laws, and steps it does not resolve, go to the semismooth
-// step (semismooth_grain_step.cpp). Phases with a latent matrix start with Newton on the slips
-// (StressSolver::slip_newton), which carries the latent coupling in its condensed system, and
-// go to the semismooth step where that does not converge; only a step that starts from no slip
-// at all (the virgin step) goes to the stress-space solve with its latent drives instead.
-// Newton on the slips takes over from the stress-space solve at its first iterate from which it
-// converges. The stress-space solve's branches for open planes and saturated rate-independent
-// systems are kept from its development but are not reached through that choice
-// (docs/grain_step.md).
+// ambiguity of FCC and BCC). Newton on the slips (StressSolver::slip_newton) solves the same
+// equations in the slips; it takes most steps from the continued rates, and takes over from the
+// stress-space solve at its first iterate from which it converges.
 //
 // Internal to src/crystal/: the template is instantiated once per slip count, each in its own
 // translation unit (implicit_grain_step_<N>.cpp), so that a rebuild compiles them in parallel;
@@ -54,38 +48,31 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
   // iteration begins from the one with the smallest residual (a nearly rate-independent law can
   // put the trial just inside the domain with slips of 1e8, and the start stress is always
   // inside it).
-  VecY y = solver.extras_for(previous_slip);
-  solver.set_open_planes(predicted, previous_slip, y);
+  const VecY y = solver.extras_for(previous_slip);
   solver.evaluate(predicted, y, it);
   if (!(std::sqrt(2.0 * it.merit) <= solver.residual_tolerance())) {
     for (const Vec6* start : {&trial, &s0.stress}) {
       if (*start == predicted) continue;  // (no slip in the last step: the trial itself)
-      VecY y_start = y;
-      solver.set_open_planes(*start, previous_slip, y_start);
-      solver.evaluate(*start, y_start, trial_point);
+      solver.evaluate(*start, y, trial_point);
       if (trial_point.merit < it.merit) std::swap(it, trial_point);
     }
   }
-  // The plane roles of the chosen start, with the extra unknowns consistent with its slips
-  // (without plane pressure or a latent matrix there are none, and the start stands as
-  // evaluated).
+  // The extra unknowns consistent with the chosen start's slips (without a latent matrix there
+  // are none, and the start stands as evaluated).
   if (solver.extras() > 0) {
-    solver.set_open_planes(it.sigma, it.dgamma, it.y);
+    it.y = solver.extras_for(it.dgamma);
     solver.evaluate(it.sigma, it.y, it);
   }
   if (!std::isfinite(it.merit)) {
-    rep.why = "no admissible start (r >= r_hat or slip plane open)";
+    rep.why = "no admissible start (r >= r_hat)";
     rep.system = it.bad_system;
     return false;
   }
   solver.remember(it);
 
-  // Newton on sigma (and the extras) with a backtracking line search on 1/2 |R|^2. Open planes
-  // are an active set: a closed plane that the iteration wants to open, or an open plane closed
-  // at the solution, changes role and the iteration goes on (at most once per system and way).
+  // Newton on sigma (and the extras) with a backtracking line search on Phi or 1/2 |R|^2.
   bool converged = false;
   bool at_floor = false;  // the line search found no decrease within the residual's floor
-  int role_changes = 0;
   for (int iterations = 0; iterations < opt.max_iterations;) {
     const double residual = std::max(it.r_sigma.cwiseAbs().maxCoeff(),
                                      it.r_y.size() ? it.r_y.cwiseAbs().maxCoeff() : 0.0);
@@ -98,23 +85,10 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
         have_step && d_sigma.cwiseAbs().maxCoeff() <= 4.0 * kEps * solver.stress_scale() &&
         (d_y.size() == 0 || d_y.cwiseAbs().maxCoeff() <= 4.0 * kEps * solver.stress_scale());
     // Where slip_newton() resolves the slips afterwards, R at its floor is as good as it gets.
-    const bool floor_reached =
-        at_floor || (solver.can_refine() && residual <= solver.residual_floor(it));
+    const bool floor_reached = at_floor || residual <= solver.residual_floor(it);
     if (residual <= solver.residual_tolerance() || stagnant || floor_reached) {
-      // An open plane closed at the solution is solved again as closed.
-      int closes = -1;
-      for (int a = 0; a < n && closes < 0; ++a)
-        if (solver.open()(a) && it.fn(a) > 0.0) closes = a;
-      if (closes < 0 || role_changes > 2 * n) {
-        converged = closes < 0;
-        break;
-      }
-      ++role_changes;
-      solver.set_open(closes, false, it.dgamma, it.y);
-      at_floor = false;
-      solver.evaluate(it.sigma, it.y, it);
-      if (!std::isfinite(it.merit)) break;
-      continue;
+      converged = true;
+      break;
     }
     if (!have_step) break;
     ++iterations;
@@ -126,34 +100,24 @@ bool stress_space_solve(StressSolver<N>& solver, const Phase<N>& ph, const Grain
     // a quadratic Phi, so a full Newton step is taken near the solution; of 1/2 |R|^2 otherwise.
     const bool on_potential = solver.has_potential();
     const double slope0 = on_potential ? solver.potential_slope(it, d_sigma) : 0.0;
-    int opening = -1;
     const double step_size = d_sigma.cwiseAbs().maxCoeff();
     const double stress_size = it.sigma.cwiseAbs().maxCoeff();
     // Halving until the step no longer moves the stress in floating point.
     for (; !accepted && alpha * step_size > kEps * stress_size; alpha *= 0.5) {
       solver.evaluate(it.sigma + alpha * d_sigma, it.y + alpha * d_y, trial_point);
-      if (opening < 0) opening = trial_point.opening;
       accepted = on_potential
                      ? std::isfinite(trial_point.merit) &&
                            solver.potential_slope(trial_point, d_sigma) <= -(1.0 - 2e-4) * slope0
                      : trial_point.merit <= (1.0 - 2e-4 * alpha) * it.merit;
       if (accepted) break;
     }
-    if (!accepted && opening < 0 && residual <= solver.residual_floor(it)) {
+    if (!accepted && residual <= solver.residual_floor(it)) {
       // R is at the resolution of the scalar roots: no stress does better (slip_newton() below
       // resolves the slips).
       at_floor = true;
       continue;
     }
-    if (!accepted) {
-      // A plane the Newton step opens becomes an open plane (its slip an unknown).
-      if (opening < 0 || role_changes > 2 * n) break;
-      ++role_changes;
-      solver.set_open(opening, true, it.dgamma, it.y);
-      solver.evaluate(it.sigma, it.y, it);
-      if (!std::isfinite(it.merit)) break;
-      continue;
-    }
+    if (!accepted) break;
     std::swap(it, trial_point);
     solver.remember(it);
     if (local(it)) return true;
@@ -182,53 +146,51 @@ bool resistance_grows_with_slip(const Phase<N>& ph, const GrainState<N>& s0) {
   return true;
 }
 
-// The grain step (implicit_grain_step, below), compiled for the instruction set of the
-// translation unit that instantiates it.
+// The formulations of the grain step (docs/grain_step.md, "Which formulation takes which step").
+enum class GrainFormulation {
+  // The rate-independent form with kappa = 0 on every system: a convex program over the held
+  // systems' faces of the yield polytope (vertex_grain_step.cpp).
+  yield_polytope,
+  // A resistance that grows with slip on every system and no plane pressure: the flow rules in
+  // the slips, globalised by the stress-space potential (flow_rule_step, below).
+  flow_rules,
+  // Everything else (plane pressure, softening, no hardening, the rate-independent form with
+  // hardening): Newton on the signed slips with a residual continuous through zero slip
+  // (semismooth_grain_step.cpp).
+  signed_slips,
+};
+
+// The rule: the first formulation whose argument covers the phase and the step's start.
 template <int N>
-GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
-                                 double dt, const GrainStepOptions& opt, GrainState<N>& s1,
-                                 Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
-                                 SlipTangent<N>* slip_tangent) {
+GrainFormulation grain_formulation(const Phase<N>& ph, const GrainState<N>& s0) {
+  if (vertex_step_applies(ph)) return GrainFormulation::yield_polytope;
+  if (!ph.pressure_sensitive && resistance_grows_with_slip(ph, s0))
+    return GrainFormulation::flow_rules;
+  return GrainFormulation::signed_slips;
+}
+
+// The step of the flow-rule formulation: Newton on the slips from the step's start slips; where
+// it does not converge, the stress-space solve (with Newton on the slips offered every iterate
+// it accepts, and polishing its slips after it). Without a latent matrix the stress-space solve
+// takes every such step; with one only a step that starts from no slip at all (the virgin step,
+// an elastic unloading): its line search on 1/2 |R|^2 has no convexity argument, and Newton on
+// the slips cannot start there (dr_s/d slip is infinite at r_s = 0). Returns whether the step is
+// resolved: `rep` then reports its end state (admissible or not). Where it is not, the caller
+// hands the step on, and rep.iterations counts what this one spent.
+template <int N>
+bool flow_rule_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L, double dt,
+                    const GrainStepOptions& opt, GrainState<N>& s1, Tangent* tangent,
+                    const typename SlipTypes<N>::VecN* start_rate, SlipTangent<N>* slip_tangent,
+                    GrainStepReport& rep) {
   using Solver = StressSolver<N>;
   using VecN = typename SlipTypes<N>::VecN;
   using Iterate = typename Solver::Iterate;
-  // The rate-independent form without hardening of mu: the step on the yield polytope
-  // (vertex_grain_step.hpp), the semismooth step where that does not converge.
-  if (vertex_step_applies(ph)) {
-    GrainStepReport r = vertex_grain_step(ph, s0, L, dt, opt, s1, tangent, slip_tangent);
-    if (r.ok) return r;
-    const int spent = r.iterations;
-    r = semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
-    r.iterations += spent;
-    return r;
-  }
-  // Newton on the slips from the last rates needs a growing resistance and no plane pressure; a
-  // latent matrix only adds its rank to the condensed system. The stress-space solve after it
-  // needs, besides those two, no latent matrix: its argument (docs/grain_step.md) is that
-  // R(sigma) = C grad Phi with Phi strictly convex, and a latent coupling leaves R no potential.
-  if (ph.pressure_sensitive || !resistance_grows_with_slip(ph, s0))
-    return semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
   const int n = ph.slip_count;
   const VecN previous_slip = (start_rate != nullptr ? *start_rate : s0.rate) * dt;
-  // With a latent matrix the stress-space solve (with its latent-drive unknowns, Newton on
-  // 1/2 |R|^2) takes the steps that start from no slip at all (the virgin step, an elastic
-  // unloading), where Newton on the slips cannot start (dr_s/d slip is infinite at r_s = 0)
-  // and the semismooth step would start from a Jacobi sweep of scalar roots.
   const bool stress_space = !ph.has_latent || (previous_slip.array() == 0.0).all();
-  GrainStepReport rep;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
   const Vec6 trial = s0.stress + ph.stiffness * kin.strain_increment;
   Solver solver(ph, s0, trial, dt, opt);
-
-  // The semismooth step takes over a step this one does not end on resolved slips (its
-  // iterations count in the report).
-  auto semismooth = [&] {
-    const int spent = rep.iterations;
-    GrainStepReport r =
-        semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
-    r.iterations += spent;
-    return r;
-  };
 
   // Most steps of a loading path: Newton on the slips from the last step's slip rate continued
   // converges from there. Where it does not (the first step, a change of the active set, a
@@ -237,6 +199,7 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
   rep.iterations = 0;
   if (!(solver.slip_newton(previous_slip, VecN::Zero(n), point, rep.iterations, false) &&
         point.converged)) {
+    if (!stress_space) return false;
     Iterate it;
     // Newton on the slips takes over from the stress iteration at the first iterate from which
     // it converges (its own test: every full step halves the largest flow-rule residual, else
@@ -244,27 +207,21 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
     // stress iteration's is a scalar root per system.
     bool handed_over = false;
     auto hand_over = [&](const Iterate& at) {
-      handed_over = solver.can_refine() &&
-                    solver.slip_newton(solver.corrected_slips(at), VecN::Zero(n), point,
+      handed_over = solver.slip_newton(solver.corrected_slips(at), VecN::Zero(n), point,
                                        rep.iterations, false) &&
                     point.converged;
       return handed_over;
     };
-    // Near ideal plasticity (r -> r_hat with the hardening spent) the slip response to the
-    // stress is unbounded in double precision and the stress iteration can stall; the
-    // semismooth iteration on the slips, which is well posed there, takes the step.
-    if (!stress_space ||
-        !stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep, hand_over))
-      return semismooth();
+    if (!stress_space_solve(solver, ph, s0, trial, previous_slip, opt, it, rep, hand_over))
+      return false;
     // The stress iterate fixes each slip only to |dG/d ds|^-1 times G's rounding, coarse where
     // the law is nearly rate-independent; a step ending there would make the grain's response
-    // jump between neighbouring loadings. So the slips are resolved from it, or the semismooth
-    // iteration resolves them.
-    if (!handed_over && !(solver.can_refine() &&
-                          solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point,
+    // jump between neighbouring loadings. So the slips are resolved from it, or the step is
+    // unresolved.
+    if (!handed_over && !(solver.slip_newton(solver.corrected_slips(it), VecN::Zero(n), point,
                                              rep.iterations, true) &&
                           point.converged))
-      return semismooth();
+      return false;
   }
 
   // The end state: the converged slip point (see StressSolver::slip_newton).
@@ -284,7 +241,7 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
   // A flow rule converged to its tolerance, or to its rounding (StressSolver::within_floor).
   const double flow_tolerance =
       std::max(opt.tolerance, 16.0 * std::numeric_limits<double>::epsilon());
-  if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return rep;
+  if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return true;
 
   if (tangent) {
     Tangent d_sigma;
@@ -295,7 +252,40 @@ GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, co
     if (slip_tangent) *slip_tangent = d_dgamma;
   }
   rep.ok = true;
-  return rep;
+  return true;
+}
+
+// The grain step (implicit_grain_step, below), compiled for the instruction set of the
+// translation unit that instantiates it: the formulation of the rule (grain_formulation), and
+// the signed-slip formulation for a step the polytope or the flow rules leave unresolved. That
+// hand-over is the one place where a second formulation takes a step; docs/grain_step.md
+// measures where it happens.
+template <int N>
+GrainStepReport solve_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
+                                 double dt, const GrainStepOptions& opt, GrainState<N>& s1,
+                                 Tangent* tangent, const typename SlipTypes<N>::VecN* start_rate,
+                                 SlipTangent<N>* slip_tangent) {
+  int spent = 0;
+  switch (grain_formulation(ph, s0)) {
+    case GrainFormulation::yield_polytope: {
+      const GrainStepReport r = vertex_grain_step(ph, s0, L, dt, opt, s1, tangent, slip_tangent);
+      if (r.ok) return r;
+      spent = r.iterations;
+      break;
+    }
+    case GrainFormulation::flow_rules: {
+      GrainStepReport r;
+      if (flow_rule_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent, r)) return r;
+      spent = r.iterations;
+      break;
+    }
+    case GrainFormulation::signed_slips:
+      break;
+  }
+  GrainStepReport r =
+      semismooth_grain_step(ph, s0, L, dt, opt, s1, tangent, start_rate, slip_tangent);
+  r.iterations += spent;
+  return r;
 }
 
 #ifdef SUBSLIP_GRAIN_STEP_ISA

@@ -1,6 +1,10 @@
 // The implicit grain step's solver (src/crystal/implicit_grain_step.hpp): the stress-space
 // residual, its Jacobian and sensitivities (StressSolver), and the slip-space Newton iteration
 // that takes over from it (StressSolver::slip_newton), with each slip system's scalar flow rule.
+// Its domain is the one solve_grain_step gives it: no plane pressure (f_n = tau0 on every
+// system) and on every system an overstress form whose resistance grows with slip
+// (resistance_grows_with_slip); other phases go to the semismooth step or the step on the
+// yield polytope, and no branch here handles them.
 // The members of the slip rows, their condensed system and the flow points are defined in
 // stress_solver_slips.hpp, which includes this header (include that one). Internal to
 // src/crystal/ (see implicit_grain_step.hpp).
@@ -15,9 +19,7 @@
 
 #include "grain_step_isa.hpp"
 #include "kernel_detail.hpp"
-#include "semismooth_grain_step.hpp"
 #include "subslip/crystal/flow_point_batch.hpp"
-#include "vertex_grain_step.hpp"
 
 namespace subslip::crystal {
 
@@ -35,16 +37,15 @@ constexpr double kSlipBound = 1e3;
 // Growth of a scalar root's unknown per try while no upper bracket is known.
 constexpr double kBracketGrowth = 4.0;
 
-// The response of one slip system to a resolved shear |tau|, a normal traction f_n and a latent
-// slip h (the others' slips that harden it), on one branch: the slip increment ds >= 0 that
-// solves its flow rule G(r(ds), r_s(ds), ds) = 0, and its derivatives.
+// The response of one slip system to a resolved shear |tau| and a latent slip h (the others'
+// slips that harden it), on one branch: the slip increment ds >= 0 that solves its flow rule
+// G(r(ds), r_s(ds), ds) = 0, and its derivatives.
 struct SystemResponse {
   double slip = 0.0;         // ds
   double z = 0.0;            // ds^(1/p): the unknown of the scalar root (warm start of the next)
   double mu = 0.0;           // friction coefficient after the step
   double r_s = 0.0;          // subloading ratio after the step
   double d_tau = 0.0;        // d ds / d|tau|
-  double d_normal = 0.0;     // d ds / d f_n
   double d_latent = 0.0;     // d ds / d h
   double uncertainty = 0.0;  // of ds: the scalar root's tolerance on G over |dG/d ds|
   bool admissible = true;
@@ -67,8 +68,11 @@ class StressSolver {
  public:
   using T = SlipTypes<N>;
   using VecN = typename T::VecN;
-  static constexpr int MaxY = 6 + 2 * T::MaxN;  // sigma, latent drive, open-plane slips
-  using VecY = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2 * T::MaxN, 1>;
+  // The latent drives: at most one per system (at least room for two, one SSE packet, so that no
+  // vectorised access to a one-element buffer is compiled for a single system).
+  static constexpr int MaxExtras = T::MaxN < 2 ? 2 : T::MaxN;
+  static constexpr int MaxY = 6 + MaxExtras;  // sigma, latent drive
+  using VecY = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, MaxExtras, 1>;
   using Flags = Eigen::Matrix<bool, N, 1, 0, T::MaxN, 1>;
   using MatJ = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxY, MaxY>;
   using MatJ6 = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, MaxY, 6>;
@@ -76,14 +80,13 @@ class StressSolver {
   // One point of the outer iteration and everything the Jacobian needs there.
   struct Iterate {
     Vec6 sigma;
-    VecY y;  // per system: A_aa h_a (latent) or A_aa dgamma_a (open plane); empty without either
-    VecN tau, fn, slip, z, dgamma, mu, r_s, d_tau, d_normal, d_latent, uncertainty;
+    VecY y;  // the latent drive (see extras_for); empty without a latent matrix
+    VecN tau, slip, z, dgamma, mu, r_s, d_tau, d_latent, uncertainty;
     Flags against;  // slips against its start shear: r_s restarts from 0 (3.12)
     Vec6 r_sigma;
     VecY r_y;
     double merit = kInf;
     int bad_system = -1;  // the system that made the point inadmissible
-    int opening = -1;     // a closed system whose plane is open at this point
     int scalar_iterations = 0;
   };
 
@@ -99,9 +102,8 @@ class StressSolver {
     tau_trial_ = ph.schmid.transpose() * trial;
     stiffness_ = ph.interaction.diagonal();
     latent_rank_ = ph.has_latent ? ph.latent_rank : 0;
-    extras_ = latent_rank_ + (ph.pressure_sensitive ? n_ : 0);
+    extras_ = latent_rank_;
     latent_scale_ = stiffness_.mean();
-    open_.setConstant(n_, false);
     warm_z_.setZero(n_);
     warm_against_.setConstant(n_, false);
     if (batched_) {
@@ -134,46 +136,24 @@ class StressSolver {
   int extras() const { return extras_; }
 
   // Whether R is C times the gradient of the convex potential Phi (see docs/grain_step.md):
-  // no latent coupling and no plane pressure. The line search then works on Phi, which is C^1
-  // where R has kinks (a system starting to slip), so the Newton direction is a descent
-  // direction there too.
-  bool has_potential() const { return extras_ == 0 && !ph_.pressure_sensitive; }
+  // no latent coupling. The line search then works on Phi, which is C^1 where R has kinks (a
+  // system starting to slip), so the Newton direction is a descent direction there too.
+  bool has_potential() const { return extras_ == 0; }
   // d Phi / d alpha along d_sigma at an iterate: (C^-1 R) . d_sigma.
   double potential_slope(const Iterate& it, const Vec6& d_sigma) const {
     return (ph_.compliance * it.r_sigma).dot(d_sigma);
   }
   double residual_tolerance() const { return residual_tolerance_; }
   double stress_scale() const { return stress_scale_; }
-  const Flags& open() const { return open_; }
 
-  // The extra unknowns y: first the latent drive c R^T |dgamma| (latent_rank numbers, R the
-  // phase's latent_mix, c a mean elastic stiffness so that its rows are in stress units like
-  // sigma's), then, with the pressure-sensitive reading, one per system: A_aa dgamma_a on an
-  // open plane, 0 on a closed one.
+  // The extra unknowns y: the latent drive c R^T |dgamma| (latent_rank numbers, R the phase's
+  // latent_mix, c a mean elastic stiffness so that its rows are in stress units like sigma's).
   VecY extras_for(const VecN& dgamma) const {
     VecY y = VecY::Zero(extras_);
     if (latent_rank_ > 0)
       y.head(latent_rank_).noalias() =
           latent_scale_ * ph_.latent_mix.leftCols(latent_rank_).transpose() * dgamma.cwiseAbs();
-    if (ph_.pressure_sensitive)
-      for (int a = 0; a < n_; ++a)
-        if (open_(a)) y(latent_rank_ + a) = stiffness_(a) * dgamma(a);
     return y;
-  }
-
-  // Decides which planes are open (f_n <= 0) at a stress, and the extra unknowns that go with
-  // the slips `dgamma`.
-  void set_open_planes(const Vec6& sigma, const VecN& dgamma, VecY& y) {
-    if (ph_.pressure_sensitive) {
-      const VecN fn = normal_traction(ph_, sigma);
-      for (int a = 0; a < n_; ++a) open_(a) = !(fn(a) > 0.0);
-    }
-    y = extras_for(dgamma);
-  }
-  // Changes one system's role.
-  void set_open(int a, bool open, const VecN& dgamma, VecY& y) {
-    open_(a) = open;
-    y(latent_rank_ + a) = open ? stiffness_(a) * dgamma(a) : 0.0;
   }
 
   // Uses the slips of an iterate as the starting guesses of the next scalar roots.
@@ -186,32 +166,21 @@ class StressSolver {
     it.sigma = sigma;
     it.y = y;
     it.tau.noalias() = ph_.schmid.transpose() * sigma;
-    it.fn = normal_traction(ph_, sigma);
-    for (VecN* v : {&it.slip, &it.z, &it.dgamma, &it.mu, &it.r_s, &it.d_tau, &it.d_normal,
-                    &it.d_latent, &it.uncertainty})
+    for (VecN* v :
+         {&it.slip, &it.z, &it.dgamma, &it.mu, &it.r_s, &it.d_tau, &it.d_latent, &it.uncertainty})
       v->setZero(n_);
     it.against.setConstant(n_, false);
     it.merit = kInf;
     it.bad_system = -1;
-    it.opening = -1;
     it.scalar_iterations = 0;
     for (int a = 0; a < n_; ++a) {
-      if (open_(a)) {
-        it.dgamma(a) = y(latent_rank_ + a) / stiffness_(a);
-        it.slip(a) = std::abs(it.dgamma(a));
-        continue;
-      }
-      if (!(it.fn(a) > 0.0)) {
-        it.bad_system = it.opening = a;
-        return;
-      }
       const bool against = slips_against(a, it.tau);
       const double latent =
           latent_rank_ > 0 ? ph_.latent_factor.row(a).head(latent_rank_).dot(y.head(latent_rank_)) /
                                  latent_scale_
                            : 0.0;
       const double guess = warm_against_(a) == against ? warm_z_(a) : 0.0;
-      const SystemResponse resp = respond(a, std::abs(it.tau(a)), it.fn(a), latent, against, guess);
+      const SystemResponse resp = respond(a, std::abs(it.tau(a)), latent, against, guess);
       it.scalar_iterations += resp.iterations;
       if (!resp.admissible) {
         it.bad_system = a;
@@ -219,30 +188,19 @@ class StressSolver {
       }
       it.against(a) = against;
       it.slip(a) = resp.slip, it.z(a) = resp.z, it.mu(a) = resp.mu, it.r_s(a) = resp.r_s;
-      it.d_tau(a) = resp.d_tau, it.d_normal(a) = resp.d_normal, it.d_latent(a) = resp.d_latent;
+      it.d_tau(a) = resp.d_tau, it.d_latent(a) = resp.d_latent;
       it.uncertainty(a) = resp.uncertainty;
       it.dgamma(a) = sign_of(it.tau(a)) * resp.slip;
     }
     it.r_sigma = sigma - trial_;
     it.r_sigma.noalias() += ph_.c_schmid * it.dgamma;
     it.r_y = y - extras_for(it.dgamma);
-    if (ph_.pressure_sensitive)
-      for (int a = 0; a < n_; ++a)
-        if (open_(a)) it.r_y(latent_rank_ + a) = it.tau(a);
     it.merit = 0.5 * (it.r_sigma.squaredNorm() + it.r_y.squaredNorm());
   }
 
-  // d dgamma_a / d sigma of the closed systems (columns), zero for open ones.
+  // d dgamma_a / d sigma (columns).
   Eigen::Matrix<double, 6, N, 0, 6, T::MaxN> slip_gradient(const Iterate& it) const {
     Eigen::Matrix<double, 6, N, 0, 6, T::MaxN> w = ph_.schmid * it.d_tau.asDiagonal();
-    if (ph_.pressure_sensitive) {
-      // f_n = tau0 - M : sigma, and dgamma = sign(tau) ds.
-      VecN signed_normal(n_);
-      for (int a = 0; a < n_; ++a) signed_normal(a) = sign_of(it.tau(a)) * it.d_normal(a);
-      w.noalias() -= ph_.plane_normal_dyad * signed_normal.asDiagonal();
-      for (int a = 0; a < n_; ++a)
-        if (open_(a)) w.col(a).setZero();
-    }
     return w;
   }
 
@@ -251,14 +209,9 @@ class StressSolver {
                               T::MaxN, MaxY>;
   MatNY slip_gradient_in_extras(const Iterate& it) const {
     MatNY g = MatNY::Zero(n_, extras_);
-    for (int a = 0; a < n_; ++a) {
-      if (open_(a)) {
-        g(a, latent_rank_ + a) = 1.0 / stiffness_(a);
-      } else if (latent_rank_ > 0) {
-        g.row(a).head(latent_rank_) = sign_of(it.tau(a)) * it.d_latent(a) / latent_scale_ *
-                                      ph_.latent_factor.row(a).head(latent_rank_);
-      }
-    }
+    for (int a = 0; a < n_ && latent_rank_ > 0; ++a)
+      g.row(a).head(latent_rank_) = sign_of(it.tau(a)) * it.d_latent(a) / latent_scale_ *
+                                    ph_.latent_factor.row(a).head(latent_rank_);
     return g;
   }
 
@@ -269,8 +222,7 @@ class StressSolver {
     return j;
   }
 
-  // The full Jacobian with the extra unknowns: rows R_sigma, then R_y = y - extras_for(dgamma)
-  // (an open plane's row: its shear).
+  // The full Jacobian with the extra unknowns: rows R_sigma, then R_y = y - extras_for(dgamma).
   MatJ full_jacobian(const Iterate& it) const {
     const int m = 6 + extras_;
     MatJ j = MatJ::Zero(m, m);
@@ -280,20 +232,13 @@ class StressSolver {
     j.topRightCorner(6, extras_).noalias() = ph_.c_schmid * g;
     j.bottomRightCorner(extras_, extras_).setIdentity();
     if (latent_rank_ > 0) {
-      // d(c R^T |dgamma|) = c R^T S (W^T d sigma + G d y), S = sign(tau) (0 on open planes,
-      // whose |dgamma| changes with y only).
+      // d(c R^T |dgamma|) = c R^T S (W^T d sigma + G d y), S = sign(tau).
       VecN sign(n_);
-      for (int a = 0; a < n_; ++a) sign(a) = open_(a) ? sign_of(it.dgamma(a)) : sign_of(it.tau(a));
+      for (int a = 0; a < n_; ++a) sign(a) = sign_of(it.tau(a));
       const Eigen::Matrix<double, Eigen::Dynamic, N, 0, MaxY, T::MaxN> rs =
           latent_scale_ * ph_.latent_mix.leftCols(latent_rank_).transpose() * sign.asDiagonal();
       j.block(6, 0, latent_rank_, 6).noalias() -= rs * w.transpose();
       j.block(6, 6, latent_rank_, extras_).noalias() -= rs * g;
-    }
-    for (int a = 0; a < n_; ++a) {
-      if (!open_(a)) continue;
-      const int row = 6 + latent_rank_ + a;
-      j.row(row).setZero();
-      j.block(row, 0, 1, 6) = ph_.schmid.col(a).transpose();
     }
     return j;
   }
@@ -351,24 +296,17 @@ class StressSolver {
   // becomes active, with its slip from its own scalar flow rule at that stress; a slip whose
   // shear the written stress turns against it is dropped. From the last step's rates, an active
   // set met again without a smaller residual than at its last visit ends the iteration (a cycle
-  // of role changes). An open plane or a stress outside the flow rule's domain ends it too.
+  // of role changes). A stress outside the flow rule's domain ends it too.
   struct SlipPoint {
     Vec6 sigma;
     VecN dgamma, mu, r_s;
     // The Newton linearization: the change of dgamma_a for a stress change ds and latent-drive
-    // change eta = R^T S d|dgamma| is w_a + d_a P_a:ds - e_a M_a:ds + l_a F_a.eta.
-    VecN w, d, e, l, sign;
-    // Saturated systems (see is_saturated): their flow rule is a yield condition on the stress,
-    // linearised as sign_a P_a:ds + yield_normal_a M_a:ds = yield_rhs_a; their slip change is
-    // an unknown of its own.
-    Flags saturated;
-    VecN yield_normal, yield_rhs;
+    // change eta = R^T S d|dgamma| is w_a + d_a P_a:ds + l_a F_a.eta.
+    VecN w, d, l, sign;
     double worst = kInf;           // largest |G_a| (an idle system: r - r_s0 where positive)
     double slip_resolution = 0.0;  // the rounding of the largest slip
     bool converged = false;
   };
-
-  bool can_refine() const { return !open_.any(); }
 
   // The slips at which the stress iterate's Newton correction points, to first order (the
   // iterate's residual is mostly the scalar roots' rounding, which this takes back out).
@@ -501,17 +439,6 @@ class StressSolver {
     //   S ds = de - P lf eta,  M eta = g K^T S^-1 de.
     const Condensed c = condense(p);
     const int cols = static_cast<int>(e.cols());
-    if (p.saturated.any()) {
-      const int m = static_cast<int>(p.saturated.count());
-      MatDQ rhs = MatDQ::Zero(6 + latent_rank_ + m, cols);
-      rhs.topRows(6) = latent_scale_ * e;
-      const MatDQ x = saturated_solve(p, c, rhs);
-      d_sigma = x.topRows(6);
-      d_dgamma.resize(n_, cols);
-      for (int col = 0; col < cols; ++col)
-        d_dgamma.col(col) = saturated_slips(p, c, x, col, VecN::Zero(n_));
-      return;
-    }
     // Column by column: the triangular solves of a 6-vector, not Eigen's blocked kernels for
     // a matrix right-hand side, whose set-up costs more than the solve at this size.
     d_sigma.resize(6, cols);
@@ -523,7 +450,7 @@ class StressSolver {
     }
     d_dgamma.resize(n_, cols);
     for (int col = 0; col < cols; ++col)
-      d_dgamma.col(col) = k_transpose_times(p, c, Vec6(d_sigma.col(col)));
+      d_dgamma.col(col) = k_transpose_times(p, Vec6(d_sigma.col(col)));
     if (latent_rank_ > 0) d_dgamma.noalias() += c.lf * eta;
   }
 
@@ -548,19 +475,10 @@ class StressSolver {
   // then one scaled column).
   VecN latent_drives(const VecN& dgamma) const;
 
-  // G's own rounding (its terms are O(1) ratios) and a few ulp of the slip.
   // Whether system a's flow rule is within its tolerance or its rounding: G's own terms, a few
   // ulp of the slip, and the rounding the written shear carries, of |tau_trial,a| +
   // sum_b |A_ab dgamma_b| (computed only when the tolerance is not met).
-  bool within_floor(const FlowPoint& f, double z, int a, const VecN& dgamma, double fn) const;
-
-  // A rate-independent system whose flow rule no longer depends on its own slip to the
-  // resolution of the elastic coupling: its slip response to its shear, d = g_dr / (mu f_n
-  // |dG/ds|), exceeds the elastic compliance of its own slip, 1/A_aa, by 1/eps (r_s = 1 to
-  // round-off, with mu at its limit or held). Its slip is then fixed by the others and the
-  // elastic coupling alone, as in rate-independent perfect plasticity, and its flow rule
-  // G = r - r_s = 0 is a yield condition on the stress.
-  bool is_saturated(int a, const FlowPoint& f, double fn) const;
+  bool within_floor(const FlowPoint& f, double z, int a, const VecN& dgamma) const;
 
   // What an evaluation found that changes the active set (the first such system).
   struct RoleChange {
@@ -570,22 +488,16 @@ class StressSolver {
 
   // Evaluates the flow rules at the slips `dgamma`, or reports an idle system the written
   // stress loads past r_s0 (it wants to slip), an active one whose shear turned against its
-  // slip, or a point outside the flow rules' domain (an open plane, r >= r_hat).
+  // slip, or a point outside the flow rules' domain (r >= r_hat).
   RoleChange evaluate_slips(const VecN& dgamma, SlipPoint& p) const;
 
   // evaluate_slips' rows, one system at a time, from the flow points of one SIMD batch
-  // (`Batched`, batch_flow_points: one exponential law of the cot function on every system and
-  // no plane pressure, so no saturated system) or of each system's own law (flow_point). The
-  // tests that set a system's role are the same for both sources.
+  // (`Batched`, batch_flow_points: one exponential law of the cot function on every system) or
+  // of each system's own law (flow_point). The tests that set a system's role are the same for
+  // both sources.
   template <bool Batched>
-  RoleChange slip_rows(const VecN& dgamma, const VecN& tau, const VecN& fn,
-                       const VecN& latent_drive, SlipPoint& p) const;
-
-  // The row of a saturated system (is_saturated): slipping, or loaded past r = r_s0 = 1 at zero
-  // slip (the slip is then ready to grow), with a flow rule that no longer depends on its own
-  // slip: a yield condition on the stress.
-  void saturated_row(int a, const FlowPoint& f, double z, const VecN& dgamma, const VecN& tau,
-                     const VecN& fn, SlipPoint& p) const;
+  RoleChange slip_rows(const VecN& dgamma, const VecN& tau, const VecN& latent_drive,
+                       SlipPoint& p) const;
 
   // Whether system a's shear is against its shear at the start of the step: its subloading
   // ratio then restarts from 0 (3.12).
@@ -595,21 +507,16 @@ class StressSolver {
   // z = |ds|^(1/p): the unknown in which a system's flow rule keeps a finite slope at zero slip.
   double slip_root(int a, double dgamma) const;
 
-  // The Newton system of a slip point, condensed to 6 x 6. With K = P diag(d) - M diag(e)
-  // (M only with the pressure-sensitive reading), g = R^T S and lf = diag(l) F, the step
-  // delta = w + K^T ds + lf eta solves ds = -C P delta and eta = g delta, that is
+  // The Newton system of a slip point, condensed to 6 x 6. With K = P diag(d), g = R^T S and
+  // lf = diag(l) F, the step delta = w + K^T ds + lf eta solves ds = -C P delta and
+  // eta = g delta, that is
   //   S ds = -P (w + lf eta),  (I - g lf) eta - g K^T ds = g w,   S = C^-1 + P K^T.
-  // Without plane pressure S = C^-1 + P diag(d) P^T is symmetric positive definite (d > 0:
-  // each flow rule's slip grows with its shear), so it is factored as L D L^T; the latent
-  // unknowns eta (latent_rank of them) are eliminated through
+  // S = C^-1 + P diag(d) P^T is symmetric positive definite (d > 0: each flow rule's slip grows
+  // with its shear), so it is factored as L D L^T; the latent unknowns eta (latent_rank of them)
+  // are eliminated through
   //   Z = S^-1 P lf,  M = I - g lf + g K^T Z,  eta = M^-1 g (w - K^T S^-1 P w).
   struct Condensed {
-    // K, formed only with plane pressure: without it K = P diag(d) is applied as such (k_times,
-    // k_transpose_times), which saves forming a 6 x n matrix per Newton step.
-    Eigen::Matrix<double, 6, N, 0, 6, T::MaxN> k;
     SymmetricFactor6 ldlt;
-    Eigen::PartialPivLU<Mat6> lu;
-    bool symmetric = true;
     // Latent coupling only:
     MatNK lf;
     MatK g;
@@ -618,9 +525,7 @@ class StressSolver {
     Eigen::PartialPivLU<MatK> m;
     double m_scalar = 1.0;  // M when latent_rank == 1
 
-    Vec6 solve_s(const Vec6& rhs) const {
-      return symmetric ? ldlt.solve(rhs) : Vec6(lu.solve(rhs));
-    }
+    Vec6 solve_s(const Vec6& rhs) const { return ldlt.solve(rhs); }
     template <typename Rhs>
     auto solve_m(const Rhs& rhs) const {
       constexpr int cols = Rhs::ColsAtCompileTime;
@@ -630,26 +535,11 @@ class StressSolver {
       return rhs.rows() == 1 ? Result(rhs / m_scalar) : Result(m.solve(rhs));
     }
   };
-  // K x and K^T y: without plane pressure K = P diag(d), applied without forming it.
-  Vec6 k_times(const SlipPoint& p, const Condensed& c, const VecN& x) const;
-  VecN k_transpose_times(const SlipPoint& p, const Condensed& c, const Vec6& y) const;
+  // K x and K^T y, K = P diag(d) applied without forming it (a 6 x n matrix per Newton step).
+  Vec6 k_times(const SlipPoint& p, const VecN& x) const;
+  VecN k_transpose_times(const SlipPoint& p, const Vec6& y) const;
 
   Condensed condense(const SlipPoint& p) const;
-
-  // The Newton system of a slip point with saturated systems, whose slip changes x_S are
-  // unknowns and whose rows are their linearised yield conditions, for the right-hand sides
-  // `rhs` (rows: c (de - P w), g w, yield_rhs_S; c a mean stiffness so the unknowns
-  // (ds, eta, c x_S) and the rows are of one scale). Where the saturated systems' yield
-  // normals are linearly dependent (more than five of them, as in rate-independent Taylor
-  // plasticity) their slips are not determined: the complete orthogonal decomposition gives the
-  // solution of least norm, whose stress is the unique one.
-  using MatD = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxY, MaxY>;
-  using MatDQ = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, MaxY, 6>;
-  MatDQ saturated_solve(const SlipPoint& p, const Condensed& c, const MatDQ& rhs) const;
-
-  // The change of every slip from a solution of saturated_solve (one column).
-  VecN saturated_slips(const SlipPoint& p, const Condensed& c, const MatDQ& x, int col,
-                       const VecN& w) const;
 
   bool slip_step(const SlipPoint& p, VecN& delta) const;
 
@@ -667,16 +557,14 @@ class StressSolver {
   void batch_flow_points(const VecN& dgamma, const VecN& tau, const VecN& latent_drive) const;
   FlowPoint batched_flow_point(int a, double z) const;
 
-  FlowPoint flow_point(int a, double abs_tau, double fn, double latent, bool against,
-                       double z) const;
+  FlowPoint flow_point(int a, double abs_tau, double latent, bool against, double z) const;
 
   // The scalar flow rule of system a: G decreases from G(0) = r - r_s0 > 0 as the system slips
   // (its shear is held: slip only lowers r - r_s through r_s, hardening and the overstress), so
   // a bracketed Newton iteration in z = ds^(1/p) finds its root; p >= 2 keeps the slope finite
   // where r_s grows like sqrt(ds) from r_s = 0 and where the power overstress has
   // G ~ -ds^(1/n).
-  SystemResponse respond(int a, double abs_tau, double fn, double latent, bool against,
-                         double guess) const;
+  SystemResponse respond(int a, double abs_tau, double latent, bool against, double guess) const;
 
   const Phase<N>& ph_;
   const GrainState<N>& s0_;
@@ -684,7 +572,7 @@ class StressSolver {
   int n_;
   Vec6 trial_;
   VecN tau_start_, tau_trial_, stiffness_, warm_z_;
-  Flags open_, warm_against_;
+  Flags warm_against_;
   int latent_rank_ = 0, extras_ = 0, max_iterations_ = 0;
   double latent_scale_ = 1.0;
   double stress_scale_ = 0.0, residual_tolerance_ = 0.0, flow_tolerance_ = 0.0, tolerance_ = 0.0;

@@ -9,10 +9,8 @@ namespace subslip::crystal::implicit_detail {
 template <int N>
 inline double StressSolver<N>::activation_slip(int a, const SlipPoint& p) const {
   const double tau = tau_of(p.sigma, a);
-  const VecN fn = normal_traction(ph_, p.sigma);
   const bool against = tau * tau_start_(a) < 0.0;
-  const SystemResponse resp =
-      respond(a, std::abs(tau), fn(a), latent_drives(p.dgamma)(a), against, 0.0);
+  const SystemResponse resp = respond(a, std::abs(tau), latent_drives(p.dgamma)(a), against, 0.0);
   return resp.admissible ? resp.slip : 0.0;
 }
 
@@ -26,22 +24,14 @@ inline typename StressSolver<N>::VecN StressSolver<N>::latent_drives(const VecN&
 }
 
 template <int N>
-inline bool StressSolver<N>::within_floor(const FlowPoint& f, double z, int a, const VecN& dgamma,
-                                          double fn) const {
+inline bool StressSolver<N>::within_floor(const FlowPoint& f, double z, int a,
+                                          const VecN& dgamma) const {
   if (std::abs(f.g) <= tolerance_) return true;
   const double shear_size = std::abs(tau_trial_(a)) +
                             ph_.interaction.row(a).cwiseAbs().dot(dgamma.cwiseAbs().transpose());
-  return std::abs(f.g) <=
-         4.0 * kEps *
-             (1.0 + f.r + std::abs(f.g_z) * z + std::abs(f.g_dr) * shear_size / (f.mu * fn));
-}
-
-template <int N>
-inline bool StressSolver<N>::is_saturated(int a, const FlowPoint& f, double fn) const {
-  if (!ph_.laws[static_cast<size_t>(a)].is_rate_independent() || !std::isfinite(f.g_s) ||
-      f.g_s > 0.0)
-    return false;
-  return -f.g_s * f.mu * fn <= kEps * f.g_dr * stiffness_(a);
+  return std::abs(f.g) <= 4.0 * kEps *
+                              (1.0 + f.r + std::abs(f.g_z) * z +
+                               std::abs(f.g_dr) * shear_size / (f.mu * ph_.tau0(a)));
 }
 
 template <int N>
@@ -50,34 +40,30 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::evaluate_slips(cons
   p.sigma = trial_;
   p.sigma.noalias() -= ph_.c_schmid * dgamma;
   const VecN tau = ph_.schmid.transpose() * p.sigma;
-  const VecN fn = normal_traction(ph_, p.sigma);
   const VecN latent_drive = latent_drives(dgamma);
   p.dgamma = dgamma;
-  for (VecN* v : {&p.mu, &p.r_s, &p.w, &p.d, &p.e, &p.l, &p.sign, &p.yield_normal, &p.yield_rhs})
-    v->setZero(n_);
-  p.saturated.setConstant(n_, false);
+  for (VecN* v : {&p.mu, &p.r_s, &p.w, &p.d, &p.l, &p.sign}) v->setZero(n_);
   p.worst = 0.0;
   p.converged = true;
   // The rounding of the largest slip, which the stress C P dgamma cannot resolve below.
   p.slip_resolution = 4.0 * kEps * dgamma.cwiseAbs().maxCoeff();
   if (batched_) {
     batch_flow_points(dgamma, tau, latent_drive);
-    return slip_rows<true>(dgamma, tau, fn, latent_drive, p);
+    return slip_rows<true>(dgamma, tau, latent_drive, p);
   }
-  return slip_rows<false>(dgamma, tau, fn, latent_drive, p);
+  return slip_rows<false>(dgamma, tau, latent_drive, p);
 }
 
 template <int N>
 template <bool Batched>
 inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const VecN& dgamma,
                                                                        const VecN& tau,
-                                                                       const VecN& fn,
                                                                        const VecN& latent_drive,
                                                                        SlipPoint& p) const {
+  const VecN& fn = ph_.tau0;  // no plane pressure in this solver's domain
   RoleChange change;
   for (int a = 0; a < n_; ++a) {
     const auto i = static_cast<size_t>(a);
-    if (!(fn(a) > 0.0)) return {RoleChange::inadmissible, a};
     if (dgamma(a) == 0.0) {
       const double mu = Batched ? batch_out_.mu[i] : idle_friction(a, latent_drive(a));
       const double r0 = starts_[i][slips_against(a, tau) ? 1 : 0].r0;
@@ -95,20 +81,14 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const Vec
                             .g_s = batch_out_.g_slip[i],
                             .mu = batch_out_.mu[i],
                             .r_s = batch_out_.r_s[i]}
-                : flow_point(a, std::abs(tau(a)), fn(a), latent_drive(a), slips_against(a, tau), z);
+                : flow_point(a, std::abs(tau(a)), latent_drive(a), slips_against(a, tau), z);
     if (!std::isfinite(f.g)) return {RoleChange::inadmissible, a};
-    if constexpr (!Batched) {
-      if (is_saturated(a, f, fn(a))) {
-        saturated_row(a, f, z, dgamma, tau, fn, p);
-        continue;
-      }
-    }
     const bool finite_slope = f.g_s < 0.0 && std::isfinite(f.g_s);
     // An idle system whose excess a slip below that rounding would remove is at its root.
     if (dgamma(a) == 0.0 && finite_slope && f.g <= -f.g_s * p.slip_resolution) continue;
     if (!finite_slope) {
       // No finite slope: at zero slip where r_s (from r_s0 = 0) or the power overstress grows
-      // like a root of the slip, or a flow rule that no longer depends on the slip.
+      // like a root of the slip.
       if (dgamma(a) != 0.0) return {RoleChange::inadmissible, a};
       if (change.kind == RoleChange::none) change = {RoleChange::wants_to_slip, a};
       p.worst = std::max(p.worst, f.g);  // its G(0) = r - r_s0 > 0 stays a residual
@@ -119,7 +99,7 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const Vec
     p.worst = std::max(p.worst, std::abs(f.g));
     p.converged =
         p.converged && (std::abs(f.g) <= tolerance_ ||
-                        within_floor(Batched ? batched_flow_point(a, z) : f, z, a, dgamma, fn(a)));
+                        within_floor(Batched ? batched_flow_point(a, z) : f, z, a, dgamma));
     const double s = sign_of(tau(a));
     p.sign(a) = s;
     if constexpr (Batched) {
@@ -130,24 +110,10 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const Vec
       const double inverse_slope = 1.0 / (-f.g_s);
       p.w(a) = s * f.g * inverse_slope;
       p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
-      p.e(a) = ph_.pressure_sensitive ? s * f.g_dr * (-f.r / fn(a)) * inverse_slope : 0.0;
       p.l(a) = s * f.g_dr * (-f.r / f.mu) * f.dmu_de * inverse_slope;
     }
   }
   return change;
-}
-
-template <int N>
-inline void StressSolver<N>::saturated_row(int a, const FlowPoint& f, double z, const VecN& dgamma,
-                                           const VecN& tau, const VecN& fn, SlipPoint& p) const {
-  p.saturated(a) = true;
-  p.sign(a) = dgamma(a) != 0.0 ? sign_of(dgamma(a)) : sign_of(tau(a));
-  p.mu(a) = f.mu, p.r_s(a) = f.r_s;
-  p.worst = std::max(p.worst, std::abs(f.g));
-  p.converged = p.converged && within_floor(f, z, a, dgamma, fn(a));
-  // dG = g_dr (dr/d|tau| s P_a:ds - r/f_n df_n), df_n = -M_a:ds; scaled by mu f_n/g_dr.
-  p.yield_normal(a) = ph_.pressure_sensitive ? f.r * f.mu : 0.0;
-  p.yield_rhs(a) = -f.g * f.mu * fn(a) / f.g_dr;
 }
 
 template <int N>
@@ -163,37 +129,27 @@ inline double StressSolver<N>::slip_root(int a, double dgamma) const {
 }
 
 template <int N>
-inline Vec6 StressSolver<N>::k_times(const SlipPoint& p, const Condensed& c, const VecN& x) const {
-  return c.symmetric ? Vec6(ph_.schmid * p.d.cwiseProduct(x)) : Vec6(c.k * x);
+inline Vec6 StressSolver<N>::k_times(const SlipPoint& p, const VecN& x) const {
+  return Vec6(ph_.schmid * p.d.cwiseProduct(x));
 }
 
 template <int N>
 inline typename StressSolver<N>::VecN StressSolver<N>::k_transpose_times(const SlipPoint& p,
-                                                                         const Condensed& c,
                                                                          const Vec6& y) const {
-  return c.symmetric ? VecN(p.d.cwiseProduct(ph_.schmid.transpose() * y))
-                     : VecN(c.k.transpose() * y);
+  return VecN(p.d.cwiseProduct(ph_.schmid.transpose() * y));
 }
 
 template <int N>
 inline typename StressSolver<N>::Condensed StressSolver<N>::condense(const SlipPoint& p) const {
   Condensed c;
   Mat6 s = ph_.compliance;
-  if (ph_.pressure_sensitive) {
-    c.k.noalias() = ph_.schmid * p.d.asDiagonal();
-    c.k.noalias() -= ph_.plane_normal_dyad * p.e.asDiagonal();
-    c.symmetric = false;
-    s.noalias() += ph_.schmid.lazyProduct(c.k.transpose());
-    c.lu.compute(s);
-  } else {
-    // Symmetric: its lower triangle (which the L D L^T factorisation reads) as one product
-    // of the phase's 21 x n dyads with d.
-    Eigen::Matrix<double, 21, 1> lower = Eigen::Matrix<double, 21, 1>::Zero();
-    for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
-    for (int j = 0, k = 0; j < 6; ++j)
-      for (int i = j; i < 6; ++i) s(i, j) += lower(k++);
-    c.ldlt.compute(s);
-  }
+  // Symmetric: its lower triangle (which the L D L^T factorisation reads) as one product of the
+  // phase's 21 x n dyads with d.
+  Eigen::Matrix<double, 21, 1> lower = Eigen::Matrix<double, 21, 1>::Zero();
+  for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
+  for (int j = 0, k = 0; j < 6; ++j)
+    for (int i = j; i < 6; ++i) s(i, j) += lower(k++);
+  c.ldlt.compute(s);
   if (latent_rank_ > 0) {
     // The products are of at most (latent rank) x 12 x 6: evaluated coefficient-wise
     // (lazyProduct), not by Eigen's general matrix kernels, whose set-up costs more here.
@@ -209,7 +165,7 @@ inline typename StressSolver<N>::Condensed StressSolver<N>::condense(const SlipP
     // not a coefficient-wise loop over dynamic sizes.
     c.gk.resize(latent_rank_, 6);
     for (int j = 0; j < latent_rank_; ++j)
-      c.gk.row(j) = k_times(p, c, VecN(c.g.row(j).transpose())).transpose();
+      c.gk.row(j) = k_times(p, VecN(c.g.row(j).transpose())).transpose();
     c.z.resize(6, latent_rank_);
     for (int j = 0; j < latent_rank_; ++j)
       c.z.col(j) = c.solve_s(Vec6(ph_.schmid.lazyProduct(c.lf.col(j))));
@@ -228,65 +184,8 @@ inline typename StressSolver<N>::Condensed StressSolver<N>::condense(const SlipP
 }
 
 template <int N>
-inline typename StressSolver<N>::MatDQ StressSolver<N>::saturated_solve(const SlipPoint& p,
-                                                                        const Condensed& c,
-                                                                        const MatDQ& rhs) const {
-  const int k = latent_rank_;
-  const int m = static_cast<int>(p.saturated.count());
-  const int dim = 6 + k + m;
-  const double scale = latent_scale_;
-  MatD a = MatD::Zero(dim, dim);
-  a.topLeftCorner(6, 6) = scale * ph_.compliance;
-  if (c.symmetric)
-    a.topLeftCorner(6, 6).noalias() +=
-        scale * ph_.schmid * p.d.asDiagonal() * ph_.schmid.transpose();
-  else
-    a.topLeftCorner(6, 6).noalias() += scale * ph_.schmid * c.k.transpose();
-  if (k > 0) {
-    a.block(0, 6, 6, k).noalias() = scale * ph_.schmid * c.lf;
-    a.block(6, 0, k, 6) = -c.gk;
-    a.block(6, 6, k, k).setIdentity();
-    a.block(6, 6, k, k).noalias() -= c.g * c.lf;
-  }
-  for (int a_idx = 0, j = 6 + k; a_idx < n_; ++a_idx) {
-    if (!p.saturated(a_idx)) continue;
-    a.block(0, j, 6, 1) = ph_.schmid.col(a_idx);
-    if (k > 0) a.block(6, j, k, 1) = -c.g.col(a_idx) / scale;
-    a.block(j, 0, 1, 6) = p.sign(a_idx) * ph_.schmid.col(a_idx).transpose();
-    if (ph_.pressure_sensitive)
-      a.block(j, 0, 1, 6) += p.yield_normal(a_idx) * ph_.plane_normal_dyad.col(a_idx).transpose();
-    ++j;
-  }
-  return Eigen::CompleteOrthogonalDecomposition<MatD>(a).solve(rhs);
-}
-
-template <int N>
-inline typename StressSolver<N>::VecN StressSolver<N>::saturated_slips(const SlipPoint& p,
-                                                                       const Condensed& c,
-                                                                       const MatDQ& x, int col,
-                                                                       const VecN& w) const {
-  const int k = latent_rank_;
-  VecN delta = w + k_transpose_times(p, c, Vec6(x.block(0, col, 6, 1)));
-  if (k > 0) delta.noalias() += c.lf * x.block(6, col, k, 1);
-  for (int a = 0, j = 6 + k; a < n_; ++a)
-    if (p.saturated(a)) delta(a) = x(j++, col) / latent_scale_;
-  return delta;
-}
-
-template <int N>
 inline bool StressSolver<N>::slip_step(const SlipPoint& p, VecN& delta) const {
   const Condensed c = condense(p);
-  if (p.saturated.any()) {
-    const int k = latent_rank_;
-    const int m = static_cast<int>(p.saturated.count());
-    MatDQ rhs = MatDQ::Zero(6 + k + m, 1);
-    rhs.topRows(6) = -latent_scale_ * (ph_.schmid * p.w);
-    if (k > 0) rhs.block(6, 0, k, 1) = c.g * p.w;
-    for (int a = 0, j = 6 + k; a < n_; ++a)
-      if (p.saturated(a)) rhs(j++, 0) = p.yield_rhs(a);
-    delta = saturated_slips(p, c, saturated_solve(p, c, rhs), 0, p.w);
-    return delta.allFinite();
-  }
   const Vec6 a = c.solve_s(ph_.schmid * p.w);
   Vec6 d_sigma = -a;
   VecK eta;
@@ -295,7 +194,7 @@ inline bool StressSolver<N>::slip_step(const SlipPoint& p, VecN& delta) const {
     eta = c.solve_m(rhs);
     d_sigma.noalias() -= c.z.lazyProduct(eta);
   }
-  delta = p.w + k_transpose_times(p, c, d_sigma);
+  delta = p.w + k_transpose_times(p, d_sigma);
   if (latent_rank_ > 0) delta.noalias() += c.lf.lazyProduct(eta);
   return delta.allFinite();
 }
@@ -357,8 +256,8 @@ inline FlowPoint StressSolver<N>::batched_flow_point(int a, double z) const {
 }
 
 template <int N>
-inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double fn, double latent,
-                                             bool against, double z) const {
+inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double latent, bool against,
+                                             double z) const {
   const auto& law = ph_.laws[static_cast<size_t>(a)];
   const double p = exponent_[static_cast<size_t>(a)];
   const double slip = p == 2.0 ? z * z : std::pow(z, p);
@@ -368,7 +267,7 @@ inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double fn, d
   const auto mu = law.friction_coefficient_after(s0_.mu(a), effective, dt_);
   const auto& start = starts_[static_cast<size_t>(a)][against ? 1 : 0];
   const auto rs = law.subloading_ratio_after(start, slip);
-  const double r = abs_tau / (mu.value * fn);
+  const double r = abs_tau / (mu.value * ph_.tau0(a));
   const auto g = law.flow_residual(r, rs.value, slip, dt_);
   if (!g.admissible || !(mu.value > 0.0)) return {kInf, 0.0, 0.0, 0.0, r, 0.0, mu.value, rs.value};
   const double dr_dslip = -r / mu.value * mu.d_slip * q;
@@ -378,14 +277,19 @@ inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double fn, d
 }
 
 template <int N>
-inline SystemResponse StressSolver<N>::respond(int a, double abs_tau, double fn, double latent,
-                                               bool against, double guess) const {
+inline SystemResponse StressSolver<N>::respond(int a, double abs_tau, double latent, bool against,
+                                               double guess) const {
+  const double fn = ph_.tau0(a);  // no plane pressure in this solver's domain
   const auto& law = ph_.laws[static_cast<size_t>(a)];
   const auto& start = starts_[static_cast<size_t>(a)][against ? 1 : 0];
   SystemResponse out;
-  // No slip where r <= r_s0 (G(0) = r - r_s0 for every form); r as the state reports it.
+  // No slip where zero slip is the root to this root's own tolerance: G(0) = r - r_s0 for every
+  // form, r as the state reports it. Not where r <= r_s0 exactly: a system idle at the end of the
+  // last step has r_s0 = r there ((3.12)), so at the start stress its excess is round-off of the
+  // state, and a test at zero would give it the full onset slope in the Jacobian or none by that
+  // round-off, and the iteration two directions (docs/grain_step.md, "Instruction sets").
   const auto mu_idle = law.friction_coefficient_after(s0_.mu(a), latent, dt_);
-  if (abs_tau / (mu_idle.value * fn) <= start.r0) {
+  if (abs_tau / (mu_idle.value * fn) - start.r0 <= flow_tolerance_) {
     out.mu = mu_idle.value;
     out.r_s = start.r0;
     return out;
@@ -405,10 +309,7 @@ inline SystemResponse StressSolver<N>::respond(int a, double abs_tau, double fn,
   bool converged = false;
   for (int it = 1; it <= 200; ++it) {
     out.iterations = it;
-    f = flow_point(a, abs_tau, fn, latent, against, z);
-    // Rate-independent: r_s <= 1 (it reaches 1 only in rounding, after large slip), so the
-    // root at a held shear does not exist where r > 1: outside the flow rule's domain.
-    if (law.is_rate_independent() && f.r > 1.0) f.g = kInf;
+    f = flow_point(a, abs_tau, latent, against, z);
     const double resolution = std::isfinite(f.g_z) ? 4.0 * std::abs(f.g_z) * kEps * z : 0.0;
     if (std::isfinite(f.g) && std::abs(f.g) <= std::max(flow_tolerance_, resolution)) {
       converged = true;
@@ -421,8 +322,8 @@ inline SystemResponse StressSolver<N>::respond(int a, double abs_tau, double fn,
     }
     if (std::isfinite(hi) && hi - lo <= 4.0 * kEps * hi) {  // the bracket is a few ulp wide
       z = hi;
-      f = flow_point(a, abs_tau, fn, latent, against, z);
-      converged = std::isfinite(f.g) && !(law.is_rate_independent() && f.r > 1.0);
+      f = flow_point(a, abs_tau, latent, against, z);
+      converged = std::isfinite(f.g);
       break;
     }
     double next;
@@ -460,7 +361,6 @@ inline SystemResponse StressSolver<N>::respond(int a, double abs_tau, double fn,
   out.mu = f.mu;
   out.r_s = f.r_s;
   out.d_tau = scale * f.g_dr * dr_dtau;
-  out.d_normal = scale * f.g_dr * (-f.r / fn);
   out.d_latent = scale * f.g_dr * (-f.r / f.mu) * f.dmu_de;
   out.uncertainty = std::max(flow_tolerance_, 4.0 * std::abs(f.g_z) * kEps * z) * std::abs(scale);
   return out;
