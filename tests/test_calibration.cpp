@@ -196,7 +196,7 @@ TEST(FitFile, BoundsThatExcludeTheStartAreRefused) {
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_EQ(e.file, (files.dir / "fit.yaml").string());
-    EXPECT_EQ(e.line, 8) << e.what();
+    EXPECT_EQ(e.line, 9) << e.what();
     EXPECT_EQ(e.key, "free.eta_v") << e.what();
     EXPECT_NE(e.message.find("exclude the start eta_v = 950"), std::string::npos) << e.what();
   }
