@@ -13,6 +13,7 @@
 #include "subslip/calibration/contact_fit.hpp"
 #include "subslip/io/fit_file.hpp"
 #include "subslip/io/input_error.hpp"
+#include "subslip/io/scene_common.hpp"
 #include "subslip/law/parameter_table.hpp"
 
 namespace {
@@ -199,6 +200,19 @@ TEST(FitFile, BoundsThatExcludeTheStartAreRefused) {
     EXPECT_EQ(e.line, 9) << e.what();
     EXPECT_EQ(e.key, "free.eta_v") << e.what();
     EXPECT_NE(e.message.find("exclude the start eta_v = 950"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FitFile, IsNoSceneAndSaysWhichCommandReadsIt) {
+  FitFiles files;
+  files.write("a.csv", "slip [mm], ratio [-]\n0.1, 0.05\n0.2, 0.06\n");
+  try {
+    io::scene_kind(io::YamlDocument::from_file(files.fit()), {"contact", "crystal"});
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line, 1) << e.what();
+    EXPECT_EQ(e.key, "fit") << e.what();
+    EXPECT_NE(e.message.find("subslip fit"), std::string::npos) << e.what();
   }
 }
 
