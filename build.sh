@@ -18,7 +18,8 @@ packages=(cmake g++ make libeigen3-dev libhdf5-dev hdf5-tools libyaml-cpp-dev li
           libopenmpi-dev openmpi-bin  # MPI over grains (mpirun -np N subslip run)
           libhdf5-openmpi-dev  # ranks writing one result file together (parallel HDF5)
           python3-h5py python3-matplotlib python3-numpy  # scripts/subslip_plots.py and its test
-          python3-dev pybind11-dev python3-yaml)  # the Python module subslip._core (docs/python.md)
+          python3-dev pybind11-dev python3-yaml  # the Python module subslip._core (docs/python.md)
+          libceres-dev)  # sensitivities (Jet) and the bounded least squares of `subslip fit`
 # The tests of `test` include a Fortran driver of the FE library's UMAT (tests/fe/umat_driver.f90).
 # and an offline pip install of the Python package (tests/python/test_bindings.py).
 if [ "${1:-}" = test ]; then

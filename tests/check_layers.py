@@ -28,6 +28,7 @@ LEVELS = [
     ("point",),                   # the material-point API over the physics
     ("history", "fe"),            # a contact point driven along a history; the FE entry points
     ("study",),                   # accuracy, robustness and benchmark studies (and their peers)
+    ("calibration",),             # the law fitted to measured curves (bounded least squares)
     ("model",),                   # the plain run model a scene becomes (cases, fields, units)
     ("driver",),                  # runs a model's cases, hands results to sinks it defines
     ("io",),                      # scene parsers into the model; HDF5 sinks; result files

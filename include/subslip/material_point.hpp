@@ -81,6 +81,12 @@ class ContactPoint {
   ContactState initial_state(double normal_traction, const law::LawState& law_state) const;
   // One update by ContactParameters::method.
   ContactUpdate update(const ContactState& state, const ContactStep& step) const;
+  // One implicit update that also carries `sensitivity`, the derivatives of the state's
+  // variables with respect to the law's constants (contact::ContactSensitivity), from `state`'s
+  // to the result's; left as it is where the update fails. Start a path from
+  // contact::initial_sensitivity. Only the implicit method has them (std::invalid_argument).
+  ContactUpdate update(const ContactState& state, const ContactStep& step,
+                       contact::ContactSensitivity& sensitivity) const;
   // Point k: states[k] over steps[k] into out[k] (the spans have one size).
   void update(std::span<const ContactState> states, std::span<const ContactStep> steps,
               std::span<ContactUpdate> out) const;

@@ -28,9 +28,11 @@ from .texture import (cubic_family, hexagonal_family, inverse_pole_figure_points
                       pole_families, pole_figure_points, quaternion_to_matrix)
 from .derived import loading_component  # noqa: E402
 from .csv_export import MissingBinary, exact_number  # noqa: E402
-from .errors import MissingCore, RunError, SceneError, SceneWarning, StepFailure  # noqa: E402
+from .errors import (FitWarning, MissingCore, RunError, SceneError, SceneWarning,  # noqa: E402
+                     StepFailure)
 from .run import run  # noqa: E402
 from .point import ContactPoint, GrainPoint, TaylorPoint, increment_lengths  # noqa: E402
+from .calibration import fit, fit_figure  # noqa: E402
 
 __all__ = [
     "open", "Result", "Case", "CASE_STATES", "NotAResult", "MissingData", "MissingDependency",
@@ -38,5 +40,5 @@ __all__ = [
     "cubic_family", "hexagonal_family", "pole_families", "pole_figure_points",
     "inverse_pole_figure_points", "loading_component", "exact_number", "MissingBinary",
     "run", "ContactPoint", "GrainPoint", "TaylorPoint", "increment_lengths", "SceneError",
-    "StepFailure", "RunError", "SceneWarning", "MissingCore",
+    "StepFailure", "RunError", "SceneWarning", "MissingCore", "fit", "fit_figure", "FitWarning",
 ]

@@ -24,3 +24,8 @@ class MissingCore(ImportError):
 
 class SceneWarning(UserWarning):
     """A scene setting that is legal but suspicious (the command line prints it as a warning)."""
+
+
+class FitWarning(UserWarning):
+    """A constant a fit leaves undetermined, and which data would determine it (`subslip fit`
+    prints the same warning)."""

@@ -8,6 +8,7 @@
 
 #include "accuracy.hpp"
 #include "bench.hpp"
+#include "fit.hpp"
 #include "post.hpp"
 #include "run_scene.hpp"
 #include "validators.hpp"
@@ -208,6 +209,8 @@ int main(int argc, char** argv) {
   cli::add_accuracy_command(app, accuracy_args);
   cli::PostArgs post_args;
   cli::add_post_command(app, post_args);
+  cli::FitArgs fit_args;
+  cli::add_fit_command(app, fit_args);
   // Further subcommands (post, accuracy) register here, each with its own argument struct and
   // a branch below.
   try {
@@ -227,6 +230,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("bench")) return cli::run_bench(bench_args);
     if (app.got_subcommand("accuracy")) return cli::run_accuracy(accuracy_args);
     if (app.got_subcommand("post")) return cli::run_post(post_args);
+    if (app.got_subcommand("fit")) return cli::run_fit(fit_args);
   } catch (const std::exception& e) {
     return stop_on(e, team);
   }

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
+#include "contact_sensitivity.hpp"
+#include "path_minimum.hpp"
 #include "subslip/integrators/scalar_root.hpp"
 #include "subslip/integrators/step_control.hpp"
 
@@ -37,31 +40,6 @@ StepAttempt open_contact(const law::SubloadingFrictionLaw& law, ContactState s, 
   s.r = 0.0;
   s.vp_rate = 0.0;
   return {s, 0, true, {}};
-}
-
-// The lowest loading ratio r = |f_t|/(f_n mu) on the straight traction path of a step, from
-// (f0, fn0) at its start to (f1, fn1) at its end; mu_at(l) is mu at the path parameter l. Where
-// r < r_s on that path no viscoplastic sliding occurs and (3.12) makes r_s follow r down, so a
-// step whose path passes near zero traction (a reversal) must start r_s from this minimum,
-// not from r_s0. |f|^2/fn^2 = (a + 2bl + cl^2)/(p + ql)^2 has one stationary point, where
-// (cp - bq) l = qa - bp, a minimum when cp - bq > 0; otherwise the minimum is at an end,
-// which the callers already cover (r_s0 <= r0, and r_s <= r at the end). mu only scales the
-// ratio and changes little over a step, so it is evaluated at that point.
-struct PathMinimum {
-  double ratio = std::numeric_limits<double>::infinity();
-  double at = 0.0;  // path parameter in [0, 1]
-};
-template <class MuAt>
-PathMinimum lowest_ratio_on_path(const Vec2& f0, double fn0, const Vec2& f1, double fn1,
-                                 MuAt&& mu_at) {
-  if (!(fn0 > 0.0) || !(fn1 > 0.0)) return {};
-  const Vec2 df = f1 - f0;
-  const double a = f0.squaredNorm(), b = f0.dot(df), c = df.squaredNorm();
-  const double p = fn0, q = fn1 - fn0;
-  const double den = c * p - b * q;
-  if (!(den > 0.0)) return {};
-  const double l = std::clamp((q * a - b * p) / den, 0.0, 1.0);
-  return {(f0 + l * df).norm() / ((p + l * q) * mu_at(l)), l};
 }
 
 }  // namespace
@@ -167,10 +145,9 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
   } else {
     const double mu0 = s0.law.mu, mu1 = s.law.mu;
     s.law.r_s = std::min(
-        s.law.r_s,
-        lowest_ratio_on_path(s0.traction_t, s0.traction_n, s.traction_t, fn1, [&](double l) {
-          return mu0 + l * (mu1 - mu0);
-        }).ratio);
+        s.law.r_s, detail::lowest_ratio_on_path(s0.traction_t, s0.traction_n, s.traction_t, fn1,
+                                                [&](double l) { return mu0 + l * (mu1 - mu0); })
+                       .ratio);
   }
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / dt;
@@ -180,12 +157,23 @@ StepAttempt forward_euler_step(const law::SubloadingFrictionLaw& law, const Cont
   return out;
 }
 
-StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
-                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
-                          double residual_tolerance, ContactTangent* tangent) {
+namespace {
+
+// The implicit update, and with kSensitivity its forward sensitivities (`sensitivity` from the
+// start state's to the end state's, contact_sensitivity.cpp): the double path of a step without
+// them compiles as it did (inlined into implicit_step: no call more per step than before).
+template <bool kSensitivity>
+[[gnu::always_inline]] inline StepAttempt implicit_step_of(
+    const law::SubloadingFrictionLaw& law, const ContactStiffness& c, const ContactState& s0,
+    const Vec2& du_t, double fn1, double dt, double residual_tolerance, ContactTangent* tangent,
+    ContactSensitivity* sensitivity) {
   ContactState s = kinematic_update(s0, du_t, fn1, dt);
   if (tangent) tangent->setZero();
-  if (fn1 <= 0.0) return open_contact(law, s, dt);
+  if (fn1 <= 0.0) {
+    if constexpr (kSensitivity)
+      *sensitivity = detail::open_step_sensitivity(law, s0, *sensitivity, dt);
+    return open_contact(law, s, dt);
+  }
   const Vec2 trial = s0.traction_t + c.alpha_t * du_t;
   const double ft_trial = trial.norm();
   const auto mu_elastic = law.friction_coefficient_after(s0.law.mu, 0.0, dt);
@@ -194,7 +182,7 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
   // sliding occurs while r < r_s. A reversal takes the traction through zero and r_s with it;
   // the slip of the step then regrows r_s from there (3.11), and it can only occur after that
   // point: the flow rule's rate is the slip over the time left (backward Euler on that part).
-  const PathMinimum lowest = lowest_ratio_on_path(
+  const detail::PathMinimum<double> lowest = detail::lowest_ratio_on_path(
       s0.traction_t, s0.traction_n, trial, fn1,
       [&](double l) { return law.friction_coefficient_after(s0.law.mu, 0.0, l * dt).value; });
   const bool dips = lowest.ratio < s0.law.r_s;
@@ -209,6 +197,9 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
     s.law.r_s = std::min(rs_start, r_trial);
     s.vp_rate = 0.0;
     if (tangent) tangent->leftCols<2>() = c.alpha_t * Eigen::Matrix2d::Identity();
+    if constexpr (kSensitivity)
+      *sensitivity =
+          detail::step_sensitivity(law, c, s0, *sensitivity, du_t, fn1, dt, std::nullopt);
     return {s, 0, true, {}};
   }
 
@@ -276,7 +267,36 @@ StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactSt
                                           (1.0 - c.alpha_t * dds_dtrial) * tt);
     tangent->col(2) = -c.alpha_t * dds_dfn * t;
   }
+  if constexpr (kSensitivity) {
+    if (out.ok) {
+      // dG/d ds at the root: the step's Jacobian, which the sensitivities divide by.
+      const auto rs = law.subloading_ratio_after(rs_start, ds);
+      const auto g = law.flow_residual(s.r, rs.value, ds, slip_time);
+      const double g_slip = g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip;
+      *sensitivity = detail::step_sensitivity(law, c, s0, *sensitivity, du_t, fn1, dt,
+                                              detail::SlipRoot{ds, g_slip});
+    }
+  }
   return out;
+}
+
+}  // namespace
+
+StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                          double residual_tolerance, ContactTangent* tangent) {
+  return implicit_step_of<false>(law, c, s0, du_t, fn1, dt, residual_tolerance, tangent, nullptr);
+}
+
+StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                          double residual_tolerance, ContactTangent* tangent,
+                          ContactSensitivity& sensitivity) {
+  ContactSensitivity carried = sensitivity;
+  StepAttempt a =
+      implicit_step_of<true>(law, c, s0, du_t, fn1, dt, residual_tolerance, tangent, &carried);
+  if (a.ok) sensitivity = carried;
+  return a;
 }
 
 ContactState initial_state(const ContactModel& model) {

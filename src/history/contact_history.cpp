@@ -60,15 +60,32 @@ point::ContactParameters point_parameters(const contact::ContactModel& model,
 
 namespace {
 
+// What the steps of a run carry besides the state: nothing, or the sensitivities to the law's
+// constants (updated by each accepted update, left where an update fails).
+struct NoSensitivity {
+  point::ContactUpdate update(const point::ContactPoint& point, const ContactState& s,
+                              const Vec2& du_t, double fn1, double dt) {
+    return update_point(point, s, du_t, fn1, dt);
+  }
+};
+struct CarriedSensitivity {
+  contact::ContactSensitivity value;
+  point::ContactUpdate update(const point::ContactPoint& point, const ContactState& s,
+                              const Vec2& du_t, double fn1, double dt) {
+    return point.update(s, point::ContactStep{du_t, fn1, dt}, value);
+  }
+};
+
 // Takes the piece of length dt starting t_local into the segment whole, or, where its update
 // fails, as its two halves (recursively, at most opt.max_cutbacks deep: no allocation).
+template <class Carry>
 void advance_piece(const point::ContactPoint& point, const IntegratorOptions& opt,
                    const Segment& seg, double fn_start, double dt, int depth, ContactState& s,
-                   double& t_local, StepStats& stats) {
+                   double& t_local, StepStats& stats, Carry& carry) {
   const Vec2 du = seg.velocity * dt;
   const double fn1 =
       contact::normal_traction_at(seg, point.parameters().stiffness, fn_start, t_local + dt);
-  const point::ContactUpdate a = update_point(point, s, du, fn1, dt);
+  const point::ContactUpdate a = carry.update(point, s, du, fn1, dt);
   stats.iterations += a.report.iterations;
   if (a.report.ok) {
     s = a.state;
@@ -79,7 +96,19 @@ void advance_piece(const point::ContactPoint& point, const IntegratorOptions& op
   if (depth >= opt.max_cutbacks) throw StepFailure(failure_message(s, depth, dt, a.report.why));
   ++stats.cutbacks;
   for (int half = 0; half < 2; ++half)
-    advance_piece(point, opt, seg, fn_start, 0.5 * dt, depth + 1, s, t_local, stats);
+    advance_piece(point, opt, seg, fn_start, 0.5 * dt, depth + 1, s, t_local, stats, carry);
+}
+
+template <class Carry>
+ContactState advance_carrying(const point::ContactPoint& point, const IntegratorOptions& opt,
+                              const ContactState& s0, const Segment& seg, double fn_start,
+                              double t_in_segment, double dt, StepStats& stats, Carry& carry) {
+  ContactState s = s0;
+  double t_local = t_in_segment;
+  stats = {};
+  stats.substeps = 0;
+  advance_piece(point, opt, seg, fn_start, dt, 0, s, t_local, stats, carry);
+  return s;
 }
 
 }  // namespace
@@ -87,12 +116,8 @@ void advance_piece(const point::ContactPoint& point, const IntegratorOptions& op
 ContactState advance(const point::ContactPoint& point, const IntegratorOptions& opt,
                      const ContactState& s0, const Segment& seg, double fn_start,
                      double t_in_segment, double dt, StepStats& stats) {
-  ContactState s = s0;
-  double t_local = t_in_segment;
-  stats = {};
-  stats.substeps = 0;
-  advance_piece(point, opt, seg, fn_start, dt, 0, s, t_local, stats);
-  return s;
+  NoSensitivity none;
+  return advance_carrying(point, opt, s0, seg, fn_start, t_in_segment, dt, stats, none);
 }
 
 namespace {
@@ -312,6 +337,43 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
 
 }  // namespace
 
+namespace {
+
+// One segment in fixed increments (each cut back where it fails); emit(s, segment) at its
+// output increments.
+template <class Carry, class Emit>
+void run_segment_fixed(const point::ContactPoint& point, const IntegratorOptions& opt,
+                       const Segment& seg, int index, double t_start, ContactState& s,
+                       RunStats& stats, Carry& carry, const Emit& emit) {
+  const double fn_start = s.traction_n;
+  const auto dts = contact::increment_lengths(seg);
+  const std::vector<double> none;
+  const auto steps =
+      integrators::fixed_steps(dts, seg.output_at_times ? seg.output_times : none, seg.duration);
+  double t_local = 0.0;
+  for (const integrators::FixedStep& step : steps) {
+    StepStats st;
+    s = advance_carrying(point, opt, s, seg, fn_start, t_local, step.length, st, carry);
+    t_local = step.end;  // (the running sum of the increments where none is split)
+    ++stats.increments;
+    stats.substeps += st.substeps;
+    stats.iterations += st.iterations;
+    stats.cutbacks += st.cutbacks;
+    if (seg.output_at_times) {
+      if (step.output_time) {
+        s.time = t_start + step.end;  // exactly the output time (the sum of steps rounds)
+        emit(s, index);
+      }
+      continue;
+    }
+    const auto i = static_cast<size_t>(step.increment - 1);
+    const bool last = i + 1 == dts.size();
+    if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) emit(s, index);
+  }
+}
+
+}  // namespace
+
 RunStats run_history(const contact::ContactModel& model, const std::vector<Segment>& segments,
                      const IntegratorOptions& opt, const OutputCallback& on_output) {
   const auto start = std::chrono::steady_clock::now();
@@ -320,43 +382,42 @@ RunStats run_history(const contact::ContactModel& model, const std::vector<Segme
   ContactState s = contact::initial_state(model);
   on_output(s, -1);
   const bool adaptive = opt.tolerance > 0.0 && opt.method == contact::Method::implicit;
+  NoSensitivity none;
   // Where each segment starts in time, from the durations (not the sum of the steps, which
   // rounds): output times are that plus their time into the segment.
   double t_start = 0.0;
   for (size_t k = 0; k < segments.size(); t_start += segments[k++].duration) {
-    const Segment& seg = segments[k];
     if (adaptive) {
-      run_segment_adaptive(point, opt, seg, static_cast<int>(k), t_start, s, stats, on_output);
-      continue;
-    }
-    const double fn_start = s.traction_n;
-    const auto dts = contact::increment_lengths(seg);
-    const std::vector<double> none;
-    const auto steps =
-        integrators::fixed_steps(dts, seg.output_at_times ? seg.output_times : none, seg.duration);
-    double t_local = 0.0;
-    for (const integrators::FixedStep& step : steps) {
-      StepStats st;
-      s = advance(point, opt, s, seg, fn_start, t_local, step.length, st);
-      t_local = step.end;  // (the running sum of the increments where none is split)
-      ++stats.increments;
-      stats.substeps += st.substeps;
-      stats.iterations += st.iterations;
-      stats.cutbacks += st.cutbacks;
-      if (seg.output_at_times) {
-        if (step.output_time) {
-          s.time = t_start + step.end;  // exactly the output time (the sum of steps rounds)
-          on_output(s, static_cast<int>(k));
-        }
-        continue;
-      }
-      const auto i = static_cast<size_t>(step.increment - 1);
-      const bool last = i + 1 == dts.size();
-      if (last || (i + 1) % static_cast<size_t>(seg.output_every) == 0) {
-        on_output(s, static_cast<int>(k));
-      }
+      run_segment_adaptive(point, opt, segments[k], static_cast<int>(k), t_start, s, stats,
+                           on_output);
+    } else {
+      run_segment_fixed(point, opt, segments[k], static_cast<int>(k), t_start, s, stats, none,
+                        on_output);
     }
   }
+  stats.wall_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+RunStats run_history(const contact::ContactModel& model, const std::vector<Segment>& segments,
+                     const IntegratorOptions& opt, bool initial_mu_is_mu_s,
+                     const SensitivityCallback& on_output) {
+  if (opt.method != contact::Method::implicit || opt.tolerance > 0.0)
+    throw std::invalid_argument(
+        "sensitivities need fixed increments of the implicit update (no tolerance)");
+  const auto start = std::chrono::steady_clock::now();
+  const point::ContactPoint point(point_parameters(model, opt));
+  RunStats stats;
+  ContactState s = contact::initial_state(model);
+  CarriedSensitivity carry{contact::initial_sensitivity(initial_mu_is_mu_s)};
+  auto emit = [&](const ContactState& state, int segment) {
+    on_output(state, carry.value, segment);
+  };
+  emit(s, -1);
+  double t_start = 0.0;
+  for (size_t k = 0; k < segments.size(); t_start += segments[k++].duration)
+    run_segment_fixed(point, opt, segments[k], static_cast<int>(k), t_start, s, stats, carry, emit);
   stats.wall_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return stats;

@@ -98,6 +98,9 @@ std::string scene_kind(const YamlDocument& document,
                        std::initializer_list<std::string_view> known) {
   const CheckedNode root = document.root();
   root.expect_map();
+  // A fit file (io/fit_file.hpp) is no scene: say which command reads it.
+  if (root.has("fit") && !root.has("scene"))
+    root.required("fit").fail("this is a fit file, not a scene: run it with 'subslip fit'");
   return root.get_choice("scene", known);
 }
 

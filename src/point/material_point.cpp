@@ -65,6 +65,21 @@ ContactUpdate ContactPoint::update(const ContactState& state, const ContactStep&
   return out;
 }
 
+ContactUpdate ContactPoint::update(const ContactState& state, const ContactStep& step,
+                                   contact::ContactSensitivity& sensitivity) const {
+  require(parameters_.method == contact::Method::implicit,
+          "contact sensitivities: only the implicit update has them");
+  check_contact_step(step);
+  ContactUpdate out;
+  contact::StepAttempt a = contact::implicit_step(
+      law_, parameters_.stiffness, state, step.slip, step.normal_traction, step.dt,
+      parameters_.residual_tolerance, parameters_.tangent ? &out.tangent : nullptr, sensitivity);
+  out.report = {a.ok, a.iterations, -1, -1, std::move(a.why)};
+  out.state = a.ok ? a.state : state;
+  if (!a.ok) out.tangent.setZero();
+  return out;
+}
+
 std::string ContactPoint::admissibility_violation(const ContactState& state) const {
   return contact::admissibility_violation(law_, state);
 }

@@ -20,11 +20,14 @@
 #include <exception>
 #include <mutex>
 #include <span>
+#include <sstream>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "../cli/fit_report.hpp"
 #include "../cli/run_scene.hpp"
+#include "subslip/calibration/contact_fit.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/measures.hpp"
@@ -32,6 +35,7 @@
 #include "subslip/integrators/step_control.hpp"
 #include "subslip/io/contact_scene.hpp"
 #include "subslip/io/crystal_scene.hpp"
+#include "subslip/io/fit_file.hpp"
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_compose.hpp"
 #include "subslip/io/yaml_checked.hpp"
@@ -558,6 +562,17 @@ class GrainPoint {
   Eigen::Matrix3d orientation_;
 };
 
+// `subslip fit FILE --json`'s report, from the same fit (the GIL released while it computes).
+std::string fit_report(const std::string& file) {
+  std::ostringstream json;
+  {
+    const py::gil_scoped_release released;
+    const subslip::io::FitFile f = subslip::io::read_fit_file(file);
+    subslip::cli::write_fit_json(json, f, subslip::calibration::fit(f.problem));
+  }
+  return json.str();
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -580,6 +595,7 @@ PYBIND11_MODULE(_core, m) {
       raise("StepFailure", e.what());
     }
   });
+  m.def("fit_report", &fit_report, py::arg("file"));
   m.def("run_scene", &run_scene, py::arg("scene"), py::arg("scene_text"), py::arg("output"),
         py::arg("force"), py::arg("threads"), py::arg("settings") = std::vector<std::string>{});
   m.def(

@@ -11,10 +11,12 @@
   goes on;
 * a contact point, a grain and a Taylor point driven along a scene's steps give the driver's
   rows bitwise (the file's traction, mu, r_s, slip; macro and grain stress);
+* subslip.fit gives `subslip fit --json`'s report and its error messages, and draws the figure;
 * the package installs offline (pip, no index, no build isolation) and runs from there.
 """
 
 import copy
+import json
 import os
 import shutil
 import subprocess
@@ -395,6 +397,49 @@ class PointsEqualTheDrivers(unittest.TestCase):
 
 
 @unittest.skipUnless(shutil.which("pip3") or os.path.exists("/usr/bin/pip3"), "needs pip")
+class Fit(unittest.TestCase):
+    """subslip.fit is `subslip fit --json`: the same report, the same error messages."""
+    EXAMPLE = scene_path("inputs", "contact_fit_five_speeds.yaml")
+
+    def test_the_report_is_the_command_lines(self):
+        done = subprocess.run([BINARY, "fit", self.EXAMPLE, "--json"], capture_output=True,
+                              text=True, cwd=SOURCE)
+        self.assertEqual(done.returncode, 0, done.stderr)
+        with warnings.catch_warnings(record=True) as issued:
+            warnings.simplefilter("always", subslip.FitWarning)
+            report = subslip.fit(self.EXAMPLE)
+        self.assertEqual(report, json.loads(done.stdout))
+        self.assertEqual([str(w.message) for w in issued], report["warnings"])
+        self.assertTrue(report["converged"])
+        self.assertEqual(len(report["estimate"]), 8)
+        with tempfile.TemporaryDirectory() as d:
+            figure = os.path.join(d, "fit.png")
+            subslip.fit_figure(report, figure)
+            with open(figure, "rb") as f:
+                self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+            self.assertEqual(os.listdir(d), ["fit.png"])
+
+    def test_a_bad_curve_raises_the_command_lines_message(self):
+        with tempfile.TemporaryDirectory() as d:
+            with open(self.EXAMPLE, encoding="utf-8") as f:
+                text = f.read()
+            fit = os.path.join(d, "fit.yaml")
+            with open(fit, "w", encoding="utf-8") as f:
+                f.write(text)
+            os.mkdir(os.path.join(d, "fit_curves"))
+            for speed in (1, 10, 50, 100, 200):
+                with open(os.path.join(d, "fit_curves", f"speed_{speed}.csv"), "w") as f:
+                    f.write("slip [mm], ratio [-]\n0.1, 0.09\n0.2, nan\n")
+            done = subprocess.run([BINARY, "fit", fit], capture_output=True, text=True)
+            self.assertEqual(done.returncode, 2)
+            with self.assertRaises(subslip.SceneError) as caught:
+                subslip.fit(fit)
+        prefix = "subslip: error: "
+        self.assertTrue(done.stderr.startswith(prefix), done.stderr)
+        self.assertEqual(str(caught.exception), done.stderr[len(prefix):].rstrip("\n"))
+        self.assertIn("speed_1.csv:3: ratio: not a finite number", str(caught.exception))
+
+
 class OfflineInstall(unittest.TestCase):
     def test_pip_installs_the_package_with_its_core(self):
         with tempfile.TemporaryDirectory() as d:

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "subslip/integrators/step_control.hpp"
+#include "subslip/law/parameter_table.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
 namespace subslip::contact {
@@ -96,6 +97,36 @@ using ContactTangent = Eigen::Matrix<double, 2, 3>;
 StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
                           const ContactState& s0, const Vec2& du_t, double fn1, double dt,
                           double residual_tolerance, ContactTangent* tangent = nullptr);
+
+// The derivatives of a state's variables with respect to the law's constants, each a row in the
+// order of law::kLawParameters: what a path of implicit updates carries for forward
+// sensitivities. Time, slip and f_n are prescribed: they depend on no constant.
+struct ContactSensitivity {
+  Eigen::Matrix<double, 2, law::kParameterCount> traction_t =
+      Eigen::Matrix<double, 2, law::kParameterCount>::Zero();
+  law::ParameterGradient mu = law::ParameterGradient::Zero();
+  law::ParameterGradient r_s = law::ParameterGradient::Zero();
+  law::ParameterGradient r = law::ParameterGradient::Zero();
+  law::ParameterGradient vp_slip = law::ParameterGradient::Zero();
+  law::ParameterGradient vp_rate = law::ParameterGradient::Zero();
+
+  // d(f_t/f_n)/d(constants) of `s` (zero where f_t or f_n vanishes).
+  law::ParameterGradient traction_ratio(const ContactState& s) const;
+};
+
+// The sensitivities of a state before any step: all zero, but for mu = mu_s when the initial
+// friction coefficient is the static one (a scene's default).
+ContactSensitivity initial_sensitivity(bool initial_mu_is_mu_s);
+
+// One implicit update that also carries the forward sensitivities from s0's to the end state's
+// (unchanged when the update fails). At the converged slip ds the flow rule G(ds; p, s0) = 0
+// holds, so dds/dp = -(dG/dp + dG/ds0 ds0/dp) / (dG/dds), where dG/dds is the step's own
+// Newton slope and the partials come from automatic differentiation of the law's closed forms
+// (law/parameter_jet.hpp); the end state then follows from ds as in the update.
+StepAttempt implicit_step(const law::SubloadingFrictionLaw& law, const ContactStiffness& c,
+                          const ContactState& s0, const Vec2& du_t, double fn1, double dt,
+                          double residual_tolerance, ContactTangent* tangent,
+                          ContactSensitivity& sensitivity);
 
 // The plastic slip of a forward-Euler step of the rate-independent law from s0 (the multiplier
 // (2.44) times dt, with the normal traction rate of the prescribed f_n(n+1) = fn1 > 0); 0 where

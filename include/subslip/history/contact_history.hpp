@@ -70,4 +70,15 @@ RunStats run_history(const contact::ContactModel& model,
                      const std::vector<contact::Segment>& segments, const IntegratorOptions& opt,
                      const OutputCallback& on_output);
 
+// run_history carrying the forward sensitivities of the state to the law's constants
+// (contact::ContactSensitivity) along the steps it takes, from contact::initial_sensitivity:
+// `on_output(state, sensitivities, segment)`. Fixed increments of the implicit update only
+// (std::invalid_argument otherwise): adaptive steps depend on the constants through their error
+// control, which derivatives along the steps taken do not see.
+using SensitivityCallback = std::function<void(const contact::ContactState&,
+                                               const contact::ContactSensitivity&, int segment)>;
+RunStats run_history(const contact::ContactModel& model,
+                     const std::vector<contact::Segment>& segments, const IntegratorOptions& opt,
+                     bool initial_mu_is_mu_s, const SensitivityCallback& on_output);
+
 }  // namespace subslip::history

@@ -94,7 +94,8 @@ inline constexpr int kDefaultAdaptiveOrder = 2;
 // one, 1 (no estimate), what the options' default records.
 int parse_adaptive_order(const CheckedNode& integrator, double tolerance);
 
-// The value of the root `scene:` key, checked against `known` kinds (with a suggestion).
+// The value of the root `scene:` key, checked against `known` kinds (with a suggestion). A fit
+// file (`fit:` instead of `scene:`, io/fit_file.hpp) is refused with the command that reads it.
 std::string scene_kind(const YamlDocument& document, std::initializer_list<std::string_view> known);
 
 }  // namespace subslip::io

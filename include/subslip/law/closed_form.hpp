@@ -31,6 +31,11 @@ inline double select(bool condition, double if_true, double if_false) {
 inline bool any(bool condition) {
   return condition;
 }
+// A scalar of automatic differentiation (law/parameter_jet.hpp) branches as a double does.
+template <class T>
+T select(bool condition, const T& if_true, const T& if_false) {
+  return condition ? if_true : if_false;
+}
 
 template <class V>
 struct ValueAndSlopeOf {
@@ -65,10 +70,12 @@ ValueAndSlopeOf<V> phi1(const V& b) {
 // for a constant slip rate sdot = slip/dt, so the step has the exact solution
 //   mu1 = mu0 + (A - B mu0) (1 - e^{-B}) / B,  A = a dt, B = b dt,
 // which is unconditionally stable and never crosses mu_s or mu_k. At B = 0 (no slip and no
-// recovery time) it gives mu0 and the slope kappa (1 - mu0/mu_k) exactly.
-template <class V>
-ValueAndSlopeOf<V> friction_coefficient_after(const FrictionCoefficientEvolution& f, const V& mu0,
-                                              const V& slip, double dt) {
+// recovery time) it gives mu0 and the slope kappa (1 - mu0/mu_k) exactly. F is
+// FrictionCoefficientEvolution, or the same constants as automatic-differentiation scalars (and
+// then dt may be one).
+template <class V, class F, class D>
+ValueAndSlopeOf<V> friction_coefficient_after(const F& f, const V& mu0, const V& slip,
+                                              const D& dt) {
   const V A = f.kappa * slip + f.xi * dt;
   const V B = f.kappa * slip / f.mu_k + f.xi * dt / f.mu_s;
   const V d_drive = f.kappa - f.kappa / f.mu_k * mu0;
@@ -109,8 +116,8 @@ template <class V>
 struct CotStartOf {
   V cos0, one_minus_cos0, rate0;
 };
-template <class V>
-CotStartOf<V> cot_subloading_start(double u_tilde, const V& r0) {
+template <class V, class U>
+CotStartOf<V> cot_subloading_start(const U& u_tilde, const V& r0) {
   constexpr double kPi = std::numbers::pi;
   const auto small = r0 < 0.5;
   const V angle = select(small, V(0.25 * kPi * r0), V(0.5 * kPi * (1.0 - r0)));
@@ -135,8 +142,8 @@ CotStartOf<V> cot_subloading_start(double u_tilde, const V& r0) {
 // is well conditioned (x in [0, 1]): one formula over the whole range, no branch. The slope
 // U(r1) = u cot(pi r1/2) = u x / sqrt((1 - x)(1 + x)) needs no further trigonometry. No slip,
 // a saturated start or a ratio rounded below the start keep the start; r1 stops at 1.
-template <class V>
-ValueAndSlopeOf<V> cot_subloading_ratio_after(double u_tilde, const V& r0, const V& cos0,
+template <class V, class U>
+ValueAndSlopeOf<V> cot_subloading_ratio_after(const U& u_tilde, const V& r0, const V& cos0,
                                               const V& one_minus_cos0, const V& rate0,
                                               const V& slip) {
   constexpr double kPi = std::numbers::pi;
@@ -153,16 +160,17 @@ ValueAndSlopeOf<V> cot_subloading_ratio_after(double u_tilde, const V& r0, const
 }
 
 // The exponential overstress residual G = (r - r_s) - g^-1(eta_v (r_hat - r) slip/dt),
-// g^-1(y) = ln(1 + y)/n, with dG/dr and dG/d slip (dG/dr_s = -1). For r < r_hat.
+// g^-1(y) = ln(1 + y)/n, with dG/dr and dG/d slip (dG/dr_s = -1). For r < r_hat. O is
+// Overstress, or its constants as automatic-differentiation scalars (and then dt may be one).
 template <class V>
 struct ResidualOf {
   V value;
   V d_r;
   V d_slip;
 };
-template <class V>
-ResidualOf<V> exponential_flow_residual(const Overstress& o, const V& r, const V& r_s,
-                                        const V& slip, double dt) {
+template <class V, class O, class D>
+ResidualOf<V> exponential_flow_residual(const O& o, const V& r, const V& r_s, const V& slip,
+                                        const D& dt) {
   const V gap = o.r_hat - r;
   const V rate = slip / dt;
   const V y = o.eta_v * gap * rate;  // = g(r - r_s) on the solution

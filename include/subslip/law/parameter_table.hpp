@@ -6,6 +6,7 @@
 // the file's attributes (`<name>`, `<name>.unit`).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <string_view>
 
@@ -53,7 +54,13 @@ template <auto Block, auto Member>
 constexpr LawParameterInfo entry(LawBlock block, std::string_view name, ParameterUnit unit,
                                  ParameterBound bound, bool rate_dependent_only,
                                  std::string_view description) {
-  return {block, name, unit, bound, rate_dependent_only, description, &value_of<Block, Member>,
+  return {block,
+          name,
+          unit,
+          bound,
+          rate_dependent_only,
+          description,
+          &value_of<Block, Member>,
           &ref_of<Block, Member>};
 }
 }  // namespace detail
@@ -76,8 +83,8 @@ inline constexpr std::array<LawParameterInfo, 8> kLawParameters = {
         LawBlock::subloading, "u_tilde", ParameterUnit::per_slip, ParameterBound::positive, false,
         "rate of approach of r_s to 1"),
     detail::entry<&LawParameters::overstress, &Overstress::eta_v>(
-        LawBlock::overstress, "eta_v", ParameterUnit::time_per_slip, ParameterBound::positive,
-        true, "viscoplastic coefficient"),
+        LawBlock::overstress, "eta_v", ParameterUnit::time_per_slip, ParameterBound::positive, true,
+        "viscoplastic coefficient"),
     detail::entry<&LawParameters::overstress, &Overstress::n>(
         LawBlock::overstress, "n", ParameterUnit::none, ParameterBound::positive, true,
         "viscoplastic exponent"),
@@ -85,6 +92,11 @@ inline constexpr std::array<LawParameterInfo, 8> kLawParameters = {
         LawBlock::overstress, "r_hat", ParameterUnit::none, ParameterBound::above_one, true,
         "limit dynamic loading ratio"),
 };
+
+inline constexpr int kParameterCount = static_cast<int>(kLawParameters.size());
+// The derivatives of one value with respect to the constants, a row in the order of
+// kLawParameters (forward sensitivities: contact/contact_point.hpp).
+using ParameterGradient = Eigen::Matrix<double, 1, kParameterCount>;
 
 // A block's key in a scene, and its named choice (the key in the block and the attribute a
 // result file writes it as, before the block's numbers; empty: none).
