@@ -69,10 +69,11 @@ constexpr std::size_t kFinishedChunkBytes = std::size_t{1} << 20;
 void finished_chunk(std::vector<hsize_t>& chunk, const std::vector<hsize_t>& dims, std::size_t rows,
                     std::size_t row_bytes) {
   if (dims.size() >= 2 && row_bytes > kFinishedChunkBytes && dims[1] > 0) {
-    const std::size_t per_grain = row_bytes / dims[1];
+    // Pieces of equal size: HDF5 stores the last chunk of an axis whole, however little of it
+    // the dataset covers (1 MB pieces: 3 % more plain storage at 2e5 grains).
+    const std::size_t pieces = (row_bytes + kFinishedChunkBytes - 1) / kFinishedChunkBytes;
     chunk[0] = 1;
-    chunk[1] =
-        std::clamp<hsize_t>(kFinishedChunkBytes / std::max<std::size_t>(per_grain, 1), 1, dims[1]);
+    chunk[1] = std::max<hsize_t>((dims[1] + pieces - 1) / pieces, 1);
     return;
   }
   const hsize_t wide = kFinishedChunkBytes / std::max<std::size_t>(row_bytes, 1);
