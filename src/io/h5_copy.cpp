@@ -247,7 +247,7 @@ std::vector<SharedDataset> write_exact_copy(const File& source, const File& targ
 
 BlockCopy::BlockCopy(const File& source, const File& target, const SharedDataset& shared,
                      std::size_t first, std::size_t count, std::size_t widest)
-    : what_("copy dataset " + shared.path),
+    : what_("dataset " + shared.path),
       from_(own(H5Dopen2(source.root().id(), shared.path.c_str(), H5P_DEFAULT), H5Dclose,
                 "open dataset " + shared.path + " of " + source.path().string())),
       to_(own(H5Dopen2(target.root().id(), shared.path.c_str(), H5P_DEFAULT), H5Dclose,
@@ -255,13 +255,13 @@ BlockCopy::BlockCopy(const File& source, const File& target, const SharedDataset
       axis_(static_cast<std::size_t>(shared.axis)),
       first_(first),
       count_(count) {
-  Handle space = own(H5Dget_space(to_.get()), H5Sclose, what_);
+  Handle space = own(H5Dget_space(to_.get()), H5Sclose, "copy " + what_);
   const int rank = H5Sget_simple_extent_ndims(space.get());
-  if (rank <= shared.axis) fail(what_ + ": no axis " + std::to_string(shared.axis));
+  if (rank <= shared.axis) fail("copy " + what_ + ": no axis " + std::to_string(shared.axis));
   dims_.resize(static_cast<std::size_t>(rank));
-  check(H5Sget_simple_extent_dims(space.get(), dims_.data(), nullptr), what_);
-  Handle type = own(H5Dget_type(to_.get()), H5Tclose, what_);
-  memory_ = own(H5Tget_native_type(type.get(), H5T_DIR_DEFAULT), H5Tclose, what_);
+  check(H5Sget_simple_extent_dims(space.get(), dims_.data(), nullptr), "copy " + what_);
+  Handle type = own(H5Dget_type(to_.get()), H5Tclose, "copy " + what_);
+  memory_ = own(H5Tget_native_type(type.get(), H5T_DIR_DEFAULT), H5Tclose, "copy " + what_);
   // The bytes of one index of the split axis within one row of the first (for axis 1: a
   // grain's values in one output row; for axis 0: a whole row).
   item_bytes_ = H5Tget_size(memory_.get());
@@ -273,9 +273,10 @@ BlockCopy::BlockCopy(const File& source, const File& target, const SharedDataset
     step_ = std::max<std::size_t>(kCopyBlockBytes / item_bytes_, 1);
     steps_ = (widest + step_ - 1) / step_;
   } else {
-    Handle dcpl = own(H5Dget_create_plist(to_.get()), H5Pclose, what_);
+    Handle dcpl = own(H5Dget_create_plist(to_.get()), H5Pclose, "copy " + what_);
     std::vector<hsize_t> chunk(dims_.size(), 1);
-    if (H5Pget_chunk(dcpl.get(), rank, chunk.data()) != rank) fail(what_ + ": chunk shape");
+    if (H5Pget_chunk(dcpl.get(), rank, chunk.data()) != rank)
+      fail("copy " + what_ + ": chunk shape");
     const std::size_t whole = std::max<std::size_t>(chunk[0], 1);
     step_ = std::max<std::size_t>(kCopyBlockBytes / widest_bytes / whole, 1) * whole;
     steps_ = (dims_[0] + step_ - 1) / step_;
@@ -302,17 +303,17 @@ std::pair<std::vector<hsize_t>, std::vector<hsize_t>> BlockCopy::part(std::size_
 // values (nothing selected in either when it has none).
 std::pair<Handle, Handle> BlockCopy::spaces(hid_t dataset, std::size_t k) const {
   const auto [start, count] = part(k);
-  Handle file_space = own(H5Dget_space(dataset), H5Sclose, what_);
+  Handle file_space = own(H5Dget_space(dataset), H5Sclose, "copy " + what_);
   hsize_t n = 1;
   for (hsize_t c : count) n *= c;
   if (n == 0) {
     check(H5Sselect_none(file_space.get()), "select nothing");
-    Handle memory = own(H5Scopy(file_space.get()), H5Sclose, what_);
+    Handle memory = own(H5Scopy(file_space.get()), H5Sclose, "copy " + what_);
     return {std::move(file_space), std::move(memory)};
   }
   check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
                             nullptr),
-        what_);
+        "copy " + what_);
   return {std::move(file_space), simple_space(count)};
 }
 
@@ -323,13 +324,13 @@ void BlockCopy::read(std::size_t k) {
   if (n <= 0) return;
   check(H5Dread(from_.get(), memory_.get(), memory_space.get(), file_space.get(), H5P_DEFAULT,
                 buffer_.data()),
-        "read " + what_.substr(std::string("copy ").size()));
+        "read " + what_);
 }
 
 void BlockCopy::write(std::size_t k) {
   auto [file_space, memory_space] = spaces(to_.get(), k);
   write_selection(to_.get(), memory_.get(), memory_space.get(), file_space.get(), buffer_.data(),
-                  Part::own, "write " + what_.substr(std::string("copy ").size()));
+                  Part::own, "write " + what_);
 }
 
 void sync_to_disk(const std::filesystem::path& file) {

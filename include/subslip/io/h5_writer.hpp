@@ -396,7 +396,8 @@ std::vector<SharedDataset> write_exact_copy(const File& source, const File& targ
 // One rank's part of the values of a SharedDataset: the indices [first, first + count) of its
 // axis, copied from `source` (opened by this process alone) into `target` (opened by every
 // rank: File::open_write with MpiAccess) in steps of at most a few MB of the widest rank's
-// block, the same number of steps on every rank (`widest`: the largest count of any rank).
+// block (at least one row of it), the same number of steps on every rank (`widest`: the
+// largest count of any rank).
 // read(k) reads this rank's part of step k; write(k) writes it (collective: every rank calls
 // it for every step, in order, a rank without a part too).
 class BlockCopy {
@@ -412,7 +413,7 @@ class BlockCopy {
       std::size_t k) const;
   std::pair<Handle, Handle> spaces(Id dataset, std::size_t k) const;
 
-  std::string what_;
+  std::string what_;  // "dataset <path>", for messages
   Handle from_, to_, memory_;
   std::vector<unsigned long long> dims_;
   std::size_t axis_, first_, count_;
