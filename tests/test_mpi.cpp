@@ -4,7 +4,10 @@
 // under 1 (or, written through rank 0 first, under 2 writing together) and equals the
 // uninterrupted run; a grain that fails on rank 1 stops every rank with one
 // message naming it; a sweep's cases (crystal or contact) distributed over ranks give the serial
-// sweep. Built only with MPI; these tests run alone (tests/CMakeLists.txt).
+// sweep; the finished file the ranks make together is the serial finish of the same working
+// file; a write failing on one rank (inside the collective writes of the run, or of the finish)
+// ends every rank with one message. Built only with MPI; these tests run alone
+// (tests/CMakeLists.txt).
 #ifdef SUBSLIP_MPIEXEC
 
 #include <fcntl.h>
