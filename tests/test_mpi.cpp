@@ -4,7 +4,10 @@
 // under 1 (or, written through rank 0 first, under 2 writing together) and equals the
 // uninterrupted run; a grain that fails on rank 1 stops every rank with one
 // message naming it; a sweep's cases (crystal or contact) distributed over ranks give the serial
-// sweep. Built only with MPI; these tests run alone (tests/CMakeLists.txt).
+// sweep; the finished file the ranks make together is the serial finish of the same working
+// file; a write failing on one rank (inside the collective writes of the run, or of the finish)
+// ends every rank with one message. Built only with MPI; these tests run alone
+// (tests/CMakeLists.txt).
 #ifdef SUBSLIP_MPIEXEC
 
 #include <fcntl.h>
@@ -513,6 +516,189 @@ integrator: {method: forward_euler, max_cutbacks: 0}
   const h5::File file = h5::File::open_read(dir / "ranks.h5");
   EXPECT_EQ(file.root().attribute_int("completed"), 0);
   EXPECT_NE(h5::failure_message(file.root().open_group("cases/base")), "");
+  fs::remove_all(dir);
+}
+
+// Every attribute of `a` and `b` (objects at `where`) the same: names in order, values bit for
+// bit (numbers) or equal (strings).
+void expect_same_attributes(const h5::Object& a, const h5::Object& b, const std::string& where) {
+  SCOPED_TRACE(where);
+  ASSERT_EQ(a.attribute_names(), b.attribute_names());
+  for (const std::string& name : a.attribute_names()) {
+    SCOPED_TRACE(name);
+    ASSERT_EQ(a.attribute_class(name), b.attribute_class(name));
+    if (a.attribute_class(name) == h5::ValueClass::string) {
+      EXPECT_EQ(a.attribute_strings(name), b.attribute_strings(name));
+      continue;
+    }
+    const auto x = a.attribute_doubles(name), y = b.attribute_doubles(name);
+    ASSERT_EQ(x.size(), y.size());
+    for (std::size_t i = 0; i < x.size(); ++i)
+      EXPECT_TRUE(subslip::testing::same_bits(x[i], y[i])) << x[i] << " " << y[i];
+  }
+}
+
+// The same groups and attributes everywhere, and the same storage (chunks, filters) of every
+// dataset; its values are expect_same_datasets'.
+void expect_same_structure(const h5::Group& a, const h5::Group& b, const std::string& path) {
+  expect_same_attributes(a, b, path);
+  ASSERT_EQ(a.members(), b.members()) << path;
+  for (const std::string& name : a.members()) {
+    const std::string child = path + "/" + name;
+    if (a.is_group(name)) {
+      expect_same_structure(a.open_group(name), b.open_group(name), child);
+      continue;
+    }
+    const h5::Dataset x = a.open_dataset(name), y = b.open_dataset(name);
+    expect_same_attributes(x, y, child);
+    EXPECT_EQ(x.shape(), y.shape()) << child;
+    EXPECT_EQ(x.chunk_shape(), y.chunk_shape()) << child;
+    EXPECT_EQ(x.filters(), y.filters()) << child;
+  }
+}
+
+// A working file whose cases have all ended is finished by the ranks together (each copies its
+// block of every per-grain dataset) into the file the serial finish makes of it: the same
+// groups, attributes, datasets, storage and values, compressed and not. 16000 grains, so that a
+// per-grain row (1.2 MB of stresses) is cut into chunks along the grains, one of them across
+// the blocks of two ranks; three ranks split them unevenly.
+TEST(Mpi, FinishedTogetherIsTheSerialFinishOfTheSameFile) {
+  for (const std::string compression : {"gzip", "none"}) {
+    SCOPED_TRACE(compression);
+    const fs::path dir = scratch_dir();
+    std::ofstream(dir / "many.yaml") << subslip::testing::copper_scene_start() + R"(
+orientations: {random: {count: 16000, seed: 3}}
+loading:
+  - L: [[-0.5e-3, 0, 0], [0, -0.5e-3, 0], [0, 0, 1.0e-3]]
+    duration: 2
+    increments: 3
+output:
+  grains: [stress, slip]
+  compression: )" + compression + "\n";
+    // (A directory where the finished file goes: the run ends with its working file, every
+    // case ended, as after a full disk at the finish.)
+    fs::create_directory(dir / "work.h5.finishing");
+    ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "many.yaml", "-o", "work.h5", "-q"},
+                                            dir / "work.log"),
+              1)
+        << subslip::testing::read_text(dir / "work.log");
+    fs::remove(dir / "work.h5.finishing");
+    ASSERT_EQ(h5::File::open_read(dir / "work.h5").root().attribute_int("finished"), 0);
+    for (const std::string name : {"serial.h5", "ranks2.h5", "ranks3.h5"})
+      fs::copy_file(dir / "work.h5", dir / name);
+    ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "--restart", "serial.h5", "-q"},
+                                            dir / "serial.log"),
+              0)
+        << subslip::testing::read_text(dir / "serial.log");
+    const h5::File serial = h5::File::open_read(dir / "serial.h5");
+    EXPECT_EQ(serial.root().attribute_int("finished"), 1);
+    for (int ranks : {2, 3}) {
+      SCOPED_TRACE(std::to_string(ranks) + " ranks");
+      const std::string out = "ranks" + std::to_string(ranks) + ".h5";
+      ASSERT_EQ(run_mpi(dir, ranks, {"run", "--restart", out, "-q"}), 0) << log_of(dir);
+      EXPECT_FALSE(fs::exists(dir / (out + ".finishing")));
+      subslip::testing::expect_same_datasets(dir / "serial.h5", dir / out);
+      expect_same_structure(serial.root(), h5::File::open_read(dir / out).root(), "");
+    }
+    fs::remove_all(dir);
+  }
+}
+
+// `subslip args...` under the launcher with `ranks` ranks, rank `limited` with files limited to
+// `bytes` (RLIMIT_FSIZE, SIGXFSZ ignored: a write past it fails with EFBIG, "File too large"),
+// the others without a limit; each rank writes its part of the collective writes itself (two
+// aggregators: with one, rank 0 would write for both). Its exit code, or -1 when the job had
+// not ended after `seconds` (then killed, every process of it).
+int run_mpi_limited(const fs::path& dir, int ranks, int limited, std::uintmax_t bytes,
+                    const std::vector<std::string>& args, double seconds) {
+  std::vector<std::string> all{
+      SUBSLIP_MPIEXEC,
+      "-n",
+      std::to_string(ranks),
+      "--oversubscribe",
+      "/bin/sh",
+      "-c",
+      "trap '' XFSZ; if [ \"$OMPI_COMM_WORLD_RANK\" = " + std::to_string(limited) +
+          " ]; then exec prlimit --fsize=" + std::to_string(bytes) +
+          " \"$0\" \"$@\"; fi; exec \"$0\" \"$@\"",
+      SUBSLIP_BINARY};
+  all.insert(all.end(), args.begin(), args.end());
+  const pid_t launcher = subslip::testing::spawn_program(dir, all, dir / "mpi.log", [] {
+    launcher_environment();
+    ::setenv("OMPI_MCA_io_ompio_num_aggregators", "2", 1);
+    // (no shared-memory transport: its segment file is sized with ftruncate, which the limit
+    // refuses before the run begins)
+    ::setenv("OMPI_MCA_btl", "self,tcp", 1);
+  });
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  const int code = subslip::testing::poll_child(
+      launcher, [&] { return std::chrono::steady_clock::now() >= until; });
+  if (code >= 0) return code;
+  for (pid_t p : descendants(launcher)) ::kill(p, SIGKILL);
+  ::kill(launcher, SIGKILL);
+  subslip::testing::wait_child(launcher);
+  return -1;
+}
+
+// The one line a failed write ends a run with, from the root: "subslip: error: OUT: cannot
+// ...", without HDF5's error stack. (The system's reason is not in it: HDF5's MPI-IO driver
+// says "can't write data"; Open MPI's MPI-IO prints the reason itself on some failures.)
+void expect_one_message(const std::string& log, const std::string& out) {
+  EXPECT_NE(log.find("subslip: error: " + out + ": cannot "), std::string::npos) << log;
+  EXPECT_EQ(log.find("subslip: error:"), log.rfind("subslip: error:")) << "one message: " << log;
+  EXPECT_EQ(log.find("HDF5-DIAG"), std::string::npos) << log;
+}
+
+// A write that fails on rank 1 alone, inside the collective writes of the run (its file-size
+// limit within the last series' rows): every rank ends within a bounded time (exit 1, not a
+// hang), with one message from the root; the rows written stay, and the run continues under
+// one rank to the serial run's file.
+TEST(Mpi, WriteFailingOnOneRankStopsEveryRankWithOneMessage) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(40) << "  compression: none\n";
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "serial.h5", "-q"},
+                                          dir / "serial.log"),
+            0);
+  // (the working file is at least the finished one: its rows are reserved at the layout, each
+  // series' after the last's, so that a limit below the last series' first row would stop the
+  // run at its first output step, which leaves no file)
+  const std::uintmax_t limit = fs::file_size(dir / "serial.h5") * 97 / 100;
+  ASSERT_EQ(run_mpi_limited(dir, 2, 1, limit, {"run", "reversal.yaml", "-o", "out.h5", "-q"}, 120),
+            1)
+      << log_of(dir);
+  expect_one_message(log_of(dir), "out.h5");
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("completed"), 0);
+  ASSERT_EQ(run_mpi(dir, 1, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
+  subslip::testing::expect_same_datasets(dir / "serial.h5", dir / "out.h5");
+  fs::remove_all(dir);
+}
+
+// The same while the ranks write the finished file together (a working file whose cases have
+// all ended, continued under two ranks, rank 1 limited): every rank stops with the root's one
+// message, the temporary file is gone, the working file keeps every row, and a later --restart
+// finishes it to the serial run's file.
+TEST(Mpi, WriteFailingOnOneRankWhileFinishingTogetherLeavesTheWorkingFile) {
+  const fs::path dir = scratch_dir();
+  std::ofstream(dir / "reversal.yaml") << reversal_scene(40) << "  compression: none\n";
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "serial.h5", "-q"},
+                                          dir / "serial.log"),
+            0);
+  fs::create_directory(dir / "out.h5.finishing");  // (the serial finish fails: a directory)
+  ASSERT_EQ(subslip::testing::run_subslip(dir, {"run", "reversal.yaml", "-o", "out.h5", "-q"},
+                                          dir / "work.log"),
+            1);
+  fs::remove(dir / "out.h5.finishing");
+  ASSERT_EQ(run_mpi_limited(dir, 2, 1, fs::file_size(dir / "serial.h5") / 2,
+                            {"run", "--restart", "out.h5", "-q"}, 120),
+            1)
+      << log_of(dir);
+  expect_one_message(log_of(dir), "out.h5");
+  EXPECT_NE(log_of(dir).find("cannot write the finished file"), std::string::npos) << log_of(dir);
+  EXPECT_FALSE(fs::exists(dir / "out.h5.finishing"));
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("finished"), 0);
+  ASSERT_EQ(run_mpi(dir, 2, {"run", "--restart", "out.h5", "-q"}), 0) << log_of(dir);
+  EXPECT_EQ(h5::File::open_read(dir / "out.h5").root().attribute_int("finished"), 1);
+  subslip::testing::expect_same_datasets(dir / "serial.h5", dir / "out.h5");
   fs::remove_all(dir);
 }
 

@@ -587,8 +587,8 @@ int run_crystal(const RunArgs& a, const io::YamlDocument& document, const io::Re
         failure = e;
       }
     }
-    parallel::on_root(
-        team, [&] { output->finish_collective_run(failure); }, exit_code_of);
+    io::RunOutput::finish_collective_run(team.is_root() ? &*output : nullptr, team, failure,
+                                         exit_code_of);
     return results;
   };
   // The root runs into its file (RunOutput::write finishes it), the other ranks into nothing.

@@ -174,18 +174,61 @@ inline hid_t write_transfer() {
 #endif
 }
 
+#ifdef H5_HAVE_PARALLEL
+// `text` of rank `owner` on every rank of `comm`.
+inline void share_text(std::string& text, int owner, MPI_Comm comm) {
+  unsigned long long length = text.size();
+  MPI_Bcast(&length, 1, MPI_UNSIGNED_LONG_LONG, owner, comm);
+  text.resize(static_cast<std::size_t>(length));
+  MPI_Bcast(text.data(), static_cast<int>(length), MPI_CHAR, owner, comm);
+}
+#endif
+
+// The outcome of a collective write (`status` on this rank), agreed among the ranks: when it
+// failed on any rank, every rank throws the Error of the lowest rank it failed on. (A rank that
+// threw alone would leave the sequence of collective calls the others go on with, the next
+// write's and HDF5's own reductions in it, and every rank would wait for ever: measured, a
+// file-size limit on one rank of two.) Collective.
+inline void check_collective(herr_t status, const std::string& what) {
+#ifdef H5_HAVE_PARALLEL
+  std::string action, reason;
+  if (status < 0) {
+    action = what;
+    reason = hdf5_reason();
+  }
+  const MPI_Comm comm = *static_cast<const MPI_Comm*>(collective_files().communicator);
+  int ranks = 0;
+  MPI_Comm_size(comm, &ranks);
+  const int mine = status < 0 ? collective_files().rank : ranks;
+  int first = ranks;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, comm);
+  if (first == ranks) return;
+  share_text(action, first, comm);
+  share_text(reason, first, comm);
+  throw Error(action, reason);
+#else
+  check(status, what);
+#endif
+}
+
 // H5Dwrite of `data` (in `memory_space`) into the selection `file_space` of `dataset`; on a
-// collective write of shared values every rank but 0 takes part with an empty selection.
+// collective write of shared values every rank but 0 takes part with an empty selection, and
+// its outcome is agreed (check_collective).
 inline void write_selection(hid_t dataset, hid_t memory_type, hid_t memory_space, hid_t file_space,
                             const void* data, Part part, const std::string& what) {
   const hid_t transfer = write_transfer();
-  if (transfer != H5P_DEFAULT && part == Part::shared && collective_files().rank != 0) {
-    Handle nothing = own(H5Dget_space(dataset), H5Sclose, "dataset space");
-    check(H5Sselect_none(nothing.get()), "select nothing");
-    check(H5Dwrite(dataset, memory_type, nothing.get(), nothing.get(), transfer, data), what);
+  if (transfer == H5P_DEFAULT) {
+    check(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, data), what);
     return;
   }
-  check(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, data), what);
+  if (part == Part::shared && collective_files().rank != 0) {
+    Handle nothing = own(H5Dget_space(dataset), H5Sclose, "dataset space");
+    check(H5Sselect_none(nothing.get()), "select nothing");
+    check_collective(H5Dwrite(dataset, memory_type, nothing.get(), nothing.get(), transfer, data),
+                     what);
+    return;
+  }
+  check_collective(H5Dwrite(dataset, memory_type, memory_space, file_space, transfer, data), what);
 }
 
 // Groups (and the root) track creation order, so that readers list cases and attributes in

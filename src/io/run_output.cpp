@@ -37,10 +37,10 @@ void refuse_interrupted_result(const fs::path& out, bool force) {
   if (force) return;
   const ResultFileStatus status = result_file_status(out);
   if (status.kind != ResultFileKind::working) return;
-  throw io::h5::OutputPathError(
-      out.string() + ": holds an interrupted run (" + std::to_string(status.rows) +
-      " output rows written); continue it with: subslip run --restart " + out.string() +
-      " (or replace it with --force)");
+  throw io::h5::OutputPathError(out.string() + ": holds an interrupted run (" +
+                                std::to_string(status.rows) +
+                                " output rows written); continue it with: subslip run --restart " +
+                                out.string() + " (or replace it with --force)");
 }
 
 // The restart file of a new run's result (checkpoints): one left by an interrupted run, or one
@@ -86,21 +86,57 @@ long long rows_in(const fs::path& file) {
   }
 }
 
-void RunOutput::finish_collective_run(const std::optional<driver::SinkWriteError>& failure) {
+void RunOutput::finish_collective_run(RunOutput* root_output, const parallel::Team& team,
+                                      const std::optional<driver::SinkWriteError>& failure,
+                                      parallel::ExitCodeOf exit_code_of) {
   if (failure) {
-    file = io::h5::File::open_write(path);  // (write_failure records the error in it)
-    throw std::runtime_error(write_failure(*failure));
+    parallel::on_root(
+        team,
+        [&] {
+          // (write_failure records the error in the file)
+          root_output->file = io::h5::File::open_write(root_output->path);
+          throw std::runtime_error(root_output->write_failure(*failure));
+        },
+        exit_code_of);
   }
-  finish();
+  std::vector<double> ready{0.0};
+  std::string path;
+  parallel::on_root(
+      team,
+      [&] {
+        ready[0] = root_output->ready_to_finish() ? 1.0 : 0.0;
+        path = root_output->path.string();
+      },
+      exit_code_of);
+  team.broadcast(ready, 0);
+  team.broadcast(path, 0);
+  if (ready[0] == 0.0) return;
+  std::string why;
+  try {
+    io::finish_result(path, team);
+  } catch (const io::h5::Error& e) {  // (the same on every rank)
+    why = e.action + (e.reason.empty() ? "" : ": " + e.reason);
+  }
+  parallel::on_root(
+      team,
+      [&] {
+        if (!why.empty()) root_output->finish_failed(why);
+      },
+      exit_code_of);
 }
 
-void RunOutput::finish() {
-  if (!io::every_case_ended(path)) return;
+bool RunOutput::ready_to_finish() {
+  if (!io::every_case_ended(path)) return false;
   // Every case has ended, so no run needs the checkpoints again (a restart of this file only
   // finishes it): they go before the finished file replaces the working one, and a kill between
   // the two leaves no restart file behind.
   std::error_code ec;
   if (!keep_restart && io::is_restart_file(restart_file())) fs::remove(restart_file(), ec);
+  return true;
+}
+
+void RunOutput::finish() {
+  if (!ready_to_finish()) return;
   std::string why;
   try {
     io::finish_result(path);
@@ -109,18 +145,20 @@ void RunOutput::finish() {
   } catch (const fs::filesystem_error& e) {
     why = e.what();
   }
-  if (!why.empty()) {
-    const std::string what = path.string() + ": cannot write the finished file (" + why + ")";
-    {
-      io::h5::File working = io::h5::File::open_write(path);
-      io::h5::mark_write_failed(working, "the run ended but " + what);
-      working.close_quietly();
-    }
-    throw std::runtime_error(what + "; every row is in the working file " + path.string() +
-                             " (/progress counts them); free space and finish it with "
-                             "--restart " +
-                             path.string());
+  if (!why.empty()) finish_failed(why);
+}
+
+void RunOutput::finish_failed(const std::string& why) {
+  const std::string what = path.string() + ": cannot write the finished file (" + why + ")";
+  {
+    io::h5::File working = io::h5::File::open_write(path);
+    io::h5::mark_write_failed(working, "the run ended but " + what);
+    working.close_quietly();
   }
+  throw std::runtime_error(what + "; every row is in the working file " + path.string() +
+                           " (/progress counts them); free space and finish it with "
+                           "--restart " +
+                           path.string());
 }
 
 std::string RunOutput::write_failure(const driver::SinkWriteError& e) {

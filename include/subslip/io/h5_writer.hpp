@@ -369,15 +369,57 @@ class WritePacer {
 // file is copied by write_exact_copy; nullopt: every row of its extent.
 using RowsToKeep = std::function<std::optional<std::size_t>(const std::string& path)>;
 
+// The datasets (by path) whose values the ranks that share the grains write together into a
+// copy (write_exact_copy makes them, with their attributes, and leaves their values).
+using SharesValues = std::function<bool(const std::string& path)>;
+// One of them: its values are split among the ranks along `axis` (0: rows; 1: the second axis
+// of a series [n, grains, ...], the grains).
+struct SharedDataset {
+  std::string path;
+  int axis = 0;
+};
+
 // Copies every group, dataset and attribute of `source` into `target` (an empty file), in
-// creation order, except that an extendible dataset holds only the rows `rows` gives (chunked
-// as before, chunks no longer than those rows) and a fixed-length string attribute (a reserved
-// message: `failed`, `write_error`) becomes a variable-length one (h5py reads it as str).
-// Datasets are copied in blocks of at most a few MB. `target` stays open. With `gzip_level`
-// 1 ... 9 the extendible datasets' chunks are stored compressed (byte shuffle, then deflate at
-// that level), where this HDF5 has the deflate filter; readers decompress them unasked.
-void write_exact_copy(const File& source, const File& target, const RowsToKeep& rows,
-                      int gzip_level = 0);
+// creation order, except that an extendible dataset holds only the rows `rows` gives (in
+// chunks of whole rows up to about 1 MB, a row larger than that cut along its second axis,
+// the grains) and a fixed-length string attribute (a reserved message: `failed`,
+// `write_error`) becomes a variable-length one (h5py reads it as str). Datasets are copied in
+// blocks of at most a few MB. `target` stays open. With `gzip_level` 1 ... 9 the extendible
+// datasets' chunks are stored compressed (byte shuffle, then deflate at that level), where
+// this HDF5 has the deflate filter; readers decompress them unasked. The datasets `shares`
+// names are made (storage, attributes) without their values: returned, in creation order,
+// for BlockCopy.
+std::vector<SharedDataset> write_exact_copy(const File& source, const File& target,
+                                            const RowsToKeep& rows, int gzip_level = 0,
+                                            const SharesValues& shares = {});
+
+// One rank's part of the values of a SharedDataset: the indices [first, first + count) of its
+// axis, copied from `source` (opened by this process alone) into `target` (opened by every
+// rank: File::open_write with MpiAccess) in steps of at most a few MB of the widest rank's
+// block (at least one row of it), the same number of steps on every rank (`widest`: the
+// largest count of any rank).
+// read(k) reads this rank's part of step k; write(k) writes it (collective: every rank calls
+// it for every step, in order, a rank without a part too).
+class BlockCopy {
+ public:
+  BlockCopy(const File& source, const File& target, const SharedDataset& shared, std::size_t first,
+            std::size_t count, std::size_t widest);
+  std::size_t steps() const { return steps_; }
+  void read(std::size_t k);
+  void write(std::size_t k);
+
+ private:
+  std::pair<std::vector<unsigned long long>, std::vector<unsigned long long>> part(
+      std::size_t k) const;
+  std::pair<Handle, Handle> spaces(Id dataset, std::size_t k) const;
+
+  std::string what_;  // "dataset <path>", for messages
+  Handle from_, to_, memory_;
+  std::vector<unsigned long long> dims_;
+  std::size_t axis_, first_, count_;
+  std::size_t item_bytes_ = 0, step_ = 1, steps_ = 0;
+  std::vector<unsigned char> buffer_;
+};
 
 // fsync of the file and of its directory (after a rename into it), so that what was written
 // survives a crash of the machine too. Throws Error naming the file.

@@ -18,6 +18,10 @@
 #include <filesystem>
 #include <string>
 
+namespace subslip::parallel {
+class Team;
+}
+
 namespace subslip::io {
 
 namespace h5 {
@@ -46,19 +50,19 @@ enum class ResultFileKind {
 };
 struct ResultFileStatus {
   ResultFileKind kind = ResultFileKind::none;
-  std::string run_id;    // the file's run_id (working and finished files)
-  long long rows = 0;    // the valid output rows of every case (working files)
+  std::string run_id;  // the file's run_id (working and finished files)
+  long long rows = 0;  // the valid output rows of every case (working files)
 };
 ResultFileStatus result_file_status(const std::filesystem::path& result);
 
 // What the restart file next to `result` (restart_file_for) is to it.
 enum class RestartFileRole {
-  none,         // there is none
-  continues,    // the checkpoints of the interrupted run `result` holds (same run_id)
-  left_over,    // the checkpoints of a run that finished, or whose result file is gone: no run
-                // can continue from them (a kill between the finish and their removal, or
-                // --keep-restart)
-  foreign,      // another run's, or not a restart file
+  none,       // there is none
+  continues,  // the checkpoints of the interrupted run `result` holds (same run_id)
+  left_over,  // the checkpoints of a run that finished, or whose result file is gone: no run
+              // can continue from them (a kill between the finish and their removal, or
+              // --keep-restart)
+  foreign,    // another run's, or not a restart file
 };
 RestartFileRole restart_file_role(const std::filesystem::path& result);
 
@@ -69,6 +73,14 @@ bool every_case_ended(const std::filesystem::path& result);
 // renames it into place (see above). Throws h5::Error (the temporary file removed) when
 // writing fails; the working file is then untouched. Returns true when every case completed.
 bool finish_result(const std::filesystem::path& result);
+// The same by the ranks of `team` together (collective; a team of one: the above). The root
+// writes the finished file's groups, attributes and every dataset but those of the cases'
+// grains (/cases/<name>/grains/...) and closes it; then every rank opens it (parallel HDF5)
+// and copies its block of the grains of each of those from the working file, which it reads
+// by itself; the root renames the file into place. A failure on any rank is agreed: every
+// rank throws the same h5::Error (the lowest failing rank's), and the root removes the
+// temporary file.
+bool finish_result(const std::filesystem::path& result, const parallel::Team& team);
 
 // Closes `file`, a working result file a run wrote into, and finishes it when every case
 // ended (what `subslip run` does at its end, for library users and tests).

@@ -18,6 +18,7 @@
 #include "subslip/io/result_protocol.hpp"
 #include "subslip/io/run_size.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/parallel/team.hpp"
 
 namespace subslip::io {
 
@@ -38,8 +39,12 @@ struct RunOutput {
 
   // MPI ranks write the file together (run_collectively): after the root laid it out
   // (or reopened it) and closed it, they open it for their writes; when they have closed it,
-  // the root finishes it, or reports `failure` as write() does.
-  void finish_collective_run(const std::optional<driver::SinkWriteError>& failure);
+  // they finish it together (finish_result over the team), or the root reports `failure` as
+  // write() does. Collective: `root_output` is the root's (null on the other ranks); a failure
+  // is thrown on the root and stops the others (parallel::StoppedByRoot) with `exit_code_of`.
+  static void finish_collective_run(RunOutput* root_output, const parallel::Team& team,
+                                    const std::optional<driver::SinkWriteError>& failure,
+                                    parallel::ExitCodeOf exit_code_of);
 
   // Runs `run` (which writes into `file`), then closes the file and, when every case ended,
   // rewrites it as the finished file (exactly its rows) and deletes the restart file (unless
@@ -63,6 +68,12 @@ struct RunOutput {
   // The working file, closed, becomes the finished file. A failure leaves the working file as
   // it was (every row in it, /progress counting them) and says how to finish it later.
   void finish();
+  // Whether the (closed) working file is to be finished: every case ended. Its restart file
+  // then goes (unless kept): no run needs the checkpoints again.
+  bool ready_to_finish();
+  // The finished file could not be written (`why`): the working file records it; throws the
+  // error that says how to finish it later.
+  [[noreturn]] void finish_failed(const std::string& why);
   std::string write_failure(const driver::SinkWriteError& e);
 };
 
