@@ -133,33 +133,6 @@ calibration::Curve read_curve_csv(const std::filesystem::path& path, const model
 
 namespace {
 
-const Unit& unit_of(const LawUnits& units, law::ParameterUnit kind) {
-  static const Unit one{model::dimension::none, {}, "1"};
-  switch (kind) {
-    case law::ParameterUnit::per_slip:
-      return units.per_slip;
-    case law::ParameterUnit::per_time:
-      return units.per_time;
-    case law::ParameterUnit::time_per_slip:
-      return units.time_per_slip;
-    case law::ParameterUnit::none:
-      break;
-  }
-  return one;
-}
-
-Range admissible(law::ParameterBound bound) {
-  switch (bound) {
-    case law::ParameterBound::positive:
-      return Range::positive();
-    case law::ParameterBound::non_negative:
-      return Range::non_negative();
-    case law::ParameterBound::above_one:
-      return Range::greater_than(1.0);
-  }
-  return Range::any();
-}
-
 std::vector<calibration::FreeParameter> parse_free(const CheckedNode& node,
                                                    const law::LawParameters& start,
                                                    const LawUnits& units) {
@@ -172,8 +145,8 @@ std::vector<calibration::FreeParameter> parse_free(const CheckedNode& node,
     const auto& info = law::kLawParameters[k];
     const auto bounds = node.optional(info.name);
     if (!bounds) continue;
-    const std::vector<double> b =
-        bounds->as_quantities(unit_of(units, info.unit), admissible(info.bound), 2);
+    const std::vector<double> b = bounds->as_quantities(law_constant_unit(units, info.unit),
+                                                        law_constant_range(info.bound), 2);
     if (!(b[0] < b[1])) bounds->fail("the lower bound must lie below the upper one");
     const double value = info.value(start);
     if (!(value >= b[0] && value <= b[1])) {

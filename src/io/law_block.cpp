@@ -31,33 +31,6 @@ void read_block(const CheckedNode& node, std::string_view key, bool partial, Rea
   }
 }
 
-const Unit& unit_of(const LawUnits& units, law::ParameterUnit kind) {
-  static const Unit one{dimension::none, {}, "1"};
-  switch (kind) {
-    case law::ParameterUnit::per_slip:
-      return units.per_slip;
-    case law::ParameterUnit::per_time:
-      return units.per_time;
-    case law::ParameterUnit::time_per_slip:
-      return units.time_per_slip;
-    case law::ParameterUnit::none:
-      break;
-  }
-  return one;
-}
-
-Range range_of(law::ParameterBound bound) {
-  switch (bound) {
-    case law::ParameterBound::non_negative:
-      return Range::non_negative();
-    case law::ParameterBound::above_one:
-      return Range::greater_than(1.0);
-    case law::ParameterBound::positive:
-      break;
-  }
-  return Range::positive();
-}
-
 const law::LawBlockInfo& block_info(law::LawBlock block) {
   for (const auto& b : law::kLawBlocks) {
     if (b.block == block) return b;
@@ -83,8 +56,8 @@ void read_constants(const CheckedNode& node, law::LawBlock block, law::LawParame
   for (const auto& c : law::kLawParameters) {
     if (c.block != block) continue;
     errors.attempt([&] {
-      c.ref(p) =
-          read_number(node, c.name, c.value(p), partial, range_of(c.bound), unit_of(units, c.unit));
+      c.ref(p) = read_number(node, c.name, c.value(p), partial, law_constant_range(c.bound),
+                             law_constant_unit(units, c.unit));
     });
   }
   errors.throw_if_any();
@@ -137,6 +110,33 @@ void parse_overstress(const CheckedNode& node, law::LawParameters& p, bool parti
 }
 
 }  // namespace
+
+const Unit& law_constant_unit(const LawUnits& units, law::ParameterUnit kind) {
+  static const Unit one{dimension::none, {}, "1"};
+  switch (kind) {
+    case law::ParameterUnit::per_slip:
+      return units.per_slip;
+    case law::ParameterUnit::per_time:
+      return units.per_time;
+    case law::ParameterUnit::time_per_slip:
+      return units.time_per_slip;
+    case law::ParameterUnit::none:
+      break;
+  }
+  return one;
+}
+
+Range law_constant_range(law::ParameterBound bound) {
+  switch (bound) {
+    case law::ParameterBound::non_negative:
+      return Range::non_negative();
+    case law::ParameterBound::above_one:
+      return Range::greater_than(1.0);
+    case law::ParameterBound::positive:
+      break;
+  }
+  return Range::positive();
+}
 
 LawUnits contact_law_units(const Units& units) {
   return {units.unit(dimension::per_length), units.unit(dimension::per_time),

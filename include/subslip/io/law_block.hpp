@@ -21,6 +21,11 @@ struct LawUnits {
 LawUnits contact_law_units(const Units& units);
 LawUnits crystal_law_units(const Units& units);
 
+// The unit a law constant of unit kind `kind` is read in, and the range its bound admits
+// (law/parameter_table.hpp): what the scene parsers and the fit file's bounds check.
+const Unit& law_constant_unit(const LawUnits& units, law::ParameterUnit kind);
+Range law_constant_range(law::ParameterBound bound);
+
 // The unit of a law constant of unit kind `kind` (law/parameter_table.hpp) as a result file
 // writes it: "1/mm", "min/mm" for a contact; "1", "s" for slip systems (`crystal`).
 std::string law_unit_name(law::ParameterUnit kind, bool crystal, const Units& units);
