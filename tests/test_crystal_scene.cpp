@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "subslip/crystal/free_components.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/crystal/texture.hpp"
 #include "subslip/driver/orientation_sharing.hpp"
@@ -117,6 +118,29 @@ TEST(CrystalScene, MatrixRowsAreIAndColumnsJ) {
   EXPECT_DOUBLE_EQ(s.velocity_gradient(0, 1), 2.0);
   EXPECT_DOUBLE_EQ(s.velocity_gradient(1, 0), 0.0);
   EXPECT_DOUBLE_EQ(s.stress_target(0, 0), 5.0);
+}
+
+// A DAMASK-style load case: dot_F and P, each component once; under P a free pair is two
+// unknowns (P is not symmetric), and `strain` integrates the largest prescribed |dot_F_ij|.
+TEST(CrystalScene, DotFAndFirstPiolaTargetsAreReadComponentByComponent) {
+  const std::string text =
+      replaced(replaced(kTiny, "  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]",
+                        "  - dot_F: [[x, x, 0], [x, x, 0], [0, 0, 2.0e-3 1/min]]"),
+               "    stress: [[0, x, x], [x, 0, x], [x, x, x]]\n    duration: 1",
+               "    P: [[0, 0.5, x], [0.25, 0 GPa, x], [x, x, x]]\n    strain: 0.1");
+  const auto scene = parse(text);
+  const crystal::LoadSegment& seg = scene.cases[0].segments[0];
+  EXPECT_EQ(seg.rate_control, crystal::RateControl::deformation_rate);
+  EXPECT_EQ(seg.stress_measure, crystal::StressMeasure::first_piola);
+  EXPECT_EQ(seg.velocity_gradient, crystal::Mat3::Zero());
+  EXPECT_DOUBLE_EQ(seg.deformation_rate(2, 2), 2.0e-3 / 60.0);
+  EXPECT_TRUE(seg.free(0, 1) && seg.free(1, 0) && !seg.free(2, 2));
+  EXPECT_EQ(seg.stress_target(0, 1), 0.5);
+  EXPECT_EQ(seg.stress_target(1, 0), 0.25);
+  EXPECT_DOUBLE_EQ(seg.duration, 0.1 / (2.0e-3 / 60.0));
+  const auto fc = crystal::free_components(seg);
+  ASSERT_EQ(fc.size(), 4u);
+  for (const auto& c : fc) EXPECT_FALSE(c.symmetric_pair);
 }
 
 TEST(CrystalScene, StrainGivesTheDurationFromTheLargestPrescribedRate) {
@@ -263,7 +287,18 @@ INSTANTIATE_TEST_SUITE_P(
         Broken{"unknown_compression.yaml", 20, "output.compression", "gzip"},
         Broken{"compression_level_range.yaml", 21, "output.compression_level", "9"},
         Broken{"compression_level_without_gzip.yaml", 21, "output.compression_level",
-               "compression: none"}),
+               "compression: none"},
+        Broken{"rate_L_and_dot_F.yaml", 16, "loading[0].dot_F",
+               "give either 'L' or 'dot_F', not both"},
+        Broken{"stress_and_P.yaml", 17, "loading[0].P", "give either 'stress' or 'P', not both"},
+        Broken{"dot_F_and_P_both_given.yaml", 16, "loading[0].P[2][2]",
+               "component 33: dot_F_33 and P_33 are both given; exactly one of them must be x"},
+        Broken{"dot_F_with_cauchy_stress.yaml", 16, "loading[0].stress",
+               "dot_F takes its stress targets as P (first Piola-Kirchhoff)"},
+        Broken{"P_in_rate_units.yaml", 16, "loading[0].P[2][2]",
+               "'1/s' is a unit of 1/time, but this value's dimension is stress"},
+        Broken{"dot_F_in_stress_units.yaml", 15, "loading[0].dot_F[2][2]",
+               "'MPa' is a unit of stress, but this value's dimension is 1/time"}),
     [](const ::testing::TestParamInfo<Broken>& info) {
       std::string name = info.param.file;
       return name.substr(0, name.find('.'));
@@ -275,7 +310,7 @@ TEST(BrokenCrystalScenes, TableCoversEveryFile) {
   for (const auto& entry : fs::directory_iterator(kBrokenDir)) {
     if (entry.path().extension() == ".yaml") ++files;
   }
-  EXPECT_EQ(files, 23u);
+  EXPECT_EQ(files, 29u);
 }
 
 // ---------------------------------------------------------------- shipped scenes

@@ -27,7 +27,6 @@ std::vector<double> increment_lengths(double duration, int increments, double gr
 
 namespace {
 
-using aggregate_parts::assemble_velocity_gradient;
 using aggregate_parts::ErrorEstimate;
 using aggregate_parts::log_strain;
 using aggregate_parts::symmetric_part;
@@ -141,9 +140,9 @@ class TaylorAggregate final : public Aggregate {
   // The segment's stress ramp start and free components of L: from the checkpoint, or from the
   // state the segment starts in (the free components from the elastic response to the new
   // loading: elastic_free_start).
-  // A stress component the previous segment prescribed ramps from that prescribed value, not
-  // from the stress reached (which differs by up to the tolerance): errors do not carry over
-  // from segment to segment.
+  // A stress component the previous segment prescribed (in the same measure) ramps from that
+  // prescribed value, not from the stress reached (which differs by up to the tolerance): errors
+  // do not carry over from segment to segment.
   void start_segment(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                      const LoadSegment* previous, const AggregateCheckpoint* resume) {
     if (resume != nullptr) {
@@ -153,8 +152,8 @@ class TaylorAggregate final : public Aggregate {
                        resume->free_strain_correction, resume->position.increment > 0};
       return;
     }
-    cursor_.stress_start = macro_.stress;
-    if (previous != nullptr)
+    cursor_.stress_start = mixed_.committed_stress(seg);
+    if (previous != nullptr && previous->stress_measure == seg.stress_measure)
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
           if (previous->free(i, j)) cursor_.stress_start(i, j) = previous->stress_target(i, j);
@@ -185,7 +184,7 @@ class TaylorAggregate final : public Aggregate {
       run_segment_adaptive(seg, previous, index, t_start, opt, observe, control, resume);
       return;
     }
-    const auto fc = free_components(seg.free);
+    const auto fc = free_components(seg);
     start_segment(seg, fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
@@ -223,7 +222,7 @@ class TaylorAggregate final : public Aggregate {
                             double t_start, const AggregateOptions& opt,
                             const MacroObserver& observe, const RunControl& control,
                             const AggregateCheckpoint* resume) {
-    const auto fc = free_components(seg.free);
+    const auto fc = free_components(seg);
     start_segment(seg, fc, previous, resume);
     const Mat3 stress_start = cursor_.stress_start;
     Eigen::VectorXd& u = cursor_.free;
@@ -411,9 +410,9 @@ class TaylorAggregate final : public Aggregate {
               const Eigen::VectorXd& u, double dt) {
     // The grains' states and slip-rate histories, and their average stress.
     const Vec6 trial_stress = grains_.commit(dt, stats_);
-    const Mat3 l = fc.empty() ? seg.velocity_gradient
-                              : assemble_velocity_gradient(seg.velocity_gradient, fc, u);
-    // Deformation gradient by the Cayley (midpoint) map: exact for a pure rotation.
+    const Mat3 l = mixed_.step_velocity_gradient(seg, fc, u, dt);
+    // Deformation gradient by the Cayley (midpoint) map: exact for a pure rotation (and, under
+    // dot_F, F_n + dot_F dt to round-off: step_velocity_gradient inverts the map).
     const Mat3 half = 0.5 * dt * l;
     macro_.deformation_gradient =
         (Mat3::Identity() - half)

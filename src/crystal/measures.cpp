@@ -1,5 +1,6 @@
 #include "subslip/crystal/measures.hpp"
 
+#include <Eigen/LU>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -50,6 +51,12 @@ std::vector<Mat3> schmid_tensors(std::span<const double> systems) {
 }
 
 }  // namespace
+
+Mat3 first_piola_stress(const Mat3& cauchy, const Mat3& f) {
+  // sigma F^-T = (F^-1 sigma^T)^T: one LU solve, no inverse.
+  const Eigen::PartialPivLU<Mat3> lu(f);
+  return lu.determinant() * lu.solve(cauchy.transpose()).transpose();
+}
 
 double von_mises_stress(const Eigen::Matrix3d& stress) {
   return std::sqrt(1.5 * deviator_of_symmetric_part(stress).squaredNorm());

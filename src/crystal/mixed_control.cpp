@@ -1,5 +1,7 @@
 #include "mixed_control.hpp"
 
+#include "subslip/crystal/measures.hpp"
+
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <array>
@@ -138,6 +140,7 @@ template <int N>
 Eigen::VectorXd MixedControl<N>::elastic_free_start(const LoadSegment& seg,
                                                     const std::vector<FreeComponent>& fc,
                                                     const Mat3& stress_start) const {
+  if (!cauchy_on_l(seg)) return general_elastic_start(seg, fc, stress_start);
   const int k = static_cast<int>(fc.size());
   const Mat6 stiffness = grains_.average_stiffness();
   const Eigen::VectorXd none = Eigen::VectorXd::Zero(k);
@@ -157,6 +160,150 @@ Eigen::VectorXd MixedControl<N>::elastic_free_start(const LoadSegment& seg,
     jac.col(b) = free_entries(stiffness * strain_direction(fc[static_cast<size_t>(b)]), fc);
   const Eigen::VectorXd u = jac.partialPivLu().solve(rhs);
   return u.allFinite() ? u : none;
+}
+
+// elastic_free_start for any rate and stress measure: the free components for which the
+// stress measure's rate at the committed state, with the grains' averaged elastic stiffness,
+// follows the ramp. At the step's start (dt -> 0) the velocity gradient is L, or
+// dot_F F_n^-1, affine in the unknowns; the Cauchy stress rate is C : D + W sigma - sigma W, and
+// P = J sigma F^-T changes at dP/dt = J (tr(L) sigma + dsigma/dt - sigma L^T) F^-T (from
+// dJ/dt = J tr L and d(F^-T)/dt = -L^T F^-T): a k x k linear system.
+template <int N>
+Eigen::VectorXd MixedControl<N>::general_elastic_start(const LoadSegment& seg,
+                                                       const std::vector<FreeComponent>& fc,
+                                                       const Mat3& stress_start) const {
+  const int k = static_cast<int>(fc.size());
+  const Mat6 stiffness = grains_.average_stiffness();
+  const Mat3& f = macro_.deformation_gradient;
+  const Mat3 f_inv = f.inverse();
+  const double j_det = f.determinant();
+  const Mat3& sigma = macro_.stress;
+  const auto velocity_gradient = [&](const Mat3& rate) -> Mat3 {
+    return seg.rate_control == RateControl::velocity_gradient ? rate : Mat3(rate * f_inv);
+  };
+  const auto stress_rate = [&](const Mat3& l) -> Mat3 {
+    const Mat3 w = 0.5 * (l - l.transpose());
+    const Mat3 cauchy_rate =
+        symmetric_from_mandel(stiffness * mandel_from_symmetric(symmetric_part(l))) + w * sigma -
+        sigma * w;
+    if (seg.stress_measure == StressMeasure::cauchy) return cauchy_rate;
+    return j_det * (l.trace() * sigma + cauchy_rate - sigma * l.transpose()) * f_inv.transpose();
+  };
+  const Eigen::VectorXd none = Eigen::VectorXd::Zero(k);
+  const Mat3 prescribed =
+      stress_rate(velocity_gradient(assemble_velocity_gradient(prescribed_rate(seg), fc, none)));
+  Eigen::MatrixXd jac(k, k);
+  Eigen::VectorXd rhs(k);
+  for (int a = 0; a < k; ++a) {
+    const FreeComponent& c = fc[static_cast<size_t>(a)];
+    const double ramp = seg.duration > 0.0
+                            ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
+                            : 0.0;
+    rhs(a) = ramp - prescribed(c.i, c.j);
+  }
+  for (int b = 0; b < k; ++b) {
+    const Mat3 column = stress_rate(velocity_gradient(fc[static_cast<size_t>(b)].direction()));
+    for (int a = 0; a < k; ++a)
+      jac(a, b) = column(fc[static_cast<size_t>(a)].i, fc[static_cast<size_t>(a)].j);
+  }
+  const Eigen::VectorXd u = jac.partialPivLu().solve(rhs);
+  return u.allFinite() ? u : none;
+}
+
+// Under dot_F the step's end is F_{n+1} = F_n + dot_F dt, so A = F_{n+1} F_n^-1 = I + dt B with
+// B = dot_F F_n^-1, and the L whose Cayley map (I - L dt/2)^-1 (I + L dt/2) is A is
+// L = (2/dt)(A - I)(A + I)^-1 = B (I + B dt/2)^-1 (all functions of B commute); written this
+// way it has no cancellation in A - I for small steps. Under L the step's end is its Cayley map.
+template <int N>
+typename MixedControl<N>::StepKinematics MixedControl<N>::step_kinematics(
+    const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Eigen::VectorXd& u,
+    double dt) const {
+  const Mat3& f0 = macro_.deformation_gradient;
+  const Mat3 half_identity = 0.5 * dt * Mat3::Identity();
+  StepKinematics k;
+  k.f_inv = f0.inverse();
+  if (seg.rate_control == RateControl::velocity_gradient) {
+    k.l = assemble_velocity_gradient(seg.velocity_gradient, fc, u);
+    k.rate = k.l;
+    const Mat3 half = 0.5 * dt * k.l;
+    k.f = (Mat3::Identity() - half).lu().solve((Mat3::Identity() + half) * f0);
+    return k;
+  }
+  const Mat3 dot_f = assemble_velocity_gradient(seg.deformation_rate, fc, u);
+  k.rate = dot_f * k.f_inv;
+  // L = B M^-1 with M = I + B dt/2: L^T = M^-T B^T, one LU solve.
+  k.l = (Mat3::Identity() + half_identity * k.rate)
+            .transpose()
+            .lu()
+            .solve(k.rate.transpose())
+            .transpose();
+  k.f = f0 + dot_f * dt;
+  return k;
+}
+
+template <int N>
+Mat3 MixedControl<N>::step_velocity_gradient(const LoadSegment& seg,
+                                             const std::vector<FreeComponent>& fc,
+                                             const Eigen::VectorXd& u, double dt) const {
+  if (seg.rate_control == RateControl::velocity_gradient)
+    return assemble_velocity_gradient(seg.velocity_gradient, fc, u);
+  return step_kinematics(seg, fc, u, dt).l;
+}
+
+template <int N>
+Mat3 MixedControl<N>::committed_stress(const LoadSegment& seg) const {
+  return seg.stress_measure == StressMeasure::cauchy
+             ? macro_.stress
+             : first_piola_stress(macro_.stress, macro_.deformation_gradient);
+}
+
+// The Jacobian of the free stresses S (sigma or P = J sigma F^-T at the step's end) in the
+// unknowns u, for any rate and measure, by the chain rule (docs/internals.md, "Mixed control
+// under dot_F and P"). Per unknown b, with E_b its direction in the rate tensor:
+//   G_b = dL/du_b:       L: E_b;   dot_F: (I - L dt/2) E_b F_n^-1 (I + B dt/2)^-1
+//   H_b = dF_{n+1}/du_b: L: (dt/2) (I - L dt/2)^-1 E_b (F_{n+1} + F_n);   dot_F: E_b dt
+//   d sigma = C_mean : sym(G_b) dt + (W_b sigma - sigma W_b) dt,  W_b = skew(G_b)
+//   d P = J (tr(F^-1 H_b) sigma + d sigma - sigma F^-T H_b^T) F^-T
+// with C_mean the grains' averaged consistent tangent of the iterate (all six strain
+// directions: the rate's change moves every component of D once F is not the identity).
+template <int N>
+Eigen::MatrixXd MixedControl<N>::general_jacobian(const LoadSegment& seg,
+                                                  const std::vector<FreeComponent>& fc,
+                                                  const Eigen::VectorXd& u, double dt) const {
+  const int k = static_cast<int>(fc.size());
+  const Tangent tangent = grains_.mean_tangent({0, 1, 2, 3, 4, 5}, 6);
+  const Mat3 sigma = symmetric_from_mandel(grains_.trial_average_stress());
+  const StepKinematics kin = step_kinematics(seg, fc, u, dt);
+  const Mat3& f0 = macro_.deformation_gradient;
+  const Mat3 half_l = 0.5 * dt * kin.l;
+  const Eigen::PartialPivLU<Mat3> end(kin.f);
+  const Mat3 f_inv_t = end.inverse().transpose();
+  const double j_det = end.determinant();
+  Eigen::MatrixXd jac(k, k);
+  for (int b = 0; b < k; ++b) {
+    const Mat3 e = fc[static_cast<size_t>(b)].direction();
+    Mat3 g, h;
+    if (seg.rate_control == RateControl::velocity_gradient) {
+      g = e;
+      h = 0.5 * dt * (Mat3::Identity() - half_l).lu().solve(e * (kin.f + f0));
+    } else {
+      const Mat3 m = Mat3::Identity() + 0.5 * dt * kin.rate;
+      g = (Mat3::Identity() - half_l) * e * kin.f_inv * m.inverse();
+      h = dt * e;
+    }
+    const Mat3 w = 0.5 * (g - g.transpose());
+    const Mat3 dsigma = (symmetric_from_mandel(tangent * mandel_from_symmetric(symmetric_part(g))) +
+                         w * sigma - sigma * w) *
+                        dt;
+    Mat3 ds = dsigma;
+    if (seg.stress_measure == StressMeasure::first_piola) {
+      const double dj = (f_inv_t.transpose() * h).trace();
+      ds = j_det * (dj * sigma + dsigma - sigma * f_inv_t * h.transpose()) * f_inv_t;
+    }
+    for (int a = 0; a < k; ++a)
+      jac(a, b) = ds(fc[static_cast<size_t>(a)].i, fc[static_cast<size_t>(a)].j);
+  }
+  return jac;
 }
 
 // A step failed: the free components do not change smoothly over it (a change of the grains'
@@ -186,14 +333,23 @@ void MixedControl<N>::record_free_step(const Eigen::VectorXd& after,
   p.from_step = true;
 }
 
+// The free stresses of the trial state minus their targets: the Cauchy stress, or P of the
+// trial stress at the step's F_{n+1}.
 template <int N>
 typename MixedControl<N>::MixedResidual MixedControl<N>::free_stress_residual(
-    const std::vector<FreeComponent>& fc, const Mat3& target) const {
+    const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
+    const Eigen::VectorXd& u, double dt) const {
   const Vec6 sigma = grains_.trial_average_stress();
   MixedResidual r;
   r.value.resize(static_cast<int>(fc.size()));
-  for (size_t a = 0; a < fc.size(); ++a) {
-    r.value(static_cast<int>(a)) = component(sigma, fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
+  if (seg.stress_measure == StressMeasure::first_piola) {
+    const Mat3 p =
+        first_piola_stress(symmetric_from_mandel(sigma), step_kinematics(seg, fc, u, dt).f);
+    for (size_t a = 0; a < fc.size(); ++a)
+      r.value(static_cast<int>(a)) = p(fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
+  } else {
+    for (size_t a = 0; a < fc.size(); ++a)
+      r.value(static_cast<int>(a)) = component(sigma, fc[a].i, fc[a].j) - target(fc[a].i, fc[a].j);
   }
   r.merit = 0.5 * r.value.squaredNorm();
   r.size = r.value.cwiseAbs().maxCoeff();
@@ -216,8 +372,10 @@ typename MixedControl<N>::StressResolution MixedControl<N>::stress_resolution(
 // (with it, L_13 free alone takes as few grain solves per increment as L_13 and L_31 free as a
 // pair).
 template <int N>
-Eigen::MatrixXd MixedControl<N>::free_stress_jacobian(const std::vector<FreeComponent>& fc,
-                                                      double dt) const {
+Eigen::MatrixXd MixedControl<N>::free_stress_jacobian(const LoadSegment& seg,
+                                                      const std::vector<FreeComponent>& fc,
+                                                      const Eigen::VectorXd& u, double dt) const {
+  if (!cauchy_on_l(seg)) return general_jacobian(seg, fc, u, dt);
   // The grains' tangents are taken along the free components' strain directions: column b of
   // their mean is d sigma / d u_b per dt (GrainSweep::mean_tangent).
   const int k = static_cast<int>(fc.size());
@@ -250,9 +408,9 @@ bool MixedControl<N>::evaluate_mixed(const LoadSegment& seg, const std::vector<F
                                      const AggregateOptions& opt, MixedIterate& out,
                                      std::string& why, bool warm, bool want_tangent) {
   ++stats_.mixed_iterations;
-  const Mat3 l = assemble_velocity_gradient(seg.velocity_gradient, fc, u);
+  const Mat3 l = step_velocity_gradient(seg, fc, u, dt);
   if (!grains_.solve(l, dt, want_tangent, opt, stats_, why, warm)) return false;
-  out = {u, l, free_stress_residual(fc, target)};
+  out = {u, l, free_stress_residual(seg, fc, target, u, dt)};
   return true;
 }
 
@@ -310,7 +468,8 @@ bool MixedControl<N>::try_step(const LoadSegment& seg, const std::vector<FreeCom
                                const AggregateOptions& opt, std::string& why) {
   step_correction_ = zero_correction(fc);
   free_stress_error_ = 0.0;
-  if (fc.empty()) return grains_.solve(seg.velocity_gradient, dt, false, opt, stats_, why);
+  if (fc.empty())
+    return grains_.solve(step_velocity_gradient(seg, fc, u, dt), dt, false, opt, stats_, why);
   if (opt.predictor == MixedPredictor::last)
     return solve_free_components(seg, fc, target, dt, u, opt, why);
   const Eigen::VectorXd start = continued_free(u, dt);
@@ -345,9 +504,13 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
                                             const std::vector<FreeComponent>& fc,
                                             const Mat3& target, double dt, Eigen::VectorXd& u,
                                             const AggregateOptions& opt, std::string& why) {
-  grains_.tangent_directions().resize(6, static_cast<int>(fc.size()));
-  for (size_t b = 0; b < fc.size(); ++b)
-    grains_.tangent_directions().col(static_cast<int>(b)) = strain_direction(fc[b]);
+  if (cauchy_on_l(seg)) {
+    grains_.tangent_directions().resize(6, static_cast<int>(fc.size()));
+    for (size_t b = 0; b < fc.size(); ++b)
+      grains_.tangent_directions().col(static_cast<int>(b)) = strain_direction(fc[b]);
+  } else {
+    grains_.tangent_directions() = Mat6::Identity();
+  }
   const double scale =
       std::max(target.cwiseAbs().maxCoeff(),
                std::max(macro_.stress.cwiseAbs().maxCoeff(), grains_.phase().tau0.maxCoeff()));
@@ -364,7 +527,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
   // iteration: the averaged tangent barely changes over the few iterations of one step, and
   // the later grain solves need no tangent); it is renewed where its update does not decrease
   // the error.
-  Eigen::MatrixXd jacobian = free_stress_jacobian(fc, dt);
+  Eigen::MatrixXd jacobian = free_stress_jacobian(seg, fc, it.u, dt);
   bool fresh = true;
   for (int iteration = 0;; ++iteration) {
     const StressResolution resolution = stress_resolution(it.l, dt, opt);
@@ -393,7 +556,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
       const bool slow = it.residual.size > 0.5 * previous_size;
       if (slow && !fresh && budget-- > 0) {
         if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why, true, true)) return false;
-        jacobian = free_stress_jacobian(fc, dt);
+        jacobian = free_stress_jacobian(seg, fc, it.u, dt);
         fresh = true;
       } else {
         fresh = false;
@@ -402,7 +565,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
     }
     if (!fresh && budget-- > 0) {  // a stale Jacobian: renewed at the current iterate
       if (!evaluate_mixed(seg, fc, target, dt, it.u, opt, it, why, true, true)) return false;
-      jacobian = free_stress_jacobian(fc, dt);
+      jacobian = free_stress_jacobian(seg, fc, it.u, dt);
       fresh = true;
       continue;
     }

@@ -1,7 +1,8 @@
 // The Taylor aggregate's mixed control (src/crystal/aggregate.cpp): the Newton iteration on the
-// free components of L that brings the free stresses to their targets, where it starts (the
-// elastic start of a segment, the predictor's path of the free components) and the first-order
-// correction of the error a step accepts. Internal to the aggregate.
+// free components of the prescribed rate (L or dot_F) that brings the free stresses (Cauchy or
+// first Piola-Kirchhoff) to their targets, where it starts (the elastic start of a segment, the
+// predictor's path of the free components), the first-order correction of the error a step
+// accepts, and the velocity gradient a step under dot_F takes. Internal to the aggregate.
 #pragma once
 
 #include "grain_sweep.hpp"
@@ -51,6 +52,12 @@ class MixedControl {
 
   Eigen::VectorXd elastic_free_start(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                                      const Mat3& stress_start) const;
+  // The velocity gradient of a step of dt from the committed state at the free components u:
+  // L itself, or under dot_F the L whose Cayley map over dt takes F_n to F_n + dot_F dt.
+  Mat3 step_velocity_gradient(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                              const Eigen::VectorXd& u, double dt) const;
+  // The segment's stress measure of the committed state (the start of a segment's ramp).
+  Mat3 committed_stress(const LoadSegment& seg) const;
   void forget_free_trend();
   void record_free_step(const Eigen::VectorXd& after, const Eigen::VectorXd& correction, double dt);
   bool try_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc, const Mat3& target,
@@ -90,10 +97,33 @@ class MixedControl {
 
   enum class Search { decreased, stalled, failed };
 
-  MixedResidual free_stress_residual(const std::vector<FreeComponent>& fc,
-                                     const Mat3& target) const;
+  // What a step's deformation gradient and its change with the unknowns are built from.
+  struct StepKinematics {
+    Mat3 l;      // the velocity gradient the grains step with
+    Mat3 f;      // F_{n+1}, from the committed F_n
+    Mat3 rate;   // B = dot_F F_n^-1 (dot_F), or L
+    Mat3 f_inv;  // F_n^-1
+  };
+
+  // Whether the segment is the velocity gradient under Cauchy targets, whose iteration is on
+  // the free L with the free stresses' own rows of the tangent (the general one is on any rate
+  // with the whole tangent: first_piola_jacobian).
+  static bool cauchy_on_l(const LoadSegment& seg) {
+    return seg.rate_control == RateControl::velocity_gradient &&
+           seg.stress_measure == StressMeasure::cauchy;
+  }
+  StepKinematics step_kinematics(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                                 const Eigen::VectorXd& u, double dt) const;
+  MixedResidual free_stress_residual(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                                     const Mat3& target, const Eigen::VectorXd& u, double dt) const;
+  Eigen::VectorXd general_elastic_start(const LoadSegment& seg,
+                                        const std::vector<FreeComponent>& fc,
+                                        const Mat3& stress_start) const;
+  Eigen::MatrixXd general_jacobian(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                                   const Eigen::VectorXd& u, double dt) const;
   StressResolution stress_resolution(const Mat3& l, double dt, const AggregateOptions& opt) const;
-  Eigen::MatrixXd free_stress_jacobian(const std::vector<FreeComponent>& fc, double dt) const;
+  Eigen::MatrixXd free_stress_jacobian(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
+                                       const Eigen::VectorXd& u, double dt) const;
   bool evaluate_mixed(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                       const Mat3& target, double dt, const Eigen::VectorXd& u,
                       const AggregateOptions& opt, MixedIterate& out, std::string& why,

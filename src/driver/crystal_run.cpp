@@ -24,7 +24,7 @@ std::pair<int, int> loading_component(const std::vector<crystal::LoadSegment>& s
   for (const auto& s : segments) {
     for (int i = 0; i < 3; ++i) {
       for (int j = 0; j < 3; ++j) {
-        const double v = s.free(i, j) ? 0.0 : std::abs(s.velocity_gradient(i, j));
+        const double v = s.free(i, j) ? 0.0 : std::abs(crystal::prescribed_rate(s)(i, j));
         if (v > largest) {
           largest = v;
           best = {i, j};

@@ -471,31 +471,41 @@ std::string component_name(int i, int j) {
   return std::to_string(i + 1) + std::to_string(j + 1);
 }
 
-// Every component is prescribed either through L or through the stress, never both; a free
-// pair L_ij, L_ji has one unknown (D_ij), so its two stress targets must agree.
-void check_mixed_control(const MatrixInput& l, const std::optional<MatrixInput>& stress) {
+// The keys a segment gives its rate and its stress targets by: L or dot_F, stress (Cauchy) or
+// P (first Piola-Kirchhoff).
+struct ControlKeys {
+  std::string rate = "L";
+  std::string stress = "stress";
+  bool cauchy() const { return stress == "stress"; }
+};
+
+// Every component is prescribed either through the rate or through the stress, never both; a
+// free pair L_ij, L_ji under a Cauchy target has one unknown (D_ij), so its two stress targets
+// must agree (under P each free component is its own unknown and its own target).
+void check_mixed_control(const MatrixInput& l, const std::optional<MatrixInput>& stress,
+                         const ControlKeys& keys) {
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
       const std::string ij = component_name(i, j);
+      const std::string rate_ij = keys.rate + "_" + ij, stress_ij = keys.stress + "_" + ij;
       const std::size_t k = static_cast<std::size_t>(3 * i + j);
       if (!stress) {
         if (l.free(i, j))
-          l.entries[k].fail("L_" + ij +
-                            " is free (x) but the segment has no 'stress' to "
+          l.entries[k].fail(rate_ij +
+                            " is free (x) but the segment has no 'stress' or 'P' to "
                             "prescribe stress_" +
                             ij);
         continue;
       }
       if (l.free(i, j) == stress->free(i, j)) {
         stress->entries[k].fail("component " + ij + ": " +
-                                (l.free(i, j)
-                                     ? "L_" + ij + " and stress_" + ij + " are both x"
-                                     : "L_" + ij + " and stress_" + ij + " are both given") +
+                                (l.free(i, j) ? rate_ij + " and " + stress_ij + " are both x"
+                                              : rate_ij + " and " + stress_ij + " are both given") +
                                 "; exactly one of them must be x");
       }
     }
   }
-  if (!stress) return;
+  if (!stress || !keys.cauchy()) return;
   for (int i = 0; i < 3; ++i) {
     for (int j = i + 1; j < 3; ++j) {
       if (l.free(i, j) && l.free(j, i) && stress->value(i, j) != stress->value(j, i)) {
@@ -508,17 +518,19 @@ void check_mixed_control(const MatrixInput& l, const std::optional<MatrixInput>&
   }
 }
 
-// The largest |L_ij| among the prescribed components (0 when none is non-zero).
+// The largest |L_ij| (or |dot_F_ij|) among the prescribed components (0 when none is non-zero).
 double driving_rate(const crystal::LoadSegment& seg) {
+  const crystal::Mat3& prescribed = crystal::prescribed_rate(seg);
   double rate = 0.0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (!seg.free(i, j)) rate = std::max(rate, std::abs(seg.velocity_gradient(i, j)));
+      if (!seg.free(i, j)) rate = std::max(rate, std::abs(prescribed(i, j)));
   return rate;
 }
 
-// `duration`, or `strain`: the integral of the largest prescribed |L_ij| over the segment, so
-// that a swept rate keeps the amount of deformation (duration = strain / rate).
+// `duration`, or `strain`: the integral of the largest prescribed |L_ij| (|dot_F_ij|: the
+// change of F_ij) over the segment, so that a swept rate keeps the amount of deformation
+// (duration = strain / rate).
 void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v) {
   if (*node.one_of({"duration", "strain"}, true) == "duration") {
     seg.duration =
@@ -529,7 +541,7 @@ void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg, SceneVal
   const double amount = strain.as_double(Range::positive());
   const double rate = driving_rate(seg);
   if (!(rate > 0.0))
-    strain.fail("needs a non-zero prescribed component of L to reach it; give a duration");
+    strain.fail("needs a non-zero prescribed component of L or dot_F to reach it; give a duration");
   seg.duration = amount / rate;
   if (!(std::isfinite(seg.duration) && seg.duration > 0.0))
     strain.fail("strain / rate is not a usable duration (over- or underflow)");
@@ -554,21 +566,47 @@ void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg, SceneVal
   errors.throw_if_any();
 }
 
+// Which keys the segment gives its rate and stress by; dot_F with a Cauchy `stress` is refused
+// at the `stress` key.
+ControlKeys control_keys(const CheckedNode& node) {
+  ControlKeys keys;
+  keys.rate = *node.one_of({"L", "dot_F"}, true);
+  if (auto stress = node.one_of({"stress", "P"}, false)) keys.stress = *stress;
+  if (keys.rate == "dot_F" && keys.cauchy() && node.has("stress")) {
+    node.required("stress").fail(
+        "dot_F takes its stress targets as P (first Piola-Kirchhoff), as DAMASK's load cases "
+        "do: a Cauchy target is symmetric, one condition for a free pair dot_F_ij, dot_F_ji, "
+        "and no rule splits it between them (L's pair is D_ij, without spin); give P, or the "
+        "rate as L");
+  }
+  return keys;
+}
+
 crystal::LoadSegment parse_segment(const CheckedNode& node, SceneValues& v) {
-  node.allow_keys({"L", "stress", "duration", "strain", "increments", "growth", "output_every"});
+  node.allow_keys(
+      {"L", "dot_F", "stress", "P", "duration", "strain", "increments", "growth", "output_every"});
   InputErrorList errors;
+  ControlKeys keys;
+  const bool have_keys = errors.attempt([&] { keys = control_keys(node); });
   MatrixInput l;
-  const bool have_l = errors.attempt(
-      [&] { l = read_matrix(node.required("L"), dimension::per_time, v, Magnitude::strain_rate); });
+  const bool have_l = have_keys && errors.attempt([&] {
+    l = read_matrix(node.required(keys.rate), dimension::per_time, v, Magnitude::strain_rate);
+  });
   std::optional<MatrixInput> stress;
-  const bool have_stress = errors.attempt([&] {
-    if (auto s = node.optional("stress")) stress = read_matrix(*s, dimension::stress, v, {});
+  const bool have_stress = have_keys && errors.attempt([&] {
+    if (auto s = node.optional(keys.stress)) stress = read_matrix(*s, dimension::stress, v, {});
   });
   const bool controlled =
-      have_l && have_stress && errors.attempt([&] { check_mixed_control(l, stress); });
+      have_l && have_stress && errors.attempt([&] { check_mixed_control(l, stress, keys); });
   crystal::LoadSegment seg;
-  seg.velocity_gradient = l.value;
+  if (keys.rate == "dot_F") {
+    seg.rate_control = crystal::RateControl::deformation_rate;
+    seg.deformation_rate = l.value;
+  } else {
+    seg.velocity_gradient = l.value;
+  }
   seg.free = l.free;
+  if (!keys.cauchy()) seg.stress_measure = crystal::StressMeasure::first_piola;
   if (stress) seg.stress_target = stress->value;
   errors.attempt([&] { parse_stepping(node, seg, v, controlled); });
   errors.throw_if_any();

@@ -210,7 +210,7 @@ double largest_prescribed_rate(const crystal::LoadSegment& s) {
   double rate = 0.0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (!s.free(i, j)) rate = std::max(rate, std::abs(s.velocity_gradient(i, j)));
+      if (!s.free(i, j)) rate = std::max(rate, std::abs(crystal::prescribed_rate(s)(i, j)));
   return rate;
 }
 

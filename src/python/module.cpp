@@ -425,6 +425,9 @@ py::tuple crystal_steps(const subslip::model::CrystalCase& c, const std::string&
       throw InputError(scene, 0, "loading",
                        "mixed control (stress components prescribed): a point takes the whole "
                        "velocity gradient of each step");
+    if (seg.rate_control != cr::RateControl::velocity_gradient)
+      throw InputError(scene, 0, "loading",
+                       "dot_F: a point takes the velocity gradient of each step; give L");
     for (const subslip::integrators::FixedStep& step : segment_steps(seg)) {
       append(l, seg.velocity_gradient);
       dt.push_back(step.length);

@@ -1,7 +1,8 @@
 // The crystal drivers: a single crystal is an aggregate of one grain; a Taylor (iso-strain)
 // polycrystal gives every grain the same velocity gradient and homogenises the stress as the
 // weighted average. Loading is mixed control in the DAMASK load-case convention: every
-// component of L is either prescribed or free, and each free component's stress is prescribed.
+// component of the rate (L, or dot_F) is either prescribed or free, and each free component's
+// stress (Cauchy, or first Piola-Kirchhoff) is prescribed.
 //
 // The step is a pure function of the start state: the whole aggregate is advanced from the
 // committed state; a mixed-control Newton re-runs the grains from that state with an updated
@@ -27,11 +28,27 @@ namespace subslip::crystal {
 
 using Mask3 = Eigen::Matrix<bool, 3, 3>;
 
+// What a segment's kinematic components prescribe. The aggregate always steps with a velocity
+// gradient; under dot_F it is the one whose Cayley map over the step takes F_n to
+// F_n + dot_F dt exactly (DAMASK's meaning of dot_F).
+enum class RateControl {
+  velocity_gradient,  // L, held over the segment
+  deformation_rate,   // dot_F, held over the segment: F grows linearly in time
+};
+
+// What a segment's stress components prescribe: the Cauchy stress sigma, or the first
+// Piola-Kirchhoff stress P = J sigma F^-T (not symmetric: each of its nine components is its
+// own condition, so free rate components are never paired under P).
+enum class StressMeasure { cauchy, first_piola };
+
 struct LoadSegment {
   Mat3 velocity_gradient = Mat3::Zero();  // prescribed components of L [1/time]
-  Mask3 free = Mask3::Constant(false);    // true: L_ij free, stress_ij prescribed
-  Mat3 stress_target = Mat3::Zero();      // Cauchy stress reached at the segment end (free comps)
-  double duration = 1.0;                  // [time]
+  Mat3 deformation_rate = Mat3::Zero();   // prescribed components of dot_F [1/time]
+  RateControl rate_control = RateControl::velocity_gradient;
+  Mask3 free = Mask3::Constant(false);  // true: the rate component ij free, stress_ij prescribed
+  StressMeasure stress_measure = StressMeasure::cauchy;
+  Mat3 stress_target = Mat3::Zero();  // stress_measure reached at the segment end (free comps)
+  double duration = 1.0;              // [time]
   int increments = 1;
   double growth = 1.0;  // ratio of successive increments
   int output_every = 1;
@@ -41,6 +58,12 @@ struct LoadSegment {
   bool output_at_times = false;
   std::vector<double> output_times;
 };
+
+// The prescribed rate tensor of a segment: L or dot_F, as its rate_control says.
+inline const Mat3& prescribed_rate(const LoadSegment& seg) {
+  return seg.rate_control == RateControl::velocity_gradient ? seg.velocity_gradient
+                                                            : seg.deformation_rate;
+}
 
 // The increment lengths of a segment: geometric progression summing to the duration exactly.
 std::vector<double> increment_lengths(double duration, int increments, double growth);

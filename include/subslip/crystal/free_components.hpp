@@ -9,7 +9,9 @@
 
 namespace subslip::crystal {
 
-// One free component L_ij. When L_ij and L_ji are both free they are one unknown, D_ij (no spin).
+// One free component of the prescribed rate (L_ij or dot_F_ij). Under a Cauchy stress target,
+// L_ij and L_ji both free are one unknown, D_ij (no spin): the symmetric stress gives one
+// condition for the two. Under P each is its own unknown.
 struct FreeComponent {
   int i, j;
   bool symmetric_pair;
@@ -22,22 +24,27 @@ struct FreeComponent {
   }
 };
 
-// The unknowns of a mask, in a fixed order (row by row, upper triangle first for pairs).
-inline std::vector<FreeComponent> free_components(const Mask3& free) {
+// The unknowns of a mask, in a fixed order (row by row, upper triangle first for pairs);
+// `pair`: whether a free ij and ji are one symmetric unknown (a Cauchy stress target).
+inline std::vector<FreeComponent> free_components(const Mask3& free, bool pair = true) {
   std::vector<FreeComponent> out;
   for (int i = 0; i < 3; ++i) {
     if (free(i, i)) out.push_back({i, i, false});
     for (int j = i + 1; j < 3; ++j) {
-      if (free(i, j) && free(j, i)) {
+      if (pair && free(i, j) && free(j, i)) {
         out.push_back({i, j, true});
-      } else if (free(i, j)) {
-        out.push_back({i, j, false});
-      } else if (free(j, i)) {
-        out.push_back({j, i, false});
+      } else {
+        if (free(i, j)) out.push_back({i, j, false});
+        if (free(j, i)) out.push_back({j, i, false});
       }
     }
   }
   return out;
+}
+
+// The unknowns of a segment's mask: paired only under a Cauchy stress target.
+inline std::vector<FreeComponent> free_components(const LoadSegment& seg) {
+  return free_components(seg.free, seg.stress_measure == StressMeasure::cauchy);
 }
 
 }  // namespace subslip::crystal

@@ -14,6 +14,11 @@
 
 namespace subslip::crystal {
 
+// The first Piola-Kirchhoff stress P = J sigma F^-T (J = det F) of the Cauchy stress sigma
+// at the deformation gradient F: force per reference area, the stress a dot_F/P load case
+// prescribes.
+Eigen::Matrix3d first_piola_stress(const Eigen::Matrix3d& cauchy, const Eigen::Matrix3d& f);
+
 // sqrt(3/2 s:s), s the deviator of the symmetric part: equals |sigma| for uniaxial stress.
 double von_mises_stress(const Eigen::Matrix3d& stress);
 // sqrt(2/3 e:e), e the deviator of the symmetric part: equals |eps| for isochoric uniaxial

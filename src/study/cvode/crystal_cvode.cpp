@@ -137,6 +137,9 @@ class TaylorOde final : private crystal::GrainFields {
   }
 
   void set_segment(const crystal::LoadSegment& seg, const double* y) {
+    if (seg.rate_control != crystal::RateControl::velocity_gradient ||
+        seg.stress_measure != crystal::StressMeasure::cauchy)
+      throw std::invalid_argument("CVODE peer: loading by L and Cauchy stress only (no dot_F, P)");
     free_ = free_components(seg.free);
     if (free_.size() > static_cast<size_t>(kMaxFree))
       throw std::invalid_argument("CVODE peer: more than 9 free components of L");
