@@ -171,6 +171,27 @@ TEST(Restart, AggregateContinuesBitwiseFromACheckpoint) {
   }
 }
 
+// A segment by dot_F with a first Piola-Kirchhoff target, then one by L with Cauchy targets: the
+// free dot_F, its path and the P ramp's start continue from the checkpoint as L's do.
+TEST(Restart, DotFAndFirstPiolaRunContinuesBitwiseFromACheckpoint) {
+  std::string text = crystal_scene(4, 20, "integrator: {method: implicit, predictor: trend}\n");
+  const std::string l_first =
+      "  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]\n"
+      "    stress: [[5, x, x], [x, 0, x], [x, x, x]]\n";
+  ASSERT_NE(text.find(l_first), std::string::npos);
+  text.replace(text.find(l_first), l_first.size(),
+               "  - dot_F: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]\n"
+               "    P: [[5, x, x], [x, 0, x], [x, x, x]]\n");
+  const CrystalScene scene = scene_of(text);
+  const CrystalCase& c = scene.cases.at(0);
+  ASSERT_EQ(c.segments.at(0).rate_control, crystal::RateControl::deformation_rate);
+  ASSERT_EQ(c.segments.at(0).stress_measure, crystal::StressMeasure::first_piola);
+  for (long stop : {7L, 20L, 26L}) {
+    SCOPED_TRACE("stopped after increment " + std::to_string(stop));
+    check_resume_is_bitwise(c, stop);
+  }
+}
+
 TEST(Restart, AdaptiveRunContinuesBitwiseFromACheckpoint) {
   // Backward Euler's estimate (order 1) and the extrapolated integrator (order 3).
   for (int order : {1, 3}) {
