@@ -153,6 +153,40 @@ class RunEqualsTheCommandLine(unittest.TestCase):
         with subslip.run(scene) as a, subslip.run(as_dict) as b:
             self.assert_bitwise(numeric_datasets(a.file), numeric_datasets(b.file), "dict")
 
+    def test_a_dict_loads_by_dot_f_and_first_piola(self):
+        # DAMASK's tension load case written as a dict: F_33 = 1 + dot_F_33 t at every row, and
+        # the lateral P = J sigma F^-T of the stored F and Cauchy stress at zero.
+        scene = {
+            "scene": "crystal",
+            "units": {"stress": "MPa", "time": "s"},
+            "phase": {
+                "families": ["fcc_111_110"],
+                "elasticity": {"type": "cubic", "C11": 168400, "C12": 121400, "C44": 75400},
+                "tau0": 20.0,
+                "law": {
+                    "friction": {"mu_s": 1.0, "mu_k": 1.5, "kappa": 2.0, "xi": 0.0},
+                    "subloading": {"function": "cot", "u_tilde": 300},
+                    "overstress": {"form": "exponential", "eta_v": 0.05, "n": 16, "r_hat": 1.8},
+                },
+            },
+            "orientations": {"random": {"count": 8, "seed": 3}},
+            "loading": [{
+                "dot_F": [["x", 0, 0], [0, "x", 0], [0, 0, 1.0e-3]],
+                "P": [[0, "x", "x"], ["x", 0, "x"], ["x", "x", "x"]],
+                "strain": 0.02,
+                "increments": 20,
+            }],
+        }
+        with subslip.run(scene) as r:
+            macro = r.file["cases/base/macro"]
+            f, sigma, t = macro["F"][()], macro["stress"][()], macro["time"][()]
+        self.assertEqual(len(t), 21)
+        self.assertLess(np.abs(f[:, 2, 2] - (1.0 + 1.0e-3 * t)).max(), 1e-14)
+        p = np.linalg.det(f)[:, None, None] * sigma @ np.linalg.inv(f).transpose(0, 2, 1)
+        scale = max(np.abs(sigma).max(), 20.0)
+        self.assertLess(np.abs(p[:, [0, 1], [0, 1]]).max(), 1e-10 * scale)
+        self.assertGreater(sigma[-1, 2, 2], 2 * 20.0)
+
     def test_output_writes_the_file_and_refuses_to_replace_it(self):
         with tempfile.TemporaryDirectory() as d:
             out = os.path.join(d, "contact.h5")
