@@ -16,6 +16,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -213,9 +214,9 @@ std::string reversal_scene_with(const std::string& orientations, int increments)
   return scene;
 }
 
-// Where the ranks write the file together, an orientation file is read by rank 0 alone and
-// each rank keeps its block of it: the result is the serial run's, also where some ranks hold
-// no grain (3 grains on 4 ranks).
+// Where the ranks write the file together, every rank reads its range of an orientation file's
+// lines and keeps its block of the orientations: the result is the serial run's, also where
+// some ranks hold no grain (3 grains on 4 ranks).
 TEST(Mpi, OrientationFileReadByBlocksGivesTheSerialRun) {
   const fs::path dir = scratch_dir();
   const std::string shipped = std::string(SUBSLIP_SOURCE_DIR) + "/orientations/random_100.txt";
@@ -270,6 +271,42 @@ TEST(Mpi, BadOrientationFileIsReportedOnceAsInASerialRun) {
   ASSERT_NE(first, std::string::npos) << log;
   EXPECT_EQ(log.find(message, first + 1), std::string::npos) << log;
   EXPECT_FALSE(fs::exists(dir / "p.h5"));
+  fs::remove_all(dir);
+}
+
+// Every rank reads its range of an orientation file's lines: a bad line in the block of rank 1
+// (of 2; of rank 2 of 3) is reported once, with the serial read's message (file, line, key) and
+// exit status; with a bad line in rank 0's block too, the one the serial read reports, the first.
+TEST(Mpi, BadLineInTheBlockOfRankOneIsReportedAsTheSerialReadReportsIt) {
+  const fs::path dir = scratch_dir();
+  for (const std::vector<int>& bad_lines : {std::vector<int>{36}, std::vector<int>{5, 36}}) {
+    std::ofstream file(dir / "bad.txt");
+    file << "# subslip-orientations convention=bunge-euler-deg\n";
+    for (int line = 2; line <= 41; ++line) {
+      const bool bad = std::find(bad_lines.begin(), bad_lines.end(), line) != bad_lines.end();
+      file << (bad ? "10 200 30\n" : "10 20 30\n");
+    }
+    file.close();
+    std::ofstream(dir / "bad.yaml") << reversal_scene_with("{file: bad.txt}", 10);
+    const int serial = subslip::testing::run_subslip(dir, {"run", "bad.yaml", "-o", "s.h5", "-q"},
+                                                     dir / "serial.log");
+    std::string message = subslip::testing::read_text(dir / "serial.log");
+    ASSERT_NE(serial, 0);
+    const std::string where = "bad.txt:" + std::to_string(bad_lines.front()) + ": Phi:";
+    ASSERT_NE(message.find(where), std::string::npos) << message;
+    message = message.substr(0, message.find('\n'));
+    for (int ranks : {2, 3}) {
+      SCOPED_TRACE(std::to_string(ranks) + " ranks, bad line " + std::to_string(bad_lines.front()));
+      EXPECT_EQ(run_mpi(dir, ranks, {"run", "bad.yaml", "-o", "p.h5", "-q"}), serial)
+          << log_of(dir);
+      const std::string log = log_of(dir);
+      const auto first = log.find(message);
+      ASSERT_NE(first, std::string::npos) << log;
+      EXPECT_EQ(log.find(message, first + 1), std::string::npos) << log;
+      EXPECT_EQ(log.find("bad.txt:36", first + message.size()), std::string::npos) << log;
+      EXPECT_FALSE(fs::exists(dir / "p.h5"));
+    }
+  }
   fs::remove_all(dir);
 }
 

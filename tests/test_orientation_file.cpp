@@ -7,14 +7,19 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "scratch_dir.hpp"
 #include "subslip/crystal/texture.hpp"
 #include "subslip/io/orientation_file.hpp"
 
@@ -23,7 +28,11 @@ using subslip::InputError;
 using subslip::io::format_orientations;
 using subslip::io::OrientationConvention;
 using subslip::io::OrientationFileFormat;
+using subslip::io::OrientationFileKind;
+using subslip::io::OrientationFileLayout;
 using subslip::io::read_orientation_file;
+using subslip::io::read_orientation_file_lines;
+using subslip::io::read_orientation_file_start;
 using subslip::io::read_orientations;
 using subslip::io::write_orientation_file;
 
@@ -63,6 +72,142 @@ const std::vector<BadFile> kBadFiles{
 };
 
 }  // namespace
+
+namespace {
+
+// What a read gives: every orientation's bits, or the error's what() and line.
+struct ReadOutcome {
+  std::vector<double> values;  // q, g and weight of each orientation, in order
+  std::string error;
+  int line = 0;
+  double largest_euler_deg = -1.0;
+};
+void append_values(const Orientation& o, std::vector<double>& out) {
+  out.insert(out.end(), {o.q.w, o.q.x, o.q.y, o.q.z, o.weight});
+  out.insert(out.end(), o.g.data(), o.g.data() + 9);
+}
+
+ReadOutcome read_whole(const std::string& path, const OrientationFileLayout& layout) {
+  ReadOutcome out;
+  try {
+    read_orientation_file(
+        path, [&](const Orientation& o) { append_values(o, out.values); }, &out.largest_euler_deg,
+        layout);
+  } catch (const InputError& e) {
+    out = {{}, e.what(), e.line, -1.0};
+  }
+  return out;
+}
+
+// The file read as ranks read it: its start, then the ranges [start, cuts[0]), [cuts[0],
+// cuts[1]), ..., [cuts.back(), size) in order, each on its own; the first problem with its line
+// counted from the file's start.
+ReadOutcome read_by_ranges(const std::string& path, const OrientationFileLayout& layout,
+                           const std::string& start, const std::vector<std::uint64_t>& cuts) {
+  ReadOutcome out;
+  const auto each = [&](const Orientation& o) { append_values(o, out.values); };
+  read_orientation_file_start(path, each, layout);
+  std::vector<std::uint64_t> edges{start.size()};
+  edges.insert(edges.end(), cuts.begin(), cuts.end());
+  edges.push_back(std::filesystem::file_size(path));
+  int lines_before = static_cast<int>(std::count(start.begin(), start.end(), '\n'));
+  for (std::size_t r = 0; r + 1 < edges.size(); ++r) {
+    try {
+      const auto read =
+          read_orientation_file_lines(path, start, edges[r], edges[r + 1], each, layout);
+      EXPECT_TRUE(read.complete);
+      lines_before += static_cast<int>(read.lines);
+      out.largest_euler_deg = std::max(out.largest_euler_deg, read.largest_euler_deg);
+    } catch (const InputError& e) {
+      const int line = e.line + lines_before;
+      return {{}, InputError(e.file, line, e.key, e.message).what(), line, -1.0};
+    }
+  }
+  return out;
+}
+
+// Every split of the file's lines after its start into two ranges (at every byte) and into
+// three (at every pair of bytes 7 apart) reads what the whole file reads: the same bits, or the
+// same first error at the same line; a problem of the whole file is the start's.
+void expect_ranges_read_the_whole(const std::string& path, const OrientationFileLayout& layout) {
+  SCOPED_TRACE(path);
+  const ReadOutcome whole = read_whole(path, layout);
+  std::optional<std::string> start;
+  try {
+    start = read_orientation_file_start(
+        path, [](const Orientation&) {}, layout);
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.what(), whole.error);
+    return;
+  }
+  ASSERT_TRUE(start.has_value());
+  const std::uint64_t size = std::filesystem::file_size(path);
+  for (std::uint64_t cut = start->size(); cut <= size; ++cut) {
+    for (const auto& cuts : {std::vector<std::uint64_t>{cut},
+                             std::vector<std::uint64_t>{cut, std::min(cut + 7, size)}}) {
+      SCOPED_TRACE("cut at byte " + std::to_string(cut) + " of " + std::to_string(size));
+      const ReadOutcome ranges = read_by_ranges(path, layout, *start, cuts);
+      EXPECT_EQ(ranges.error, whole.error);
+      EXPECT_EQ(ranges.line, whole.line);
+      EXPECT_EQ(ranges.largest_euler_deg, whole.largest_euler_deg);
+      ASSERT_EQ(ranges.values.size(), whole.values.size());
+      EXPECT_EQ(std::memcmp(ranges.values.data(), whole.values.data(),
+                            whole.values.size() * sizeof(double)),
+                0);
+    }
+  }
+}
+
+}  // namespace
+
+// MPI ranks read a file by byte ranges (driver/orientation_sharing.hpp): whatever the ranges,
+// they read the whole file's orientations bit for bit, and a bad file gives the whole read's
+// first error, file, line, key and message.
+TEST(OrientationFile, ByteRangesReadWhatTheWholeFileReads) {
+  for (const BadFile& bad : kBadFiles) {
+    if (bad.name != "does_not_exist.txt") expect_ranges_read_the_whole(data_path(bad.name), {});
+  }
+  for (const char* good : {"good_euler_weights.txt", "good_quaternion.txt"})
+    expect_ranges_read_the_whole(data_path(good), {});
+  const std::filesystem::path dir = subslip::testing::scratch_dir("orientation_ranges");
+  // Comments, blank lines, CR LF, a long line, and no newline at the end.
+  std::ofstream(dir / "mixed.txt", std::ios::binary)
+      << "# subslip-orientations convention=bunge-euler-deg\r\n# a comment\r\n\r\n"
+         "10 20 30 2 # first\r\n\n  40   50  60 1\r\n# between\n"
+         "70.00000000000000000000000000000000000000000000001 80 90 0.5\n\n"
+         "1e1,2e1 , 3e1 4\n5 6 7 8";
+  expect_ranges_read_the_whole((dir / "mixed.txt").string(), {});
+  // A bad line after good ones, then another bad line: the first is the error.
+  std::ofstream(dir / "two_bad.txt", std::ios::binary)
+      << "# subslip-orientations convention=quaternion\n1 0 0 0\n0 1 0 0\n0 0 1 0\n"
+         "0 0 0 1\n1 1 0 0\n0.5 0.5 0.5 0.5\n2 0 0 0\n";
+  expect_ranges_read_the_whole((dir / "two_bad.txt").string(), {});
+  // Tables of other tools: the column labels are in the start.
+  std::ofstream(dir / "damask.txt", std::ios::binary)
+      << "# written by damask.Table.save\n1_O 2_O 3_O 4_O phase\n1.0 0.0 0.0 0.0 Cu\n"
+         "0.5 0.5 0.5 0.5 Cu\n0.7071067811865476 0 0.7071067811865476 0 Cu\n1 0 0 Cu\n";
+  expect_ranges_read_the_whole((dir / "damask.txt").string(),
+                               {OrientationFileKind::damask, std::nullopt, "O"});
+  std::ofstream(dir / "euler.txt", std::ios::binary)
+      << "# header-less\n10 20 30\n40 50 60\n70 80 90\n# subslip-orientations comment\n"
+         "1 2 3\n4 5 6 7\n";
+  expect_ranges_read_the_whole((dir / "euler.txt").string(),
+                               {OrientationFileKind::euler, subslip::io::AngleUnit::degrees, "O"});
+}
+
+// A file whose first byte may begin a byte-order mark is converted whole before it is read:
+// its start says so (nullopt) and nothing is read.
+TEST(OrientationFile, ByteOrderMarkedFileIsNotReadByByteRanges) {
+  const std::filesystem::path dir = subslip::testing::scratch_dir("orientation_ranges");
+  std::ofstream(dir / "bom.txt", std::ios::binary)
+      << "\xEF\xBB\xBF# subslip-orientations convention=bunge-euler-deg\n10 20 30\n";
+  int visited = 0;
+  EXPECT_FALSE(read_orientation_file_start((dir / "bom.txt").string(), [&](const Orientation&) {
+                 ++visited;
+               }).has_value());
+  EXPECT_EQ(visited, 0);
+  EXPECT_EQ(read_orientation_file((dir / "bom.txt").string()).size(), 1u);
+}
 
 TEST(OrientationFile, EachBadFileNamesItselfAndTheLine) {
   for (const BadFile& bad : kBadFiles) {

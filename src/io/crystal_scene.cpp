@@ -308,18 +308,48 @@ model::OrientationFile orientation_file(const CheckedNode& node,
   const std::string path = resolve_relative(node.as_string(), node.directory()).string();
   source = {"file", path};
   const SceneKey key{node.file(), node.line(), node.path()};
-  model::OrientationFile file;
-  file.path = path;
-  file.read = [path, key, layout](const model::OrientationVisitor& each,
-                                  double& largest_euler_deg) {
+  const auto given_at = [key](const std::string& message) {
+    return message + " (orientation file given at " + key.file + ":" + std::to_string(key.line) +
+           ": " + key.path + ")";
+  };
+  // What `read` throws: the file's error with the scene key that named it.
+  const auto situated = [key, given_at](const auto& read) {
     try {
-      return read_orientation_file(path, each, &largest_euler_deg, layout);
+      return read();
     } catch (const InputError& e) {
       if (e.line == 0) key.fail(e.what());
-      throw InputError(e.file, e.line, e.key,
-                       e.message + " (orientation file given at " + key.file + ":" +
-                           std::to_string(key.line) + ": " + key.path + ")");
+      throw InputError(e.file, e.line, e.key, given_at(e.message));
     }
+  };
+  model::OrientationFile file;
+  file.path = path;
+  file.read = [path, layout, situated](const model::OrientationVisitor& each,
+                                       double& largest_euler_deg) {
+    return situated([&] { return read_orientation_file(path, each, &largest_euler_deg, layout); });
+  };
+  file.read_start = [path, layout, situated](const model::OrientationVisitor& first) {
+    return situated([&] { return read_orientation_file_start(path, first, layout); });
+  };
+  file.read_lines = [path, layout, given_at](const std::string& start, std::uint64_t begin,
+                                             std::uint64_t end,
+                                             const model::OrientationVisitor& each) {
+    model::OrientationLines out;
+    try {
+      const OrientationLines read =
+          read_orientation_file_lines(path, start, begin, end, each, layout);
+      out.orientations = read.orientations;
+      out.lines = read.lines;
+      out.complete = read.complete;
+      out.largest_euler_deg = read.largest_euler_deg;
+    } catch (const InputError& e) {  // (a line's: its number counted from the range's first)
+      out.problem_line = e.line;
+      out.problem_key = e.key;
+      out.problem_message = given_at(e.message);
+    }
+    return out;
+  };
+  file.fail_line = [path](int line, const std::string& key, const std::string& message) {
+    throw InputError(path, line, key, message);
   };
   file.fail_weights = [key] { key.fail("the orientation weights sum to more than 1.8e308"); };
   file.fail_changed = [key, path] {

@@ -214,7 +214,7 @@ Series::Series(Dataset dataset, Type type, std::size_t block_rows, std::size_t r
   chunk_rows_ = chunk.empty() ? 1 : std::max<std::size_t>(chunk.front(), 1);
   committed_ = std::min(rows, capacity_);
   if (type_ == Type::float64) {
-    block_.resize(block_rows_ * width_);
+    if (block_rows_ > 1) block_.resize(block_rows_ * width_);
   } else {
     if (width_ != 1) throw Error("HDF5: an int32 series must be 1-D");
     int_block_.resize(block_rows_);
@@ -232,6 +232,12 @@ Series::~Series() {
 void Series::append(std::span<const double> row) {
   if (type_ != Type::float64 || row.size() != width_) {
     throw Error("HDF5: row does not match the series' type or width");
+  }
+  if (block_rows_ == 1) {
+    // Written from the caller's row: a per-grain row is large (its series gathers one row at a
+    // time), and a copy of it in every series would hold an output state of every grain twice.
+    write_rows(row.data(), 1);
+    return;
   }
   std::copy(row.begin(), row.end(),
             block_.begin() + static_cast<std::ptrdiff_t>(pending_ * width_));
@@ -391,15 +397,22 @@ void Series::select_grains(std::size_t offset, std::size_t count) {
                 " of dataset " + object_path(dataset_.id()) + " cannot be selected");
   grains_.emplace(offset, count);
   width_ = count * product(std::span<const std::size_t>(row_shape_).subspan(1));
-  block_.assign(block_rows_ * std::max<std::size_t>(width_, 1), 0.0);
+  if (block_rows_ > 1) block_.assign(block_rows_ * std::max<std::size_t>(width_, 1), 0.0);
 }
 
 void Series::commit() {
   if (pending_ == 0) return;
-  reserve(committed_ + pending_);
+  write_rows(type_ == Type::float64 ? static_cast<const void*>(block_.data())
+                                    : static_cast<const void*>(int_block_.data()),
+             pending_);
+  pending_ = 0;
+}
+
+void Series::write_rows(const void* data, std::size_t rows) {
+  reserve(committed_ + rows);
   // [rows, row_shape...]: the selection and the memory block share the trailing dims (of this
   // process's grains, when it writes a block of them).
-  std::vector<hsize_t> count{pending_};
+  std::vector<hsize_t> count{rows};
   count.insert(count.end(), row_shape_.begin(), row_shape_.end());
   std::vector<hsize_t> start(count.size(), 0);
   start[0] = committed_;
@@ -419,15 +432,12 @@ void Series::commit() {
     memory_space = simple_space(count);
   }
   const hid_t memory_type = type_ == Type::float64 ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT;
-  const void* data = type_ == Type::float64 ? static_cast<const void*>(block_.data())
-                                            : static_cast<const void*>(int_block_.data());
   write_selection(dataset_.id(), memory_type, memory_space.get(), file_space.get(), data,
                   grains_ ? Part::own : Part::shared,
                   "write rows " + std::to_string(committed_) + ".." +
-                      std::to_string(committed_ + pending_ - 1) + " of dataset " +
+                      std::to_string(committed_ + rows - 1) + " of dataset " +
                       object_path(dataset_.id()));
-  committed_ += pending_;
-  pending_ = 0;
+  committed_ += rows;
 }
 
 void Series::truncate(std::size_t rows) {

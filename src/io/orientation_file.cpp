@@ -95,23 +95,37 @@ class OrientationReader {
   // Returns the number of orientations read.
   std::size_t read(std::istream& in) {
     std::string text;
-    while (std::getline(in, text)) {
-      ++line_;
-      if (!text.empty() && text.back() == '\r') text.pop_back();
-      if (!convention_) {
-        if (is_table()) {
-          read_labels_line(text);
-        } else {
-          read_header_line(text);
-        }
-      } else {
-        read_data_line(text);
-      }
-    }
-    if (!convention_) fail(0, "orientations", concat("empty file: expected ", expected_start()));
-    if (count_ == 0) fail(0, "orientations", concat("no orientations ", after_what()));
+    while (std::getline(in, text)) read_line(text);
+    finish();
     return count_;
   }
+
+  // One line (without its '\n') of the file, the next after those read.
+  void read_line(std::string& text) {
+    ++line_;
+    if (!text.empty() && text.back() == '\r') text.pop_back();
+    if (!convention_) {
+      if (is_table()) {
+        read_labels_line(text);
+      } else {
+        read_header_line(text);
+      }
+    } else {
+      read_data_line(text);
+    }
+  }
+
+  // The checks of a whole file, after its last line.
+  void finish() const {
+    if (!convention_) fail(0, "orientations", concat("empty file: expected ", expected_start()));
+    if (count_ == 0) fail(0, "orientations", concat("no orientations ", after_what()));
+  }
+
+  std::size_t count() const { return count_; }
+  int line() const { return line_; }
+  // Lines read from here on are numbered from 1 (a block of the file's lines, read after its
+  // start: what the lines before say is kept).
+  void number_lines_from_here() { line_ = 0; }
 
  private:
   [[noreturn]] void fail(int line, const std::string& key, const std::string& message) const {
@@ -493,13 +507,19 @@ std::string_view to_string(OrientationFileKind kind) {
 
 namespace {
 
+// Whether a file's first byte may begin a byte-order mark (or is a NUL of UTF-16/32 text):
+// without_byte_order_mark then reads the whole file before its first line.
+bool may_need_conversion(std::istream& in) {
+  const int first = in.peek();
+  return first == 0xEF || first == 0xFF || first == 0xFE || first == 0x00;
+}
+
 // A byte-order mark at the start of `in` (editors on Windows write one): a UTF-8 one is
 // skipped; with a UTF-16/32 one the whole file is converted (text_encoding.hpp) into `converted`,
 // which is then the stream to read. Other files are read as they come, a line at a time.
 std::istream& without_byte_order_mark(std::istream& in, const std::string& file_name,
                                       std::istringstream& converted) {
-  const int first = in.peek();
-  if (first != 0xEF && first != 0xFF && first != 0xFE && first != 0x00) return in;
+  if (!may_need_conversion(in)) return in;
   std::ostringstream bytes;
   bytes << in.rdbuf();
   const std::string text = bytes.str();
@@ -537,6 +557,23 @@ bool euler_angles_look_like_radians(double largest_euler_deg, std::size_t count)
   return count >= 2 && largest_euler_deg > 0.0 && largest_euler_deg <= 2.0 * std::numbers::pi;
 }
 
+namespace {
+
+// The checks read_orientation_file makes before it reads.
+std::ifstream opened_orientation_file(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) {
+    throw InputError(
+        path, 0, "file",
+        std::filesystem::exists(path, error) ? "not a regular file" : "no such orientation file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
+  return in;
+}
+
+}  // namespace
+
 std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
                                                         double* largest_euler_deg,
                                                         const OrientationFileLayout& layout) {
@@ -549,15 +586,65 @@ std::vector<crystal::Orientation> read_orientation_file(const std::string& path,
 
 std::size_t read_orientation_file(const std::string& path, const OrientationVisitor& each,
                                   double* largest_euler_deg, const OrientationFileLayout& layout) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) {
-    throw InputError(
-        path, 0, "file",
-        std::filesystem::exists(path, error) ? "not a regular file" : "no such orientation file");
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "file", "cannot open orientation file for reading");
+  std::ifstream in = opened_orientation_file(path);
   return read_orientations(in, path, each, largest_euler_deg, layout);
+}
+
+std::optional<std::string> read_orientation_file_start(const std::string& path,
+                                                       const OrientationVisitor& first,
+                                                       const OrientationFileLayout& layout) {
+  std::ifstream in = opened_orientation_file(path);
+  if (may_need_conversion(in)) return std::nullopt;
+  OrientationReader reader(path, first, layout);
+  std::string start, text;
+  while (reader.count() == 0 && std::getline(in, text)) {
+    start.append(text);
+    if (!in.eof()) start.push_back('\n');
+    reader.read_line(text);
+  }
+  if (reader.count() == 0) reader.finish();  // (throws: no header, or no orientation)
+  return start;
+}
+
+OrientationLines read_orientation_file_lines(const std::string& path, const std::string& start,
+                                             std::uint64_t begin, std::uint64_t end,
+                                             const OrientationVisitor& each,
+                                             const OrientationFileLayout& layout) {
+  bool replaying = true;
+  const OrientationVisitor forward = [&](const crystal::Orientation& o) {
+    if (!replaying) each(o);
+  };
+  OrientationReader reader(path, forward, layout);
+  // The start again, from memory: the header, the column labels, the first data line's columns.
+  std::string text;
+  for (std::size_t at = 0; at < start.size();) {
+    const std::size_t newline = std::min(start.find('\n', at), start.size());
+    text.assign(start, at, newline - at);
+    reader.read_line(text);
+    at = newline + 1;
+  }
+  replaying = false;
+  const std::size_t before = reader.count();
+  reader.number_lines_from_here();
+  OrientationLines read;
+  if (begin < end) {
+    std::ifstream in(path, std::ios::binary);
+    char previous = '\n';
+    in.seekg(static_cast<std::streamoff>(begin - 1));
+    if (!in.get(previous)) read.complete = false;
+    std::uint64_t at = begin;
+    // A line that starts before `begin` is the previous range's.
+    if (read.complete && previous != '\n' && std::getline(in, text)) at += text.size() + 1;
+    while (read.complete && at < end && std::getline(in, text)) {
+      at += text.size() + 1;
+      reader.read_line(text);
+    }
+    if (at < end) read.complete = false;  // (the file ended early: it changed)
+  }
+  read.orientations = reader.count() - before;
+  read.lines = static_cast<std::size_t>(reader.line());
+  read.largest_euler_deg = reader.largest_euler_deg_;
+  return read;
 }
 
 std::string format_orientations(const std::vector<crystal::Orientation>& orientations,

@@ -35,6 +35,10 @@ class SerialTeam final : public Team {
                     std::size_t) const override {
     std::copy(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(mine.size()), mine.begin());
   }
+  std::vector<double> exchange(std::span<const double> values, std::span<const std::size_t>,
+                               std::span<const std::size_t>) const override {
+    return {values.begin(), values.end()};
+  }
   // (a team of one has no other rank to talk to)
   void send(std::span<const double>, int) const override {
     throw std::logic_error("serial team: no rank to send to");

@@ -18,12 +18,18 @@ namespace subslip::driver {
 // MPI ranks that will share the grains of each case (parallel::block_of) and write them into
 // the result file together: with fewer cases than ranks, each rank keeps only its block of each
 // case's orientations (model::CrystalCase::orientation_block). An orientation file is then read
-// by rank 0 alone, twice, streaming (the checks, the count, the digest and the weight sum; then
-// each rank's block, sent to it: share_root_orientations), so that no process holds the whole
-// file; a generated set is made on every rank one orientation at a time, each keeping its block;
-// a scene's inline set, already in memory, is cut to each rank's block (keep_own_block).
-// A problem in the file is reported by rank 0 (the others stop with `exit_code_of` of it:
-// parallel::on_root). Collective.
+// once, by every rank: rank 0 reads its start (up to and with the first orientation: the
+// header, the column labels), every rank the lines that start in its range of the bytes after
+// it, and the orientations are sent to the ranks whose blocks hold them; the digest and the
+// weight sum of the whole file are continued by each rank over its lines, in rank order. A
+// problem of the file as a whole is reported by rank 0 (the others stop with `exit_code_of` of
+// it: parallel::on_root); a problem in a line is that of the lowest rank that met one, the
+// first in the file, which every rank throws alike (the serial read's error, file, line and
+// key). A file with a byte-order mark, converted whole before it is read, is read by rank 0
+// alone, twice, streaming, and each rank's block sent to it (share_root_orientations); a
+// generated set is made on every rank one orientation at a time, each keeping its block; a
+// scene's inline set, already in memory, is cut to each rank's block (keep_own_block).
+// Collective.
 struct OrientationSharing {
   const parallel::Team* team = nullptr;
   parallel::ExitCodeOf exit_code_of = nullptr;

@@ -224,6 +224,8 @@ class Series {
 
  private:
   void reserve(std::size_t rows);  // extent >= rows; allocates, fills, flushes
+  // Writes `rows` rows of `data` after the committed ones, which then count them.
+  void write_rows(const void* data, std::size_t rows);
   void set_extent(std::size_t rows);
 
   Dataset dataset_;
@@ -237,7 +239,7 @@ class Series {
   std::size_t pending_ = 0;
   std::size_t capacity_ = 0;    // the dataset's extent
   std::size_t chunk_rows_ = 1;  // rows per chunk (a growth allocates whole chunks)
-  std::vector<double> block_;   // float64: block_rows x width
+  std::vector<double> block_;   // float64: block_rows x width (none for one row: not copied)
   std::vector<int> int_block_;  // int32: block_rows
 };
 

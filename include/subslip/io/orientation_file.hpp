@@ -30,6 +30,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <istream>
 #include <optional>
@@ -90,6 +91,32 @@ std::size_t read_orientation_file(const std::string& path, const OrientationVisi
 std::size_t read_orientations(std::istream& in, const std::string& file_name,
                               const OrientationVisitor& each, double* largest_euler_deg = nullptr,
                               const OrientationFileLayout& layout = {});
+
+// A file read by byte ranges, each by another process (MPI ranks, each its block of lines:
+// driver/orientation_sharing.hpp), with the checks and messages of a whole read.
+// Its start: every line up to and with the first orientation's (given to `first`), as bytes of
+// the file. What is wrong with the file as a whole (no such file, no header, no orientation) is
+// thrown here as read_orientation_file throws it. nullopt: a file whose first byte may begin a
+// byte-order mark, which is converted whole before it is read (text_encoding.hpp), so that its
+// bytes are not its lines.
+std::optional<std::string> read_orientation_file_start(const std::string& path,
+                                                       const OrientationVisitor& first,
+                                                       const OrientationFileLayout& layout = {});
+struct OrientationLines {
+  std::size_t orientations = 0;     // given to `each`
+  std::size_t lines = 0;            // read: those that start in the range
+  bool complete = true;             // false: the file ended before the range (it changed)
+  double largest_euler_deg = -1.0;  // of the start and these lines; -1: not Euler angles
+};
+// The lines of the file that start in its bytes [begin, end), read as they are after `start`
+// (read_orientation_file_start's; begin >= start.size()): every orientation of them to `each`.
+// A line that starts before `begin` and ends in the range is the previous range's. A problem
+// throws what read_orientation_file throws for it, but with the line counted from the range's
+// first line (1): the caller adds the lines before the range.
+OrientationLines read_orientation_file_lines(const std::string& path, const std::string& start,
+                                             std::uint64_t begin, std::uint64_t end,
+                                             const OrientationVisitor& each,
+                                             const OrientationFileLayout& layout = {});
 
 // Whether `count` Euler angle sets, said to be degrees, whose largest |angle| is
 // `largest_euler_deg`, were most likely written in radians (all within 2 pi, not all zero).

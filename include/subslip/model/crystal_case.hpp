@@ -58,8 +58,13 @@ struct OrientationSource {
 // "fnv1a64:<16 hex digits>". A restart checks that its orientations are those of the run.
 class OrientationDigest {
  public:
+  OrientationDigest() = default;
+  // Continues the digest of the orientations before these (its state: MPI ranks reading a set
+  // by blocks digest them in rank order).
+  explicit OrientationDigest(std::uint64_t state) : hash_(state) {}
   void add(const crystal::Orientation& o);
   std::string text() const;
+  std::uint64_t state() const { return hash_; }
 
  private:
   std::uint64_t hash_ = 14695981039346656037ull;
@@ -73,9 +78,33 @@ using OrientationVisitor = std::function<void(const crystal::Orientation&)>;
 // Euler angles); a problem is the input error naming the file, its line and column, and the
 // scene key that named the file. Who reads which part is the driver's
 // (driver/orientation_sharing.hpp).
+// What one process read of an orientation file's lines (OrientationFile::read_lines).
+struct OrientationLines {
+  std::size_t orientations = 0;     // visited
+  std::size_t lines = 0;            // read: those that start in the range
+  bool complete = true;             // false: the file ended before the range (it changed)
+  double largest_euler_deg = -1.0;  // of the file's start and these lines; -1: not Euler angles
+  // The first problem in these lines (the reading stopped there): its line counted from the
+  // range's first line (1; 0: none), and the key and message of the input error `read` gives.
+  int problem_line = 0;
+  std::string problem_key, problem_message;
+};
+
 struct OrientationFile {
   std::string path;  // as resolved against the scene file's directory
   std::function<std::size_t(const OrientationVisitor&, double& largest_euler_deg)> read;
+  // The same read by byte ranges, each by another process: the file's start (every line up to
+  // and with the first orientation's, which `first` is given), read once; nullopt where the file
+  // must be read whole (a byte-order mark). Problems of the file as a whole throw here, as in
+  // `read`.
+  std::function<std::optional<std::string>(const OrientationVisitor& first)> read_start;
+  // Then the lines that start in the bytes [begin, end) (begin >= start.size()), every
+  // orientation to `each`, up to the first problem, which it returns.
+  std::function<OrientationLines(const std::string& start, std::uint64_t begin, std::uint64_t end,
+                                 const OrientationVisitor& each)>
+      read_lines;
+  // Throws the input error of a problem read_lines returned, at the file's line `line`.
+  std::function<void(int line, const std::string& key, const std::string& message)> fail_line;
   // The input errors at the scene key: weights that sum past the largest double; a file that
   // did not give the same orientations when read again (it changed while it was read).
   std::function<void()> fail_weights;

@@ -55,6 +55,12 @@ class Team {
   // The inverse: root's `all` into every rank's block of rows `mine`.
   virtual void scatter_rows(std::span<const double> all, std::span<double> mine,
                             std::size_t width) const = 0;
+  // Every rank sends `to[q]` of `values` to rank q, in rank order (values for rank 0 first),
+  // and receives `from[q]` values from rank q; returns them in rank order. `from` must match
+  // what the others send (each rank knows what it gets from whom).
+  virtual std::vector<double> exchange(std::span<const double> values,
+                                       std::span<const std::size_t> to,
+                                       std::span<const std::size_t> from) const = 0;
   // Point to point (the only non-collective operations): `values` to rank `to`, and what rank
   // `from` sends (of any length).
   virtual void send(std::span<const double> values, int to) const = 0;

@@ -83,6 +83,32 @@ class WorldTeam final : public Team {
     MPI_Scatterv(all.data(), counts.data(), offsets(counts).data(), MPI_DOUBLE, mine.data(),
                  as_int(mine.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
+  std::vector<double> exchange(std::span<const double> values, std::span<const std::size_t> to,
+                               std::span<const std::size_t> from) const override {
+    std::size_t received = 0;
+    for (std::size_t n : from) received += n;
+    std::vector<double> out(received);
+    std::vector<MPI_Request> requests;
+    requests.reserve(2 * static_cast<std::size_t>(size_));
+    // Non-blocking both ways: ranks that send each other large blocks would wait forever in
+    // blocking sends.
+    const auto post = [&](std::span<const std::size_t> counts, auto&& each) {
+      std::size_t at = 0;
+      for (int q = 0; q < size_; ++q) {
+        const std::size_t n = counts[static_cast<std::size_t>(q)];
+        if (n > 0) each(q, at, as_int(n), requests.emplace_back());
+        at += n;
+      }
+    };
+    post(from, [&](int q, std::size_t at, int n, MPI_Request& r) {
+      MPI_Irecv(out.data() + at, n, MPI_DOUBLE, q, kExchangeTag, MPI_COMM_WORLD, &r);
+    });
+    post(to, [&](int q, std::size_t at, int n, MPI_Request& r) {
+      MPI_Isend(values.data() + at, n, MPI_DOUBLE, q, kExchangeTag, MPI_COMM_WORLD, &r);
+    });
+    MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+    return out;
+  }
   void send(std::span<const double> values, int to) const override {
     MPI_Send(values.data(), as_int(values.size()), MPI_DOUBLE, to, kTag, MPI_COMM_WORLD);
   }
@@ -118,7 +144,8 @@ class WorldTeam final : public Team {
     }
     return at;
   }
-  static constexpr int kTag = 18;  // (the only point-to-point messages subslip sends)
+  static constexpr int kTag = 18;          // send and receive
+  static constexpr int kExchangeTag = 19;  // exchange
   int rank_ = 0, size_ = 1;
   MPI_Comm world_ = MPI_COMM_WORLD;
 };
