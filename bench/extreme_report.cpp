@@ -830,7 +830,7 @@ FeRow crystal_fe_row(double g_over_tau0) {
   d.custom_settings = {p, tau0, 1.0};
   d.stiffness = cr::isotropic_from_G_nu(G, 0.3);
   d.kinematics = cr::Kinematics::small_strain;
-  const cr::Phase<1> ph = cr::build_phase<1>(d).phase;
+  const cr::Phase<Eigen::Dynamic> ph = cr::build_phase<Eigen::Dynamic>(d).phase;
   point::GrainOptions grain_options;
   grain_options.tangent = false;
   grain_options.start = point::GrainStart::committed;  // from the last rates, one try
@@ -844,7 +844,7 @@ FeRow crystal_fe_row(double g_over_tau0) {
     if (!u.report.ok) break;
     state = std::move(u.state);
   }
-  cr::GrainState<1> s;
+  cr::GrainState<Eigen::Dynamic> s;
   s.stress = state.stress;
   s.orientation = state.orientation;
   s.mu = state.mu;

@@ -895,21 +895,21 @@ TEST(ExtremeKernel, StiffFccGrainLeavesNoSystemInAStaleSlipDirection) {
 // step of crystal_law_edges.yaml's power cases failed "after 0 iterations". Now
 // such a system gets the scalar start (make_admissible) like the r_s = 0 case.
 TEST(ExtremeKernel, PowerFormSystemStartsFromZeroSlip) {
-  cr::Phase<1> ph;
+  cr::Phase<Eigen::Dynamic> ph;
   ph.kinematics = cr::Kinematics::small_strain;
-  ph.tau0 = cr::SlipTypes<1>::VecN::Constant(10.0);
+  ph.tau0 = cr::SlipTypes<Eigen::Dynamic>::VecN::Constant(1, 10.0);
   ph.laws.assign(1, law::SubloadingFrictionLaw(hardening_law(law::OverstressForm::power)));
   ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()}, cr::isotropic_from_G_nu(1e4, 0.3));
   for (double r_s : {1e-8, 0.3, 0.9}) {
     SCOPED_TRACE("r_s = " + std::to_string(r_s));
-    cr::GrainState<1> s0;
-    s0.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
+    cr::GrainState<Eigen::Dynamic> s0;
+    s0.reset(1, cr::Mat3::Identity(), cr::SlipTypes<Eigen::Dynamic>::VecN::Constant(1, 1.0));
     s0.r_s(0) = r_s;
     s0.stress(5) = std::sqrt(2.0) * 10.0 * (r_s + 0.2);  // Mandel sqrt2 sigma_12: r = r_s + 0.2
     cr::Mat3 L = cr::Mat3::Zero();
     L(0, 1) = 1e-3;
     const double dt = 1e-3;
-    cr::GrainState<1> s1 = s0;
+    cr::GrainState<Eigen::Dynamic> s1 = s0;
     const auto rep = cr::implicit_grain_step(ph, s0, L, dt, cr::GrainStepOptions{}, s1, nullptr);
     ASSERT_TRUE(rep.ok) << rep.why << " after " << rep.iterations;
     EXPECT_GT(std::abs(s1.slip(0)), 0.0);
@@ -992,18 +992,18 @@ TEST(ExtremeForwardEuler, SingleSlipStabilityLimitIsTwoOverLambda) {
   const law::SubloadingFrictionLaw lw(p);
   for (double g_over_tau0 : {1e2, 1e5}) {
     SCOPED_TRACE("G/tau0 = " + std::to_string(g_over_tau0));
-    cr::Phase<1> ph;
+    cr::Phase<Eigen::Dynamic> ph;
     ph.kinematics = cr::Kinematics::small_strain;
-    ph.tau0 = cr::SlipTypes<1>::VecN::Constant(tau0);
+    ph.tau0 = cr::SlipTypes<Eigen::Dynamic>::VecN::Constant(1, tau0);
     ph.laws.assign(1, lw);
     ph.assemble({cr::Vec3::UnitX()}, {cr::Vec3::UnitY()},
                 cr::isotropic_from_G_nu(g_over_tau0 * tau0, 0.3));
     cr::Mat3 L = cr::Mat3::Zero();
     L(0, 1) = rate;
-    cr::GrainState<1> steady;
-    steady.reset(1, cr::Mat3::Identity(), cr::SlipTypes<1>::VecN::Constant(1.0));
+    cr::GrainState<Eigen::Dynamic> steady;
+    steady.reset(1, cr::Mat3::Identity(), cr::SlipTypes<Eigen::Dynamic>::VecN::Constant(1, 1.0));
     for (int i = 0; i < 1000; ++i) {  // slip 1 in steps of 1e-3: r_s = 1
-      cr::GrainState<1> next = steady;
+      cr::GrainState<Eigen::Dynamic> next = steady;
       ASSERT_TRUE(cr::implicit_grain_step(ph, steady, L, 1e-3, {}, next, nullptr).ok);
       steady = next;
     }

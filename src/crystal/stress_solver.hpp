@@ -205,8 +205,7 @@ class StressSolver {
   }
 
   // d dgamma / d y (n x extras).
-  using MatNY = Eigen::Matrix<double, N, Eigen::Dynamic, N == 1 ? Eigen::RowMajor : Eigen::ColMajor,
-                              T::MaxN, MaxY>;
+  using MatNY = Eigen::Matrix<double, N, Eigen::Dynamic, 0, T::MaxN, MaxY>;
   MatNY slip_gradient_in_extras(const Iterate& it) const {
     MatNY g = MatNY::Zero(n_, extras_);
     for (int a = 0; a < n_ && latent_rank_ > 0; ++a)
@@ -456,10 +455,8 @@ class StressSolver {
 
  private:
   using MatK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, T::MaxN, T::MaxN>;
-  using MatK6 =
-      Eigen::Matrix<double, Eigen::Dynamic, 6, T::MaxN == 1 ? Eigen::RowMajor : 0, T::MaxN, 6>;
-  using MatKC = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic,
-                              T::MaxN == 1 ? Eigen::RowMajor : 0, T::MaxN, 6>;
+  using MatK6 = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, T::MaxN, 6>;
+  using MatKC = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, T::MaxN, 6>;
   using MatNK = Eigen::Matrix<double, N, Eigen::Dynamic, 0, T::MaxN, T::MaxN>;
   using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, T::MaxN, 1>;
 
@@ -529,9 +526,8 @@ class StressSolver {
     template <typename Rhs>
     auto solve_m(const Rhs& rhs) const {
       constexpr int cols = Rhs::ColsAtCompileTime;
-      using Result = Eigen::Matrix<double, Eigen::Dynamic, cols,
-                                   (T::MaxN == 1 && cols != 1) ? Eigen::RowMajor : Eigen::ColMajor,
-                                   T::MaxN, Rhs::MaxColsAtCompileTime>;
+      using Result =
+          Eigen::Matrix<double, Eigen::Dynamic, cols, 0, T::MaxN, Rhs::MaxColsAtCompileTime>;
       return rhs.rows() == 1 ? Result(rhs / m_scalar) : Result(m.solve(rhs));
     }
   };

@@ -580,7 +580,7 @@ class VertexSolver {
   // check of every flow rule verifies the bound.
   void split_saturated(const Vec6& sigma, const Qp& qp) {
     split_count_ = 0;
-    if constexpr (T::MaxN == 1) return;  // one face: the stress determines its slip
+    if (n_ == 1) return;  // one face: the stress determines its slip
     double held_slip = 0.0;
     for (int j = 0; j < qp.count; ++j)
       held_slip += qp.multiplier[static_cast<size_t>(j)] * qp.multiplier[static_cast<size_t>(j)];

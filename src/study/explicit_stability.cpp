@@ -22,16 +22,16 @@ bool forward_euler_damps_contact_perturbation(const law::SubloadingFrictionLaw& 
   return std::abs(s.r - steady.r) < d0;
 }
 
-bool forward_euler_damps_grain_perturbation(const crystal::Phase<1>& phase,
-                                            const crystal::GrainState<1>& steady,
+bool forward_euler_damps_grain_perturbation(const crystal::Phase<Eigen::Dynamic>& phase,
+                                            const crystal::GrainState<Eigen::Dynamic>& steady,
                                             const crystal::Mat3& L, double dt,
                                             PerturbationProbe probe) {
   const double r = crystal::loading_ratio(phase, steady)(0);
-  crystal::GrainState<1> x = steady;
+  crystal::GrainState<Eigen::Dynamic> x = steady;
   x.stress *= 1.0 + probe.perturbation;
   const double d0 = std::abs(crystal::loading_ratio(phase, x)(0) - r);
   for (int i = 0; i < probe.steps; ++i) {
-    crystal::GrainState<1> next = x;
+    crystal::GrainState<Eigen::Dynamic> next = x;
     if (!crystal::explicit_grain_step(phase, x, L, dt, next, nullptr,
                                       integrators::ExplicitStability::unchecked)
              .ok)

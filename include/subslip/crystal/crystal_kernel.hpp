@@ -36,13 +36,14 @@ namespace subslip::crystal {
 
 inline constexpr int kMaxSlipSystems = 48;
 
-// The slip counts the kernel is compiled for with fixed sizes: one system (the single-slip
-// check), 12 (FCC, BCC {110}), 24 (HCP) and 48 (BCC); every other count runs with Eigen::Dynamic
+// The slip counts the kernel is compiled for with fixed sizes: 12 (FCC, BCC {110}), 24 (HCP) and
+// 48 (BCC); every other count, the single-slip check's one system included, runs with
+// Eigen::Dynamic
 // (a fixed capacity of kMaxSlipSystems: still no allocation per grain-step). Every file that
 // instantiates the kernel's templates applies its macro X to each entry of this one list, and
 // visit_phase (phase_builder.hpp) picks among the same counts. Each count compiles the whole
 // grain solver again: that is what the list costs the build.
-#define SUBSLIP_FOR_EACH_SLIP_COUNT(X) X(1) X(12) X(24) X(48) X(Eigen::Dynamic)
+#define SUBSLIP_FOR_EACH_SLIP_COUNT(X) X(12) X(24) X(48) X(Eigen::Dynamic)
 
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
@@ -57,7 +58,7 @@ struct SlipTypes {
   using MatNN = Eigen::Matrix<double, N, N, 0, MaxN, MaxN>;
   using Mat6N = Eigen::Matrix<double, 6, N, 0, 6, MaxN>;
   using Mat3N = Eigen::Matrix<double, 3, N, 0, 3, MaxN>;
-  using MatN6 = Eigen::Matrix<double, N, 6, N == 1 ? Eigen::RowMajor : Eigen::ColMajor, MaxN, 6>;
+  using MatN6 = Eigen::Matrix<double, N, 6, 0, MaxN, 6>;
 };
 
 enum class Kinematics {
@@ -155,9 +156,7 @@ using Tangent = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
 // requested with the tangent (a mixed-control iteration starts the next solve of the same step
 // from the slips it predicts); N x k.
 template <int N>
-using SlipTangent =
-    Eigen::Matrix<double, N, Eigen::Dynamic, N == 1 ? Eigen::RowMajor : Eigen::ColMajor,
-                  SlipTypes<N>::MaxN, 6>;
+using SlipTangent = Eigen::Matrix<double, N, Eigen::Dynamic, 0, SlipTypes<N>::MaxN, 6>;
 
 // One implicit step of one grain: velocity gradient L (sample frame, constant over dt). The
 // Newton iteration starts from the slip rates `start_rate` where their signs agree with the

@@ -1,7 +1,7 @@
 // From a runtime description of a phase (what a scene file says) to the compile-time kernel:
 // the slip count picks the template instance, so a scene pays only for the slip systems it
 // declares (fixed-size vectors for the counts of SUBSLIP_FOR_EACH_SLIP_COUNT, crystal_kernel.hpp:
-// 1, 12, 24 and 48 systems; other counts use a fixed-capacity dynamic size, still with no
+// 12, 24 and 48 systems; other counts use a fixed-capacity dynamic size, still with no
 // allocation per grain-step).
 #pragma once
 
@@ -82,8 +82,6 @@ int checked_slip_count(const PhaseDescription& d);
 template <class Visitor>
 decltype(auto) visit_phase(const PhaseDescription& d, Visitor&& visitor) {
   switch (checked_slip_count(d)) {
-    case 1:
-      return visitor(build_phase<1>(d));
     case 12:
       return visitor(build_phase<12>(d));
     case 24:

@@ -24,8 +24,8 @@ bool forward_euler_damps_contact_perturbation(const law::SubloadingFrictionLaw& 
 
 // One slip system under the velocity gradient L: the stress of `steady` is scaled by
 // 1 + perturbation; true when its loading ratio is closer to steady's after the steps.
-bool forward_euler_damps_grain_perturbation(const crystal::Phase<1>& phase,
-                                            const crystal::GrainState<1>& steady,
+bool forward_euler_damps_grain_perturbation(const crystal::Phase<Eigen::Dynamic>& phase,
+                                            const crystal::GrainState<Eigen::Dynamic>& steady,
                                             const crystal::Mat3& L, double dt,
                                             PerturbationProbe probe = {});
 
