@@ -107,16 +107,7 @@ void parse_normal(const std::optional<CheckedNode>& node, const contact::Contact
 // once the segment's duration (`duration_known`) and the first two are read.
 void parse_stepping(const CheckedNode& node, contact::Segment& seg, bool duration_known) {
   InputErrorList errors;
-  bool lengths = errors.attempt([&] {
-    seg.increments = node.get_int("increments", Range::at_least(1));
-  }) && duration_known;
-  lengths = errors.attempt([&] {
-    seg.growth = node.get_double("growth", 1.0, Range::positive());
-  }) && lengths;
-  errors.attempt([&] { seg.output_every = node.get_int("output_every", 1, Range::at_least(1)); });
-  if (lengths)
-    errors.attempt(
-        [&] { check_increment_lengths(node, seg.duration, seg.increments, seg.growth); });
+  parse_increments(node, seg, duration_known, errors);
   errors.throw_if_any();
 }
 

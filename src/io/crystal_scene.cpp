@@ -582,17 +582,8 @@ void parse_duration(const CheckedNode& node, crystal::LoadSegment& seg, SceneVal
 void parse_stepping(const CheckedNode& node, crystal::LoadSegment& seg, SceneValues& v,
                     bool rate_known) {
   InputErrorList errors;
-  bool lengths = rate_known && errors.attempt([&] { parse_duration(node, seg, v); });
-  lengths = errors.attempt([&] {
-    seg.increments = node.get_int("increments", Range::at_least(1));
-  }) && lengths;
-  lengths = errors.attempt([&] {
-    seg.growth = node.get_double("growth", 1.0, Range::positive());
-  }) && lengths;
-  errors.attempt([&] { seg.output_every = node.get_int("output_every", 1, Range::at_least(1)); });
-  if (lengths)
-    errors.attempt(
-        [&] { check_increment_lengths(node, seg.duration, seg.increments, seg.growth); });
+  const bool duration_known = rate_known && errors.attempt([&] { parse_duration(node, seg, v); });
+  parse_increments(node, seg, duration_known, errors);
   errors.throw_if_any();
 }
 

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "subslip/io/input_error.hpp"
 #include "subslip/io/units.hpp"
 #include "subslip/io/yaml_checked.hpp"
 #include "subslip/model/case_common.hpp"
@@ -81,6 +82,24 @@ Units parse_units_without_length(const CheckedNode& node);
 // `growth`) and the smallest increment must not underflow (reported at `increments`).
 void check_increment_lengths(const CheckedNode& segment, double duration, int increments,
                              double growth);
+
+// A loading segment's `increments`, `growth` and `output_every` into `seg`, each error into
+// `errors`; the increment lengths are checked once these and the duration (`duration_known`)
+// are read, so that an error there is not reported again as a length problem.
+template <class Segment>
+void parse_increments(const CheckedNode& node, Segment& seg, bool duration_known,
+                      InputErrorList& errors) {
+  bool lengths = errors.attempt([&] {
+    seg.increments = node.get_int("increments", Range::at_least(1));
+  }) && duration_known;
+  lengths = errors.attempt([&] {
+    seg.growth = node.get_double("growth", 1.0, Range::positive());
+  }) && lengths;
+  errors.attempt([&] { seg.output_every = node.get_int("output_every", 1, Range::at_least(1)); });
+  if (lengths)
+    errors.attempt(
+        [&] { check_increment_lengths(node, seg.duration, seg.increments, seg.growth); });
+}
 
 // The order a tolerance gets when a scene names none: the lowest whose error follows the
 // tolerance (backward Euler advanced with its extrapolated solution; backward Euler's own
