@@ -151,6 +151,7 @@ void expect_ranges_read_the_whole(const std::string& path, const OrientationFile
       EXPECT_EQ(ranges.line, whole.line);
       EXPECT_EQ(ranges.largest_euler_deg, whole.largest_euler_deg);
       ASSERT_EQ(ranges.values.size(), whole.values.size());
+      if (whole.values.empty()) continue;  // a bad file: memcmp takes no null pointers
       EXPECT_EQ(std::memcmp(ranges.values.data(), whole.values.data(),
                             whole.values.size() * sizeof(double)),
                 0);

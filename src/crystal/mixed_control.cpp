@@ -14,6 +14,13 @@ namespace subslip::crystal::aggregate_parts {
 
 namespace {
 
+// The rate at which a segment ramps a free component's stress target from its value at the
+// segment's start (0 for a segment of no duration).
+double target_ramp(const LoadSegment& seg, const FreeComponent& c, const Mat3& stress_start) {
+  return seg.duration > 0.0 ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
+                            : 0.0;
+}
+
 constexpr double kSqrt2 = std::numbers::sqrt2;
 constexpr int kMandelIndex[3][3] = {{0, 5, 4}, {5, 1, 3}, {4, 3, 2}};
 
@@ -151,10 +158,7 @@ Eigen::VectorXd MixedControl<N>::elastic_free_start(const LoadSegment& seg,
   Eigen::VectorXd rhs(k);
   for (int a = 0; a < k; ++a) {
     const FreeComponent& c = fc[static_cast<size_t>(a)];
-    const double ramp = seg.duration > 0.0
-                            ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
-                            : 0.0;
-    rhs(a) = ramp - component(prescribed_rate, c.i, c.j);
+    rhs(a) = target_ramp(seg, c, stress_start) - component(prescribed_rate, c.i, c.j);
   }
   for (int b = 0; b < k; ++b)
     jac.col(b) = free_entries(stiffness * strain_direction(fc[static_cast<size_t>(b)]), fc);
@@ -196,10 +200,7 @@ Eigen::VectorXd MixedControl<N>::general_elastic_start(const LoadSegment& seg,
   Eigen::VectorXd rhs(k);
   for (int a = 0; a < k; ++a) {
     const FreeComponent& c = fc[static_cast<size_t>(a)];
-    const double ramp = seg.duration > 0.0
-                            ? (seg.stress_target(c.i, c.j) - stress_start(c.i, c.j)) / seg.duration
-                            : 0.0;
-    rhs(a) = ramp - prescribed(c.i, c.j);
+    rhs(a) = target_ramp(seg, c, stress_start) - prescribed(c.i, c.j);
   }
   for (int b = 0; b < k; ++b) {
     const Mat3 column = stress_rate(velocity_gradient(fc[static_cast<size_t>(b)].direction()));
