@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "subslip/contact/contact_point.hpp"
+#include "subslip/crystal/grain_sensitivity.hpp"
 #include "subslip/crystal/phase_builder.hpp"
 #include "subslip/law/subloading_friction.hpp"
 
@@ -149,6 +150,10 @@ struct GrainUpdate {
   SolveReport report;
 };
 
+// The derivatives of a grain's state and stress with respect to its law's constants, tau0 and
+// initial_mu (crystal/grain_sensitivity.hpp).
+using GrainSensitivity = crystal::GrainSensitivity;
+
 // The phase of a grain: slip families (or custom systems) with their laws and tau0, elasticity,
 // latent hardening, kinematics (crystal/phase_builder.hpp).
 using GrainParameters = crystal::PhaseDescription;
@@ -166,6 +171,17 @@ class GrainPoint {
   // One implicit step under the velocity gradient L (sample frame, constant over dt) [1/s].
   GrainUpdate update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient,
                      double dt) const;
+  // One implicit step that also carries `sensitivity`, the derivatives of the state's variables
+  // and of the returned sample-frame stress with respect to the law's constants, tau0 and
+  // initial_mu (GrainSensitivity), from `state`'s to the result's; left as it is where the
+  // update fails. Start a path from initial_sensitivity(). Only a phase whose systems share one
+  // law, one tau0 and one initial_mu, without plane pressure, has them (std::invalid_argument
+  // otherwise); std::runtime_error where the step's flow rules are singular in its slips.
+  GrainUpdate update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
+                     GrainSensitivity& sensitivity) const;
+  // The sensitivities of initial_state(): zero, but d mu / d initial_mu = 1 (d mu / d mu_s
+  // where the phase starts from mu_s). std::invalid_argument as for the update above.
+  GrainSensitivity initial_sensitivity() const;
   // Grain k: states[k] under velocity_gradients[k] over dt into out[k].
   void update(std::span<const GrainState> states,
               std::span<const Eigen::Matrix3d> velocity_gradients, double dt,

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "../crystal/grain_sensitivity.hpp"
 #include "../crystal/grain_update.hpp"
 #include "subslip/crystal/admissibility.hpp"
 #include "subslip/material_point.hpp"
@@ -26,6 +27,14 @@ struct GrainPoint::Model {
   virtual void update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
                       GrainUpdate& out) const = 0;
   virtual std::string admissibility_violation(const GrainState& state) const = 0;
+  // The update, then the step's sensitivities (crystal/grain_sensitivity.hpp) where it is ok.
+  virtual void update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
+                      GrainUpdate& out, GrainSensitivity& sensitivity) const = 0;
+
+  // Why the phase has no sensitivities (empty where it has them), and whether its mu starts
+  // from mu_s.
+  std::string sensitivity_refusal;
+  bool initial_mu_is_mu_s = false;
 };
 
 namespace {
@@ -92,6 +101,17 @@ class PhaseModel final : public GrainPoint::Model {
       out.tangent.setZero();
   }
 
+  void update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
+              GrainUpdate& out, GrainSensitivity& sensitivity) const override {
+    update(state, velocity_gradient, dt, out);
+    if (!out.report.ok) return;
+    cr::GrainState<N> s0, s1;
+    cr::RateHistory<N> history;
+    from_point(state, s0, history);
+    from_point(out.state, s1, history);
+    cr::carry_grain_sensitivity(phase_, s0, velocity_gradient, dt, s1, sensitivity);
+  }
+
   std::string admissibility_violation(const GrainState& state) const override {
     cr::GrainState<N> s;
     cr::RateHistory<N> history;
@@ -131,6 +151,24 @@ class PhaseModel final : public GrainPoint::Model {
   bool continued_;
 };
 
+// Why a phase has no sensitivities: its systems' laws, tau0 or initial_mu differ (the columns
+// are one law's constants), or its planes' normal traction follows the stress.
+std::string sensitivity_refusal(const GrainParameters& d) {
+  if (d.pressure_sensitive)
+    return "grain sensitivities need a phase without plane pressure (pressure_sensitive)";
+  const std::vector<cr::SlipGroupSettings> groups =
+      d.custom_systems.empty() ? d.family_settings
+                               : std::vector<cr::SlipGroupSettings>{d.custom_settings};
+  for (std::size_t k = 1; k < groups.size(); ++k) {
+    const cr::SlipGroupSettings &first = groups.front(), &g = groups[k];
+    if (!(g.law == first.law) || g.tau0 != first.tau0 || g.initial_mu != first.initial_mu)
+      return "grain sensitivities need one law, tau0 and initial_mu for every slip system: "
+             "slip family " +
+             std::to_string(k) + " differs from family 0";
+  }
+  return {};
+}
+
 void check_options(const GrainOptions& o) {
   if (!(o.tolerance > 0.0 && o.tolerance < 1.0))
     throw std::invalid_argument("grain option tolerance must lie in (0, 1), got " +
@@ -145,7 +183,13 @@ GrainPoint::GrainPoint(const GrainParameters& parameters, const GrainOptions& op
   check_options(options);
   model_ = cr::visit_phase(parameters, [&](auto built) -> std::unique_ptr<const Model> {
     constexpr int n = decltype(built.phase)::T::VecN::RowsAtCompileTime;
-    return std::make_unique<PhaseModel<n>>(std::move(built), options);
+    auto model = std::make_unique<PhaseModel<n>>(std::move(built), options);
+    model->sensitivity_refusal = sensitivity_refusal(parameters);
+    const cr::SlipGroupSettings& first = parameters.custom_systems.empty()
+                                             ? parameters.family_settings.front()
+                                             : parameters.custom_settings;
+    model->initial_mu_is_mu_s = !(first.initial_mu > 0.0);
+    return model;
   });
 }
 
@@ -171,6 +215,27 @@ GrainUpdate GrainPoint::update(const GrainState& state, const Eigen::Matrix3d& v
   model_->check(state);
   GrainUpdate out;
   model_->update(state, velocity_gradient, dt, out);
+  return out;
+}
+
+GrainSensitivity GrainPoint::initial_sensitivity() const {
+  if (!model_->sensitivity_refusal.empty())
+    throw std::invalid_argument(model_->sensitivity_refusal);
+  return cr::initial_grain_sensitivity(model_->slip_count(), model_->initial_mu_is_mu_s);
+}
+
+GrainUpdate GrainPoint::update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient,
+                               double dt, GrainSensitivity& sensitivity) const {
+  if (!model_->sensitivity_refusal.empty())
+    throw std::invalid_argument(model_->sensitivity_refusal);
+  model_->check(state);
+  const int n = model_->slip_count();
+  for (const cr::SlipGradients* g : {&sensitivity.mu, &sensitivity.r_s, &sensitivity.slip})
+    if (g->rows() != n)
+      throw std::invalid_argument("grain sensitivity of " + std::to_string(g->rows()) +
+                                  " slip systems for a phase of " + std::to_string(n));
+  GrainUpdate out;
+  model_->update(state, velocity_gradient, dt, out, sensitivity);
   return out;
 }
 

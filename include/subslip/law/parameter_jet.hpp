@@ -29,39 +29,48 @@ inline ParameterGradient gradient(const ParameterJet& j) {
 }
 
 // The members the closed forms read, as jets (closed_form.hpp takes any struct of these names).
-struct FrictionJet {
-  ParameterJet mu_s, mu_k, kappa, xi;
+template <class J>
+struct FrictionJetOf {
+  J mu_s, mu_k, kappa, xi;
 };
-struct OverstressJet {
+template <class J>
+struct OverstressJetOf {
   OverstressForm form;
-  ParameterJet eta_v, n, r_hat;
+  J eta_v, n, r_hat;
 };
 
-// The law with every constant seeded as its own variable: d(constant k)/d(constant j) = delta_kj.
-class SubloadingFrictionJet {
+// The law with every constant seeded as its own variable: d(constant k)/d(constant j) = delta_kj
+// for the first kParameterCount derivatives of the jet J (a grain's jets carry more after them,
+// src/crystal/grain_sensitivity.cpp). Without `seeded` the constants are constants: the jets
+// then differentiate with respect to whatever the caller seeds (a grain's slips).
+template <class J>
+class BasicSubloadingFrictionJet {
  public:
-  explicit SubloadingFrictionJet(const SubloadingFrictionLaw& law);
+  explicit BasicSubloadingFrictionJet(const SubloadingFrictionLaw& law, bool seeded = true);
 
   // mu after a slip over dt (closed_form::friction_coefficient_after, regular where the double
   // path returns early: no slip and no recovery time, or kappa = xi = 0).
-  ParameterJet friction_coefficient_after(const ParameterJet& mu0, const ParameterJet& slip,
-                                          const ParameterJet& dt) const;
+  J friction_coefficient_after(const J& mu0, const J& slip, const J& dt) const;
   // r_s after a slip from r0 (subloading_ratio_after). The cot form differentiates its closed
   // form; the others differentiate H(r1) = H(r0) + slip implicitly at the double path's root.
-  ParameterJet subloading_ratio_after(const ParameterJet& r0, const ParameterJet& slip) const;
+  J subloading_ratio_after(const J& r0, const J& slip) const;
   // The flow residual G(r, r_s, slip, dt) (flow_residual), where it is admissible (r < r_hat).
-  ParameterJet flow_residual(const ParameterJet& r, const ParameterJet& r_s,
-                             const ParameterJet& slip, const ParameterJet& dt) const;
+  J flow_residual(const J& r, const J& r_s, const J& slip, const J& dt) const;
 
  private:
   // From a start r0 in (0, 1), or from a virgin start (r0 = 0).
-  ParameterJet subloading_ratio_after(const ParameterJet& r0, const ParameterJet& slip,
-                                      bool virgin) const;
+  J subloading_ratio_after(const J& r0, const J& slip, bool virgin) const;
 
   const SubloadingFrictionLaw& law_;
-  FrictionJet friction_;
-  ParameterJet u_tilde_;
-  OverstressJet overstress_;
+  FrictionJetOf<J> friction_;
+  J u_tilde_;
+  OverstressJetOf<J> overstress_;
 };
+
+using SubloadingFrictionJet = BasicSubloadingFrictionJet<ParameterJet>;
+// A grain's jets: the law's constants, then tau0 and the initial friction coefficient.
+using GrainParameterJet = ceres::Jet<double, kParameterCount + 2>;
+extern template class BasicSubloadingFrictionJet<ParameterJet>;
+extern template class BasicSubloadingFrictionJet<GrainParameterJet>;
 
 }  // namespace subslip::law
