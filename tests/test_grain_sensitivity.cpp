@@ -45,14 +45,17 @@ law::LawParameters hardening_law(law::OverstressForm form) {
   return p;
 }
 
-enum class Lattice { fcc, bcc, single_slip };
+enum class Lattice { fcc, fcc_latent, bcc, single_slip };
 
 crystal::PhaseDescription phase_of(Lattice lattice, const Constants& c) {
   crystal::PhaseDescription d;
   const crystal::SlipGroupSettings settings{c.law, c.tau0, c.initial_mu};
   switch (lattice) {
     case Lattice::fcc:
+    case Lattice::fcc_latent:
       d.families = {crystal::SlipFamily::fcc_111_110};
+      if (lattice == Lattice::fcc_latent)
+        d.latent = {crystal::LatentHardening::Kind::coplanar, 1.0, 1.0, 1.4};
       d.family_settings = {settings};
       d.stiffness = crystal::cubic_stiffness(168400.0, 121400.0, 75400.0);
       break;
@@ -248,6 +251,23 @@ TEST(GrainSensitivity, FccStartingFromMuSMatchesFiniteDifferences) {
                              path(0.01));
 }
 
+// Latent hardening (coplanar 1.0, non-coplanar 1.4): mu is driven by the others' slips too.
+TEST(GrainSensitivity, FccLatentHardeningMatchesFiniteDifferences) {
+  Constants c{hardening_law(law::OverstressForm::exponential)};
+  c.initial_mu = 1.1;
+  expect_sensitivities_match(Lattice::fcc_latent, c, path(0.01));
+}
+
+// A friction coefficient that softens with slip (mu_k < mu_s) and heals in the hold: the
+// signed-slip formulation takes every step (docs/grain_step.md), whose end state the same
+// equations hold at.
+TEST(GrainSensitivity, FccSofteningMatchesFiniteDifferences) {
+  Constants c{hardening_law(law::OverstressForm::exponential)};
+  c.law.friction.mu_s = 1.6;
+  c.law.friction.mu_k = 1.2;
+  expect_sensitivities_match(Lattice::fcc, c, path(0.01));
+}
+
 TEST(GrainSensitivity, SingleSlipMatchesFiniteDifferences) {
   Constants c{hardening_law(law::OverstressForm::exponential)};
   c.initial_mu = 1.1;
@@ -310,6 +330,33 @@ TEST(GrainSensitivity, ReplayIsTheStepsOwnEquations) {
   EXPECT_LE(worst_slip_state, 1e-13);
   EXPECT_LE(worst_orientation, 1e-14);
   EXPECT_LE(worst_residual, 1e-12);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(GrainSensitivity, PhasesWithoutOneLawAreRefused) {
+  Constants c{hardening_law(law::OverstressForm::exponential)};
+  crystal::PhaseDescription two_laws = phase_of(Lattice::bcc, c);
+  two_laws.family_settings[1].tau0 = 25.0;
+  const point::GrainPoint grain(two_laws);
+  EXPECT_THROW(grain.initial_sensitivity(), std::invalid_argument);
+  point::GrainSensitivity d = point::GrainPoint(phase_of(Lattice::bcc, c)).initial_sensitivity();
+  EXPECT_THROW(
+      grain.update(grain.initial_state(general_orientation()), Eigen::Matrix3d::Zero(), 1.0, d),
+      std::invalid_argument);
+  two_laws.family_settings[1] = two_laws.family_settings[0];
+  two_laws.family_settings[1].law.friction.kappa = 2.0;
+  EXPECT_THROW(point::GrainPoint(two_laws).initial_sensitivity(), std::invalid_argument);
+  crystal::PhaseDescription pressure = phase_of(Lattice::fcc, c);
+  pressure.pressure_sensitive = true;
+  EXPECT_THROW(point::GrainPoint(pressure).initial_sensitivity(), std::invalid_argument);
+  // A sensitivity of another slip count.
+  const point::GrainPoint fcc(phase_of(Lattice::fcc, c));
+  EXPECT_THROW(
+      fcc.update(fcc.initial_state(general_orientation()), Eigen::Matrix3d::Zero(), 1.0, d),
+      std::invalid_argument);
 }
 
 }  // namespace
