@@ -89,6 +89,17 @@ class GrainPoint(_CrystalPoint):
         name, text = scene_source(scene)
         self._point = core().GrainPoint(name, text, case or "", grain)
 
+    def sensitivities_along_path(self, velocity_gradients, dt):
+        """along_path from the initial state, with the forward sensitivities of the path to the
+        phase's law constants, tau0 and initial_mu ("parameters": their names, the last axis of
+        each derivative): "d_stress" (n, 3, 3, 10) of the stress (sample frame), "d_mu",
+        "d_r_s", "d_slip" (n, N, 10) [output unit / parameter unit]. The phase's slip systems
+        must share one law, tau0 and initial_mu, without plane pressure (ValueError otherwise);
+        docs/calibration.md, "Sensitivities of a grain"."""
+        dt = _dt(dt)
+        return self._point.sensitivities_along_path(_rows(velocity_gradients, (3, 3), len(dt),
+                                                          "velocity gradients"), dt)
+
 
 class TaylorPoint(_CrystalPoint):
     """A crystal scene's case as one Taylor material point: every grain (orientations and

@@ -39,6 +39,7 @@
 #include "subslip/io/input_error.hpp"
 #include "subslip/io/scene_compose.hpp"
 #include "subslip/io/yaml_checked.hpp"
+#include "subslip/law/parameter_table.hpp"
 #include "subslip/material_point.hpp"
 #include "subslip/parallel/team.hpp"
 
@@ -558,6 +559,47 @@ class GrainPoint {
     return record.dict({s});
   }
 
+  // along_path from the initial state, with the forward sensitivities of the sample-frame stress
+  // (n, 3, 3, K) and of mu, r_s and slip (n, N, K) to the K columns of
+  // crystal/grain_sensitivity.hpp.
+  py::dict sensitivities_along_path(const py::handle& gradients, const py::handle& dts) const {
+    const Array dt = checked(dts, {-1}, "dt");
+    const py::ssize_t n = dt.shape(0);
+    const Array l = checked(gradients, {n, 3, 3}, "velocity gradients");
+    pt::GrainState s = point_.initial_state(orientation_);
+    pt::GrainSensitivity d = point_.initial_sensitivity();
+    PathRecord record;
+    std::vector<double> stress, mu, r_s, slip;
+    {
+      const py::gil_scoped_release released;
+      for (py::ssize_t k = 0; k < n; ++k) {
+        pt::GrainUpdate u = point_.update(s, matrix_at(l, k), dt.at(k), d);
+        if (!record.add(u, k)) break;
+        s = std::move(u.state);
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            for (int c = 0; c < cr::kGrainParameterCount; ++c)
+              stress.push_back(cr::symmetric_from_mandel(d.sample_stress.col(c))(i, j));
+        append(mu, d.mu);
+        append(r_s, d.r_s);
+        append(slip, d.slip);
+      }
+    }
+    const auto steps = static_cast<py::ssize_t>(record.iterations.size());
+    py::dict out = record.dict({s});
+    const py::ssize_t systems = point_.slip_count(), k = cr::kGrainParameterCount;
+    py::list names;
+    for (const auto& p : subslip::law::kLawParameters) names.append(std::string(p.name));
+    names.append("tau0");
+    names.append("initial_mu");
+    out["parameters"] = names;
+    out["d_stress"] = array_of(stress, {steps, 3, 3, k});
+    out["d_mu"] = array_of(mu, {steps, systems, k});
+    out["d_r_s"] = array_of(r_s, {steps, systems, k});
+    out["d_slip"] = array_of(slip, {steps, systems, k});
+    return out;
+  }
+
  private:
   std::string scene_;
   subslip::model::CrystalCase case_;
@@ -632,5 +674,6 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init<std::string, std::string, std::string, int>())
       .def("initial_state", &GrainPoint::initial_state)
       .def("steps", &GrainPoint::steps)
-      .def("along_path", &GrainPoint::along_path);
+      .def("along_path", &GrainPoint::along_path)
+      .def("sensitivities_along_path", &GrainPoint::sensitivities_along_path);
 }

@@ -430,6 +430,54 @@ class PointsEqualTheDrivers(unittest.TestCase):
             subslip.GrainPoint(TAYLOR_SCENE, grain=5)
 
 
+class GrainSensitivities(unittest.TestCase):
+    """GrainPoint.sensitivities_along_path: the path along_path takes, with its derivatives in
+    the named columns (their accuracy for every column: tests/test_grain_sensitivity.cpp)."""
+
+    def path(self, scene):
+        grain = subslip.GrainPoint(scene, grain=1)
+        gradients, dt = grain.steps()
+        return grain, gradients[:30], dt[:30]
+
+    def test_columns_are_the_named_constants(self):
+        grain, gradients, dt = self.path(TAYLOR_SCENE)
+        carried = grain.sensitivities_along_path(gradients, dt)
+        self.assertEqual(carried["parameters"], ["mu_s", "mu_k", "kappa", "xi", "u_tilde",
+                                                 "eta_v", "n", "r_hat", "tau0", "initial_mu"])
+        plain = grain.along_path(gradients, dt)
+        self.assertEqual(carried["stress"].tobytes(), plain["stress"].tobytes())
+        self.assertEqual(carried["d_stress"].shape, (30, 3, 3, 10))
+        self.assertEqual(carried["d_mu"].shape, (30, 12, 10))
+        # kappa (a law constant) and tau0 (the phase's) against central differences of whole
+        # runs, Richardson-extrapolated from relative steps 2e-4 and 1e-4.
+        for column, key in ((2, ("law", "friction", "kappa")), (8, ("tau0",))):
+            def stress_with(factor):
+                scene = copy.deepcopy(TAYLOR_SCENE)
+                block = scene["phase"]
+                for k in key[:-1]:
+                    block = block[k]
+                block[key[-1]] *= factor
+                return subslip.GrainPoint(scene, grain=1).along_path(gradients, dt)["stress"]
+
+            value = TAYLOR_SCENE["phase"]
+            for k in key:
+                value = value[k]
+            central = [(stress_with(1 + h) - stress_with(1 - h)) / (2 * h * value)
+                       for h in (2e-4, 1e-4)]
+            difference = (4 * central[1] - central[0]) / 3
+            derivative = carried["d_stress"][..., column]
+            scale = np.abs(derivative).max()
+            self.assertGreater(scale, 0.0)
+            self.assertLessEqual(np.abs(derivative - difference).max(), 1e-6 * scale, key)
+
+    def test_a_pressure_sensitive_phase_is_refused(self):
+        scene = copy.deepcopy(TAYLOR_SCENE)
+        scene["phase"]["pressure_sensitive"] = True
+        grain, gradients, dt = self.path(scene)
+        with self.assertRaises(ValueError):
+            grain.sensitivities_along_path(gradients, dt)
+
+
 @unittest.skipUnless(shutil.which("pip3") or os.path.exists("/usr/bin/pip3"), "needs pip")
 class Fit(unittest.TestCase):
     """subslip.fit is `subslip fit --json`: the same report, the same error messages."""
