@@ -115,19 +115,20 @@ std::vector<Step> path(double strain_per_segment) {
 enum Quantity { stress, mu, r_s, kQuantities };
 const char* const kQuantityNames[] = {"stress", "mu", "r_s"};
 
-struct Run {
+struct Outputs {
   std::string active;          // which systems slipped in each step, and which way
   double relative_step = 0.0;  // of finite differences: the h they took
   std::vector<double> values[kQuantities];
   std::vector<Eigen::Matrix<double, 1, kGrainParameterCount>> gradients[kQuantities];
 };
 
-Run run(Lattice lattice, const Constants& c, const std::vector<Step>& steps, bool sensitivities) {
+Outputs run(Lattice lattice, const Constants& c, const std::vector<Step>& steps,
+            bool sensitivities) {
   const point::GrainPoint grain(phase_of(lattice, c), tight());
   point::GrainState s = grain.initial_state(general_orientation());
   point::GrainSensitivity d;
   if (sensitivities) d = grain.initial_sensitivity();
-  Run out;
+  Outputs out;
   for (const Step& step : steps) {
     const point::GrainUpdate u =
         sensitivities ? grain.update(s, step.L, step.dt, d) : grain.update(s, step.L, step.dt);
@@ -157,17 +158,17 @@ Run run(Lattice lattice, const Constants& c, const std::vector<Step>& steps, boo
 // constant). So h is the largest of 1e-3, 1e-4, 1e-5 whose runs keep the base run's active
 // systems in every step: the largest keeps the runs' round-off (the solve resolves a stress to
 // a few ulp, which a difference over h magnifies by 1/h) the smallest.
-Run finite_difference(Lattice lattice, const Constants& c, const std::vector<Step>& steps, int k,
-                      const std::string& active) {
+Outputs finite_difference(Lattice lattice, const Constants& c, const std::vector<Step>& steps,
+                          int k, const std::string& active) {
   bool same_events = true;
   auto central = [&](double relative) {
     Constants up = c, down = c;
     const double step = relative * up[k];
     up[k] += step;
     down[k] -= step;
-    const Run a = run(lattice, up, steps, false), b = run(lattice, down, steps, false);
+    const Outputs a = run(lattice, up, steps, false), b = run(lattice, down, steps, false);
     same_events = same_events && a.active == active && b.active == active;
-    Run d;
+    Outputs d;
     for (int q = 0; q < kQuantities; ++q)
       for (std::size_t i = 0; i < a.values[q].size(); ++i)
         d.values[q].push_back((a.values[q][i] - b.values[q][i]) / (2.0 * step));
@@ -175,9 +176,9 @@ Run finite_difference(Lattice lattice, const Constants& c, const std::vector<Ste
   };
   for (double h : {1e-3, 1e-4, 1e-5}) {
     same_events = true;
-    const Run coarse = central(2.0 * h), fine = central(h);
+    const Outputs coarse = central(2.0 * h), fine = central(h);
     if (!same_events) continue;
-    Run d = fine;
+    Outputs d = fine;
     for (int q = 0; q < kQuantities; ++q)
       for (std::size_t i = 0; i < d.values[q].size(); ++i)
         d.values[q][i] = (4.0 * fine.values[q][i] - coarse.values[q][i]) / 3.0;
@@ -199,8 +200,8 @@ std::string column_name(int k) {
 // every constant), but initial_mu's where the phase starts from mu_s (its column is zero).
 void expect_sensitivities_match(Lattice lattice, const Constants& c,
                                 const std::vector<Step>& steps) {
-  const Run carried = run(lattice, c, steps, true);
-  const Run plain = run(lattice, c, steps, false);
+  const Outputs carried = run(lattice, c, steps, true);
+  const Outputs plain = run(lattice, c, steps, false);
   for (int q = 0; q < kQuantities; ++q)
     ASSERT_EQ(carried.values[q], plain.values[q]) << "carrying them changed the path";
   for (int k = 0; k < kGrainParameterCount; ++k) {
@@ -209,7 +210,7 @@ void expect_sensitivities_match(Lattice lattice, const Constants& c,
         for (const auto& g : carried.gradients[q]) ASSERT_EQ(g(k), 0.0);
       continue;
     }
-    const Run fd = finite_difference(lattice, c, steps, k, plain.active);
+    const Outputs fd = finite_difference(lattice, c, steps, k, plain.active);
     ASSERT_GT(fd.relative_step, 0.0);
     for (int q = 0; q < kQuantities; ++q) {
       double scale = 0.0, error = 0.0;
@@ -357,6 +358,42 @@ TEST(GrainSensitivity, PhasesWithoutOneLawAreRefused) {
   EXPECT_THROW(
       fcc.update(fcc.initial_state(general_orientation()), Eigen::Matrix3d::Zero(), 1.0, d),
       std::invalid_argument);
+}
+
+}  // namespace
+
+namespace {
+
+// The resistance is CRSS = mu tau0 and mu's evolution is homogeneous of degree one in (mu,
+// mu_s, mu_k, kappa, xi): scaling tau0 by c and mu_s, mu_k, kappa, xi and initial_mu by 1/c
+// leaves the stress, r_s and the slips as they are and scales mu by 1/c. So along any path
+//   tau0 d/dtau0 - sum_q q d/dq = 0 for the stress and r_s, and -mu for mu
+// (q over the five), to round-off: an exact check of seven columns that needs no finite
+// difference, and the one direction a fit of stress curves cannot determine.
+TEST(GrainSensitivity, ScalingTheResistanceIsInvisible) {
+  Constants c{hardening_law(law::OverstressForm::exponential)};
+  c.initial_mu = 1.1;
+  const int scaled[] = {0, 1, 2, 3, crystal::kInitialMuColumn};  // mu_s, mu_k, kappa, xi
+  static_assert(law::kLawParameters[3].name == "xi");
+  Eigen::Matrix<double, 1, kGrainParameterCount> weights =
+      Eigen::Matrix<double, 1, kGrainParameterCount>::Zero();
+  weights(crystal::kTau0Column) = c.tau0;
+  Constants values = c;
+  for (int k : scaled) weights(k) = -values[k];
+  const Outputs carried = run(Lattice::fcc, c, path(0.01), true);
+  for (int q = 0; q < kQuantities; ++q) {
+    double worst = 0.0, scale = 0.0;
+    for (std::size_t i = 0; i < carried.values[q].size(); ++i) {
+      const auto& g = carried.gradients[q][i];
+      const double expected = q == mu ? -carried.values[q][i] : 0.0;
+      worst = std::max(worst, std::abs(g.dot(weights) - expected));
+      scale = std::max(scale, g.cwiseProduct(weights).cwiseAbs().maxCoeff());
+    }
+    std::printf("  %-6s: largest term %.3e, identity within %.1e\n", kQuantityNames[q], scale,
+                worst);
+    EXPECT_GT(scale, 0.0);
+    EXPECT_LE(worst, 1e-12 * scale) << kQuantityNames[q];
+  }
 }
 
 }  // namespace
