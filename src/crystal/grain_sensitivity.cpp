@@ -133,6 +133,25 @@ struct EndOf {
   VecNOf<N, T> mu, r_s, slip, residual;
 };
 
+// The strain increment and the spun orientation of a step (step_kinematics, kernel_detail.hpp).
+template <class T>
+struct KinematicsOf {
+  Vec6Of<T> strain_increment;
+  Mat3Of<T> spun_orientation;
+};
+template <class T>
+KinematicsOf<T> kinematics_of(const Mat3Of<T>& g0, const Mat3& L, double dt, Kinematics kind) {
+  const Mat3 d = 0.5 * (L + L.transpose()), w_sample = 0.5 * (L - L.transpose());
+  Mat3Of<T> g_mid = g0, spun = g0;
+  if (kind == Kinematics::finite_rotation) {
+    const Mat3Of<T> wl = g0 * w_sample.template cast<T>() * g0.transpose();
+    const Vec3Of<T> w(wl(2, 1), wl(0, 2), wl(1, 0));
+    g_mid = rotation_exp_of<T>(Vec3Of<T>(-0.5 * dt * w)) * g0;
+    spun = rotation_exp_of<T>(Vec3Of<T>(-dt * w)) * g0;
+  }
+  return {mandel_of<T>(Mat3Of<T>(g_mid * d.template cast<T>() * g_mid.transpose())) * dt, spun};
+}
+
 // The step's end state from its signed slips, as the kernel writes it (step_kinematics,
 // StressSolver::evaluate_slips and flow_point, orientation_after_plastic_spin, r_s = min(r_s, r)).
 template <int N, class T, class Law>
@@ -140,18 +159,8 @@ EndOf<N, T> replay(const Phase<N>& ph, const Law& law, const StartOf<N, T>& s0, 
                    double dt, const VecNOf<N, T>& dgamma) {
   using std::abs;
   const int n = ph.slip_count;
-  const Mat3 d = 0.5 * (L + L.transpose()), w_sample = 0.5 * (L - L.transpose());
-  const Mat3Of<T>& g0 = s0.orientation;
-  Mat3Of<T> g_mid = g0, spun = g0;
-  if (ph.kinematics == Kinematics::finite_rotation) {
-    const Mat3Of<T> wl = g0 * w_sample.template cast<T>() * g0.transpose();
-    const Vec3Of<T> w(wl(2, 1), wl(0, 2), wl(1, 0));
-    g_mid = rotation_exp_of<T>(Vec3Of<T>(-0.5 * dt * w)) * g0;
-    spun = rotation_exp_of<T>(Vec3Of<T>(-dt * w)) * g0;
-  }
-  const Vec6Of<T> strain_increment =
-      mandel_of<T>(Mat3Of<T>(g_mid * d.template cast<T>() * g_mid.transpose())) * dt;
-  const Vec6Of<T> trial = s0.stress + ph.stiffness.template cast<T>() * strain_increment;
+  const KinematicsOf<T> kin = kinematics_of<T>(s0.orientation, L, dt, ph.kinematics);
+  const Vec6Of<T> trial = s0.stress + ph.stiffness.template cast<T>() * kin.strain_increment;
 
   EndOf<N, T> e;
   e.stress = trial - ph.c_schmid.template cast<T>() * dgamma;
@@ -183,9 +192,10 @@ EndOf<N, T> replay(const Phase<N>& ph, const Law& law, const StartOf<N, T>& s0, 
     e.r_s(a) = value_of(r) < value_of(r_s) ? r : r_s;
     e.slip(a) = s0.slip(a) + dgamma(a);
   }
-  e.orientation = spun;
+  e.orientation = kin.spun_orientation;
   if (ph.kinematics == Kinematics::finite_rotation)
-    e.orientation = rotation_exp_of<T>(Vec3Of<T>(ph.slip_spin.template cast<T>() * dgamma)) * spun;
+    e.orientation = rotation_exp_of<T>(Vec3Of<T>(ph.slip_spin.template cast<T>() * dgamma)) *
+                    kin.spun_orientation;
   e.sample_stress = mandel_of<T>(
       Mat3Of<T>(e.orientation.transpose() * symmetric_of<T>(e.stress) * e.orientation));
   return e;
