@@ -249,6 +249,19 @@ TEST(OutputPoints, SpacingsGiveTheirPoints) {
   EXPECT_EQ(times[2], (std::vector<double>{2.0, 4.0}));
 }
 
+// Two points are one time only where the clock cannot tell them apart at their value: 2.6e-17
+// apart 4.6e-11 into a segment of 0.2 (an impact's first steps) are two times, and two points
+// 2.6e-17 apart 0.1 into the second segment (within 8 ulp of the clock there) are one.
+TEST(OutputPoints, PointsAreTheSameTimeOnlyWithinTheClocksRoundOff) {
+  const std::vector<ClockSegment> two{{1.0, 0.2}, {1.0, 0.2}};
+  const double early = 4.553591220602946e-11, early_next = 4.5535937970036674e-11;
+  const double late = 0.3, late_next = std::nextafter(std::nextafter(0.3, 1.0), 1.0);
+  const auto times = segment_times({early, early_next, late, late_next}, two);
+  EXPECT_EQ(times[0], (std::vector<double>{early, early_next}));
+  ASSERT_EQ(times[1].size(), 1u);
+  EXPECT_NEAR(times[1][0], 0.1, 1e-15);
+}
+
 // ---- bad input: one error naming file, line and key
 
 TEST(OutputPoints, BadPointsNameFileLineAndKey) {

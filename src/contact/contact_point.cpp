@@ -235,21 +235,48 @@ template <bool kSensitivity>
   if (!(guess > 0.0 && guess < ds_max)) {
     guess = (ft_trial - rs_start * fn1 * mu_elastic.value) / c.alpha_t;
   }
-  const auto root =
-      safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p), std::pow(guess, 1.0 / p),
-                         residual_tolerance, 4.0 * std::numeric_limits<double>::epsilon(), 1e-300);
+  constexpr double kRootResolution = 4.0 * std::numeric_limits<double>::epsilon();
+  const auto root = safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p),
+                                       std::pow(guess, 1.0 / p), residual_tolerance,
+                                       kRootResolution, 1e-300);
   if (!root.converged) return {s, root.iterations, false, "flow rule did not converge"};
 
-  const double ds = slip_of(root.x);
-  double dr;
-  law::ValueAndSlope mu;
-  s.r = ratio_at(ds, dr, mu);
+  // The trial traction splits into the traction kept and the part slid, ft_trial = f_t +
+  // alpha_t ds. The slip resolves the flow rule only to |dG/d ds| ulp(ds): where the slid part is
+  // much the larger (a long step of steady sliding: ds alpha_t = 1e9 f_t), the traction
+  // ft_trial - alpha_t ds, a difference of two nearly equal numbers, keeps only a few digits,
+  // and the flow rule is met far outside the tolerance. The traction itself resolves it to its
+  // own precision, so there the root is taken again in f_t, from the slip's root.
+  double ds = slip_of(root.x);
+  double ft = ft_trial - c.alpha_t * ds;
+  int iterations = root.iterations;
+  if (!root.within_tolerance && c.alpha_t * ds > ft) {
+    auto residual_in_traction = [&](double f) {
+      const double slid = (ft_trial - f) / c.alpha_t;
+      const law::ValueAndSlope m = law.friction_coefficient_after(s0.law.mu, slid, dt);
+      const double r = f / (fn1 * m.value);
+      const double dr_df = (1.0 / fn1 + r * m.d_slip / c.alpha_t) / m.value;
+      const auto rs = law.subloading_ratio_after(rs_start, slid);
+      const auto g = law.flow_residual(r, rs.value, slid, slip_time);
+      if (!g.admissible) return std::pair{g.value, 0.0};
+      return std::pair{g.value, g.d_r * dr_df - (g.d_rs * rs.d_slip + g.d_slip) / c.alpha_t};
+    };
+    const auto in_traction = safeguarded_newton(residual_in_traction, 0.0, ft_trial, ft,
+                                                residual_tolerance, kRootResolution, 1e-300);
+    iterations += in_traction.iterations;
+    if (!in_traction.converged) return {s, iterations, false, "flow rule did not converge"};
+    ft = in_traction.x;
+    ds = (ft_trial - ft) / c.alpha_t;
+  }
+  const law::ValueAndSlope mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
+  s.r = ft / (fn1 * mu.value);
+  const double dr = -c.alpha_t / (fn1 * mu.value) - s.r / mu.value * mu.d_slip;  // d r / d ds
   s.law.mu = mu.value;
-  s.traction_t = trial * ((ft_trial - c.alpha_t * ds) / ft_trial);
+  s.traction_t = trial * (ft / ft_trial);
   s.law.r_s = std::min(law.subloading_ratio_after(rs_start, ds).value, s.r);
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / slip_time;  // the end rate of the flow rule
-  StepAttempt out{s, root.iterations, true, {}};
+  StepAttempt out{s, iterations, true, {}};
   out.why = admissibility_violation(law, s);
   out.ok = out.why.empty();
   if (tangent && out.ok) {
@@ -261,7 +288,6 @@ template <bool kSensitivity>
     const double dds_dtrial = -g.d_r / (fn1 * mu.value) / g_slip;
     const double dds_dfn = g.d_r * s.r / fn1 / g_slip;
     const Vec2 t = trial / ft_trial;
-    const double ft = ft_trial - c.alpha_t * ds;
     const Eigen::Matrix2d tt = t * t.transpose();
     tangent->leftCols<2>() = c.alpha_t * ((ft / ft_trial) * (Eigen::Matrix2d::Identity() - tt) +
                                           (1.0 - c.alpha_t * dds_dtrial) * tt);

@@ -130,12 +130,15 @@ std::vector<std::vector<double>> segment_times(const std::vector<double>& points
   for (std::size_t k = 0; k < segments.size() && next < points.size(); ++k) {
     const ClockSegment& s = segments[k];
     const double c1 = c0 + s.rate * s.duration;
-    const double same = integrators::kSameTime * s.duration;
     const bool last = k + 1 == segments.size();
     while (next < points.size() && (points[next] <= c1 || last)) {
       const double p = points[next++];
       if (!(s.rate > 0.0)) continue;  // (cannot happen: c1 == c0 takes no point)
       const double t = p >= c1 ? s.duration : std::min(s.duration, (p - c0) / s.rate);
+      // Two points are the same time where the clock cannot tell them apart: within round-off
+      // of the clock's value there (p), not of the segment's length. Points 3e-17 min apart
+      // 5e-11 min into a slide of 0.2 min are two times (an impact's first steps).
+      const double same = integrators::kSameTime * p / s.rate;
       auto& times = out[k];
       if (!times.empty() && t <= times.back() + same) continue;  // the same time
       times.push_back(t);

@@ -17,6 +17,8 @@ struct ScalarRoot {
   double x;  // the root (the bracket end on the negative side when it collapses)
   int iterations;
   bool converged;
+  // Converged with |F| <= f_tol (not only to what double precision resolves in x).
+  bool within_tolerance = false;
 };
 
 // Solves F(x) = 0 for x in [lo, hi] where F(lo) >= 0 >= F(hi) or F(lo) <= 0 <= F(hi).
@@ -27,7 +29,7 @@ template <class Eval>
 ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, double f_tol,
                               double x_tol, double x_floor, int max_iterations = 200) {
   const double f_lo = eval(lo).first;
-  if (f_lo == 0.0) return {lo, 0, true};
+  if (f_lo == 0.0) return {lo, 0, true, true};
   const bool increasing = f_lo < 0.0;  // sign convention of the bracket
   double x = (guess > lo && guess < hi) ? guess : 0.5 * (lo + hi);
   double previous_abs_f = std::numeric_limits<double>::infinity();
@@ -41,7 +43,8 @@ ScalarRoot safeguarded_newton(Eval&& eval, double lo, double hi, double guess, d
         std::isfinite(df)
             ? 4.0 * std::abs(df) * std::numeric_limits<double>::epsilon() * std::abs(x)
             : 0.0;
-    if (std::isfinite(f) && std::abs(f) <= std::max(f_tol, resolution)) return {x, it, true};
+    if (std::isfinite(f) && std::abs(f) <= std::max(f_tol, resolution))
+      return {x, it, true, std::abs(f) <= f_tol};
     // Shrink the bracket with the sign of F at x.
     if ((f < 0.0) == increasing) {
       lo = x;
