@@ -236,9 +236,9 @@ template <bool kSensitivity>
     guess = (ft_trial - rs_start * fn1 * mu_elastic.value) / c.alpha_t;
   }
   constexpr double kRootResolution = 4.0 * std::numeric_limits<double>::epsilon();
-  const auto root = safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p),
-                                       std::pow(guess, 1.0 / p), residual_tolerance,
-                                       kRootResolution, 1e-300);
+  const auto root =
+      safeguarded_newton(residual, 0.0, std::pow(ds_max, 1.0 / p), std::pow(guess, 1.0 / p),
+                         residual_tolerance, kRootResolution, 1e-300);
   if (!root.converged) return {s, root.iterations, false, "flow rule did not converge"};
 
   // The trial traction splits into the traction kept and the part slid, ft_trial = f_t +
