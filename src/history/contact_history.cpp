@@ -147,6 +147,28 @@ double local_error(const point::ContactPoint& point, const ContactState& s0, con
   return 0.5 * dt * c.alpha_t * change.norm() / yield;
 }
 
+// Backward Euler's own estimate (local_error) filtered through the step's Jacobian, as Shampine
+// filters it for stiff problems: e / (1 + dt lambda), lambda = -d(df_t/dt)/df_t at the step's
+// end (the relaxation rate of the traction through the flow rule). Where the traction relaxes
+// onto a state the step resolves (a hold: the end is the same for any long step) lambda dt is
+// large and the estimate vanishes; where the sliding rate at the start is lost in a transient
+// much shorter than the step while the loading moves the traction on (the first step of a
+// reversal from steady sliding), lambda at the end is small and the estimate stays: the
+// extrapolated solutions, all longer than the transient, agree there and see nothing.
+double filtered_local_error(const point::ContactPoint& point, const ContactState& s0,
+                            const ContactState& s1, const Vec2& du_t, double fn1, double dt) {
+  const law::SubloadingFrictionLaw& law = point.law();
+  const double e = local_error(point, s0, s1, du_t, fn1, dt);
+  if (!(e > 0.0) || law.is_rate_independent() || !(s1.vp_rate > 0.0)) return e;
+  const double slip = s1.vp_slip - s0.vp_slip;
+  const auto g = law.flow_residual(s1.r, s1.law.r_s, slip, dt);
+  if (!g.admissible || !(g.d_slip < 0.0)) return e;
+  // G(r, slip) = 0 at the end: d(slip rate)/dr = -G_r / (G_slip dt), and f_t = f_n mu r.
+  const double rate_per_r = -g.d_r / (g.d_slip * dt);
+  const double lambda = point.parameters().stiffness.alpha_t * rate_per_r / (fn1 * s1.law.mu);
+  return lambda > 0.0 ? e / (1.0 + dt * lambda) : e;
+}
+
 // The state variables an extrapolated step combines; the rest (time, slip, f_n) is kinematics,
 // the same in every solution of the step.
 using Combined = Eigen::Matrix<double, 6, 1>;
@@ -251,6 +273,13 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
     const auto earlier = integrators::earlier_column_estimates(solutions);
     out.error = integrators::guarded_estimate(out.error, extrapolation_error(earlier[0], end),
                                               extrapolation_error(earlier[1], end));
+  }
+  {
+    const double t_from_start = t1 - t0;
+    const double fn1 = contact::normal_traction_at(seg, c, fn_start, t1);
+    out.error = std::max(out.error, filtered_local_error(point, s0, one_step,
+                                                         seg.velocity * t_from_start, fn1,
+                                                         t_from_start));
   }
   if (switched) {
     // A switch between sticking and sliding inside the step: the solution has a kink there and
