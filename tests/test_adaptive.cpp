@@ -404,6 +404,42 @@ TEST(AdaptiveContact, ReversalFromSteadySlidingFollowsTheToleranceAgainstAnExact
   }
 }
 
+// A hold after steady sliding, given as one increment, with recovery: the traction relaxes in
+// about 1e-8 min while mu is still the sliding value, then mu heals towards mu_s over mu_s/xi =
+// 11 min and the contact sticks (r falls below r_s, which follows it down). Every extrapolated
+// solution of a step longer than the healing relaxes against the healed mu of its end and they
+// agree; backward Euler's own estimate, filtered through the step's relaxation rate, sees the
+// sliding rate lost at the step's start. Exact path: Runge-Kutta from the run's own state at
+// the hold, 1e5 steps per decade of time.
+TEST(AdaptiveContact, HealingHoldInOneIncrementFollowsTheToleranceAgainstAnExactPath) {
+  const auto m = paper_model();
+  using contact::Vec2;
+  const double duration = 600.0;  // min
+  for (double tol : {1e-3, 1e-5}) {
+    const ContactRun run = run_contact(
+        m, {segment(Vec2(1.0, 0), 1.0, 1000, 1e4), segment(Vec2(0, 0), duration, 1)}, tol, 2);
+    const contact::ContactState& at_hold = run.segment_ends[0];
+    law::SubloadingFrictionLaw law(m.law);
+    ColinearState exact{at_hold.traction_t.x() / at_hold.traction_n, at_hold.law.mu,
+                        law.subloading_slip_integral(at_hold.law.r_s)};
+    double t = 0.0;
+    for (double decade_end = 1e-12; t < duration; decade_end *= 10.0) {
+      const double until = std::min(decade_end, duration);
+      advance_colinear(m, exact, 0.0, until - t, 100000);
+      t = until;
+    }
+    const contact::ContactState& end = run.segment_ends[1];
+    const double error =
+        std::abs(end.traction_t.x() / end.traction_n - exact.ratio) / m.law.friction.mu_s;
+    measured() << "healing hold of " << duration << " min, tolerance " << tol << ": "
+               << run.steps_per_segment[1] << " steps, f_t/f_n " << std::setprecision(10)
+               << end.traction_t.x() / end.traction_n << " vs exact " << exact.ratio
+               << std::setprecision(4) << ", error / mu_s " << error << "\n";
+    EXPECT_TRUE(run.all_admissible);
+    EXPECT_LT(error, 10.0 * tol) << "tolerance " << tol;
+  }
+}
+
 // ---- crystal ------------------------------------------------------------------------------
 
 namespace {

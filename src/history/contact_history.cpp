@@ -277,9 +277,9 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
   {
     const double t_from_start = t1 - t0;
     const double fn1 = contact::normal_traction_at(seg, c, fn_start, t1);
-    out.error = std::max(out.error, filtered_local_error(point, s0, one_step,
-                                                         seg.velocity * t_from_start, fn1,
-                                                         t_from_start));
+    out.error = std::max(
+        out.error,
+        filtered_local_error(point, s0, one_step, seg.velocity * t_from_start, fn1, t_from_start));
   }
   if (switched) {
     // A switch between sticking and sliding inside the step: the solution has a kink there and
