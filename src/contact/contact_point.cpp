@@ -206,26 +206,25 @@ template <bool kSensitivity>
   // Radial return: f_t = t (ft_trial - alpha_t ds) keeps the trial direction (2.39), so the
   // step reduces to one equation G(ds) = 0 in the slip increment ds, decreasing on
   // [0, ft_trial/alpha_t] from G(0) = r_trial - rs_start > 0 to G(max) < 0.
-  auto ratio_at = [&](double ds, double& dr_dds, law::ValueAndSlope& mu) {
-    mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
-    const double ft = ft_trial - c.alpha_t * ds;
-    const double r = ft / (fn1 * mu.value);
-    dr_dds = -c.alpha_t / (fn1 * mu.value) - r / mu.value * mu.d_slip;
-    return r;
+  // G and dG/d ds where the trial traction splits into f kept and ds slid (f = ft_trial -
+  // alpha_t ds): the one residual both unknowns below (the slip, the traction) solve.
+  auto flow_rule_at = [&](double ds, double f) {
+    const law::ValueAndSlope mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
+    const double r = f / (fn1 * mu.value);
+    const double dr_dds = -c.alpha_t / (fn1 * mu.value) - r / mu.value * mu.d_slip;
+    const auto rs = law.subloading_ratio_after(rs_start, ds);
+    const auto g = law.flow_residual(r, rs.value, ds, slip_time);
+    if (!g.admissible) return std::pair{g.value, 0.0};
+    return std::pair{g.value, g.d_r * dr_dds + g.d_rs * rs.d_slip + g.d_slip};
   };
   // The unknown is z = ds^(1/p) (p = 1 except for the power overstress, see slip_exponent).
   const double p = law.slip_exponent();
   auto slip_of = [p](double z) { return p == 1.0 ? z : std::pow(z, p); };
   auto residual = [&](double z) {
     const double ds = slip_of(z);
-    double dr;
-    law::ValueAndSlope mu;
-    const double r = ratio_at(ds, dr, mu);
-    const auto rs = law.subloading_ratio_after(rs_start, ds);
-    const auto g = law.flow_residual(r, rs.value, ds, slip_time);
-    if (!g.admissible) return std::pair{g.value, 0.0};
+    const auto [g, dg_dds] = flow_rule_at(ds, ft_trial - c.alpha_t * ds);
     const double dds_dz = p == 1.0 ? 1.0 : p * std::pow(z, p - 1.0);
-    return std::pair{g.value, (g.d_r * dr + g.d_rs * rs.d_slip + g.d_slip) * dds_dz};
+    return std::pair{g, dg_dds * dds_dz};
   };
   const double ds_max = ft_trial / c.alpha_t;
   // Start from the previous viscoplastic rate (over a smooth history it is close to the
@@ -252,14 +251,8 @@ template <bool kSensitivity>
   int iterations = root.iterations;
   if (!root.within_tolerance && c.alpha_t * ds > ft) {
     auto residual_in_traction = [&](double f) {
-      const double slid = (ft_trial - f) / c.alpha_t;
-      const law::ValueAndSlope m = law.friction_coefficient_after(s0.law.mu, slid, dt);
-      const double r = f / (fn1 * m.value);
-      const double dr_df = (1.0 / fn1 + r * m.d_slip / c.alpha_t) / m.value;
-      const auto rs = law.subloading_ratio_after(rs_start, slid);
-      const auto g = law.flow_residual(r, rs.value, slid, slip_time);
-      if (!g.admissible) return std::pair{g.value, 0.0};
-      return std::pair{g.value, g.d_r * dr_df - (g.d_rs * rs.d_slip + g.d_slip) / c.alpha_t};
+      const auto [g, dg_dds] = flow_rule_at((ft_trial - f) / c.alpha_t, f);
+      return std::pair{g, -dg_dds / c.alpha_t};
     };
     const auto in_traction = safeguarded_newton(residual_in_traction, 0.0, ft_trial, ft,
                                                 residual_tolerance, kRootResolution, 1e-300);
