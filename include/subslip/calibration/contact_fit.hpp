@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "subslip/calibration/least_squares.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/law/parameter_table.hpp"
 
@@ -23,14 +24,6 @@ struct Curve {
   std::vector<double> slip;   // [length], > 0 and increasing
   std::vector<double> ratio;  // f_t/f_n [-]
   double weight = 1.0;        // of each point's squared residual
-};
-
-// A constant the fit determines (the others keep their values in FitProblem::model.law).
-struct FreeParameter {
-  int index = 0;  // in law::kLawParameters
-  double lower = 0.0, upper = 0.0;
-  // Fitted as its logarithm (a positive constant: steps are relative, and it stays positive).
-  bool log_scale = false;
 };
 
 // How each curve's contact path is computed: from rest, `increments` implicit steps of growing
@@ -58,23 +51,6 @@ struct Prediction {
 };
 Prediction predict(const contact::ContactModel& model, bool initial_mu_is_mu_s, const Curve& curve,
                    const PathSteps& steps);
-
-struct FitResult {
-  law::LawParameters law;          // the estimate (fixed constants as given)
-  std::vector<std::string> names;  // of the free constants, in FitProblem::free order
-  std::vector<double> estimate;
-  std::vector<double> standard_error;  // linearised, from the residuals' scatter
-  std::vector<double> lower, upper;    // 95 % interval (in the fitted scale, mapped back)
-  Eigen::MatrixXd correlation;
-  bool converged = false;
-  std::string termination;  // how the optimiser stopped, and where when it did not converge
-  int iterations = 0;
-  double residual_sd = 0.0;  // root mean square weighted residual, per degree of freedom
-  int points = 0;
-  // A constant the data do not determine: which, why, and which data would determine it.
-  std::vector<std::string> warnings;
-  std::vector<std::vector<double>> fitted;  // the model's f_t/f_n at each curve's points
-};
 
 // Fits the problem. Throws std::invalid_argument for a problem that cannot be set up (a start
 // outside its bounds, no points, no free constant).
