@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,9 +52,9 @@ const std::vector<Eigen::Vector3d> kAxes = {{0, 0, 1}, {1, 1, 1}, {-1, 2, 3}};
 // `count` strains from 0.002 to `last` (evenly), tension at 1e-3/s.
 calibration::CrystalCurve tension(const Eigen::Vector3d& axis, int count, double last) {
   calibration::CrystalCurve c;
-  c.name = "[" + std::to_string(static_cast<int>(axis.x())) + " " +
-           std::to_string(static_cast<int>(axis.y())) + " " +
-           std::to_string(static_cast<int>(axis.z())) + "]";
+  std::ostringstream name;
+  name << "[" << axis.x() << " " << axis.y() << " " << axis.z() << "]";
+  c.name = name.str();
   c.orientation = along_x(axis);
   c.strain_rate = 1e-3;
   for (int i = 0; i < count; ++i) c.strain.push_back(0.002 + (last - 0.002) * i / (count - 1));
