@@ -93,9 +93,7 @@ FitResult fit(const FitProblem& problem) {
       const Prediction p = predict(model_with(problem, law_at(problem, values)),
                                    problem.initial_mu_is_mu_s, c, problem.steps);
       predicted = p.ratio;
-      gradient.resize(p.gradient.rows(), static_cast<Eigen::Index>(problem.free.size()));
-      for (std::size_t j = 0; j < problem.free.size(); ++j)
-        gradient.col(static_cast<Eigen::Index>(j)) = p.gradient.col(problem.free[j].index);
+      gradient = free_columns(p.gradient, problem.free);
     };
     ls.curves.push_back(std::move(m));
   }

@@ -231,9 +231,7 @@ FitResult fit(const CrystalFitProblem& problem) {
                                Eigen::MatrixXd& gradient) {
       const CrystalPrediction p = predict(phase_at(problem, values), c, problem.steps);
       predicted = p.stress;
-      gradient.resize(p.gradient.rows(), static_cast<Eigen::Index>(problem.free.size()));
-      for (std::size_t j = 0; j < problem.free.size(); ++j)
-        gradient.col(static_cast<Eigen::Index>(j)) = p.gradient.col(problem.free[j].index);
+      gradient = free_columns(p.gradient, problem.free);
     };
     ls.curves.push_back(std::move(m));
   }

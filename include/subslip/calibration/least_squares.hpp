@@ -64,6 +64,16 @@ struct LeastSquaresProblem {
   std::function<std::string(std::string_view name)> advice;
 };
 
+// The free constants' columns of a model's gradient (columns in the problem's own order, picked
+// by FreeParameter::index), as CurveModel::predict returns them.
+template <class Gradient>
+Eigen::MatrixXd free_columns(const Gradient& gradient, const std::vector<FreeParameter>& free) {
+  Eigen::MatrixXd out(gradient.rows(), static_cast<Eigen::Index>(free.size()));
+  for (std::size_t j = 0; j < free.size(); ++j)
+    out.col(static_cast<Eigen::Index>(j)) = gradient.col(free[j].index);
+  return out;
+}
+
 // Fits the problem: every FitResult field but `law`. Throws std::invalid_argument for a problem
 // that cannot be set up (no free constant, no more points than constants, a start outside its
 // bounds).
