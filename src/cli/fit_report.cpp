@@ -101,8 +101,9 @@ void print_fit_table(std::ostream& out, const io::FitFile& f, const calibration:
     // What the curves determine: the products of tau0 with the friction coefficients, tau0 being
     // fixed (docs/calibration.md, "Single-crystal curves").
     const bool from_mu_s = !(slip_group(f).initial_mu > 0.0);
-    out << "\ninitial CRSS (" << (from_mu_s ? "mu_s" : "initial_mu") << " tau0 at the estimate) "
-        << std::setprecision(6) << initial_crss(f, r) << " " << f.units.stress << "\n";
+    out << "\ninitial CRSS (" << (from_mu_s ? "mu_s" : "initial_mu")
+        << " tau0 at the estimate): " << std::setprecision(6) << initial_crss(f, r) << " "
+        << f.units.stress << "\n";
   }
 }
 
