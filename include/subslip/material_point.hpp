@@ -153,6 +153,7 @@ struct GrainUpdate {
 // The derivatives of a grain's state and stress with respect to its law's constants, tau0 and
 // initial_mu (crystal/grain_sensitivity.hpp).
 using GrainSensitivity = crystal::GrainSensitivity;
+using MixedControlSensitivity = crystal::MixedControlSensitivity;
 
 // The phase of a grain: slip families (or custom systems) with their laws and tau0, elasticity,
 // latent hardening, kinematics (crystal/phase_builder.hpp).
@@ -179,6 +180,11 @@ class GrainPoint {
   // otherwise); std::runtime_error where the step's flow rules are singular in its slips.
   GrainUpdate update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
                      GrainSensitivity& sensitivity) const;
+  // The same under mixed control: L's components along `mixed.directions` were solved for so
+  // that the sample-frame stresses `mixed.held` keep their values, and the sensitivities carried
+  // include those components' change with the constants (written to `mixed.free_gradient`).
+  GrainUpdate update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
+                     GrainSensitivity& sensitivity, MixedControlSensitivity& mixed) const;
   // The sensitivities of initial_state(): zero, but d mu / d initial_mu = 1 (d mu / d mu_s
   // where the phase starts from mu_s). std::invalid_argument as for the update above.
   GrainSensitivity initial_sensitivity() const;
@@ -194,6 +200,10 @@ class GrainPoint {
   struct Model;  // the phase of its slip count (src/point/grain_point.cpp)
 
  private:
+  GrainUpdate sensitivity_update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient,
+                                 double dt, GrainSensitivity& sensitivity,
+                                 MixedControlSensitivity* mixed) const;
+
   std::unique_ptr<const Model> model_;
 };
 

@@ -140,22 +140,22 @@ struct KinematicsOf {
   Mat3Of<T> spun_orientation;
 };
 template <class T>
-KinematicsOf<T> kinematics_of(const Mat3Of<T>& g0, const Mat3& L, double dt, Kinematics kind) {
-  const Mat3 d = 0.5 * (L + L.transpose()), w_sample = 0.5 * (L - L.transpose());
+KinematicsOf<T> kinematics_of(const Mat3Of<T>& g0, const Mat3Of<T>& L, double dt, Kinematics kind) {
+  const Mat3Of<T> d = 0.5 * (L + L.transpose()), w_sample = 0.5 * (L - L.transpose());
   Mat3Of<T> g_mid = g0, spun = g0;
   if (kind == Kinematics::finite_rotation) {
-    const Mat3Of<T> wl = g0 * w_sample.template cast<T>() * g0.transpose();
+    const Mat3Of<T> wl = g0 * w_sample * g0.transpose();
     const Vec3Of<T> w(wl(2, 1), wl(0, 2), wl(1, 0));
     g_mid = rotation_exp_of<T>(Vec3Of<T>(-0.5 * dt * w)) * g0;
     spun = rotation_exp_of<T>(Vec3Of<T>(-dt * w)) * g0;
   }
-  return {mandel_of<T>(Mat3Of<T>(g_mid * d.template cast<T>() * g_mid.transpose())) * dt, spun};
+  return {mandel_of<T>(Mat3Of<T>(g_mid * d * g_mid.transpose())) * dt, spun};
 }
 
 // The step's end state from its signed slips, as the kernel writes it (step_kinematics,
 // StressSolver::evaluate_slips and flow_point, orientation_after_plastic_spin, r_s = min(r_s, r)).
 template <int N, class T, class Law>
-EndOf<N, T> replay(const Phase<N>& ph, const Law& law, const StartOf<N, T>& s0, const Mat3& L,
+EndOf<N, T> replay(const Phase<N>& ph, const Law& law, const StartOf<N, T>& s0, const Mat3Of<T>& L,
                    double dt, const VecNOf<N, T>& dgamma) {
   using std::abs;
   const int n = ph.slip_count;
@@ -253,57 +253,142 @@ GrainSensitivity initial_grain_sensitivity(int n, bool initial_mu_is_mu_s) {
   return d;
 }
 
+namespace {
+
+// The step's flow rules linearised in the slips at the converged ones: which systems slip, and
+// the LU of R_dgamma over them (jets of the replay, K slips at a time, everything else constant).
+struct SlipLinearisation {
+  std::vector<int> active;
+  Eigen::FullPivLU<Eigen::MatrixXd> lu;
+};
+
+template <int N>
+SlipLinearisation linearise_in_slips(const Phase<N>& ph, const JetLaw& constant,
+                                     const StartOf<N, Jet>& fixed, const Mat3Of<Jet>& L, double dt,
+                                     const typename SlipTypes<N>::VecN& dgamma) {
+  const int n = ph.slip_count;
+  SlipLinearisation lin;
+  for (int a = 0; a < n; ++a)
+    if (dgamma(a) != 0.0) lin.active.push_back(a);
+  const int m = static_cast<int>(lin.active.size());
+  if (m == 0) return lin;
+  VecNOf<N, Jet> slips(n);
+  for (int a = 0; a < n; ++a) slips(a) = Jet(dgamma(a));
+  Eigen::MatrixXd r_dgamma(m, m);
+  for (int first = 0; first < m; first += K) {
+    VecNOf<N, Jet> seeded_slips = slips;
+    const int count = std::min(K, m - first);
+    for (int k = 0; k < count; ++k)
+      seeded_slips(lin.active[first + k]) = Jet(dgamma(lin.active[first + k]), k);
+    const EndOf<N, Jet> e = replay(ph, constant, fixed, L, dt, seeded_slips);
+    for (int i = 0; i < m; ++i)
+      r_dgamma.block(i, first, 1, count) = e.residual(lin.active[i]).v.head(count).transpose();
+  }
+  lin.lu.compute(r_dgamma);
+  if (!lin.lu.isInvertible())
+    throw std::runtime_error("grain sensitivities: the step's flow rules are singular in its " +
+                             std::to_string(m) + " slipping systems' slips");
+  return lin;
+}
+
+// The end state in jets whose derivatives are those of `start`, `law` and `L`, the converged
+// slips following them by the implicit function theorem: d dgamma = -R_dgamma^-1 R_x, R_x the
+// residuals' derivatives at the slips held constant.
+template <int N>
+EndOf<N, Jet> differentiated_end(const Phase<N>& ph, const JetLaw& law,
+                                 const StartOf<N, Jet>& start, const Mat3Of<Jet>& L, double dt,
+                                 const typename SlipTypes<N>::VecN& dgamma,
+                                 const SlipLinearisation& lin) {
+  const int n = ph.slip_count, m = static_cast<int>(lin.active.size());
+  VecNOf<N, Jet> slips(n);
+  for (int a = 0; a < n; ++a) slips(a) = Jet(dgamma(a));
+  if (m > 0) {
+    const EndOf<N, Jet> at_root = replay(ph, law, start, L, dt, slips);
+    Eigen::MatrixXd r_x(m, K);
+    for (int i = 0; i < m; ++i) r_x.row(i) = at_root.residual(lin.active[i]).v.transpose();
+    const Eigen::MatrixXd d_dgamma = -lin.lu.solve(r_x);
+    for (int i = 0; i < m; ++i) slips(lin.active[i]).v = d_dgamma.row(i).transpose();
+  }
+  return replay(ph, law, start, L, dt, slips);
+}
+
+// Every end variable x of `e` gets x' = x'_p + x'_u du_dp: its derivatives with respect to the
+// constants at fixed L, plus through the free components u of L (their derivatives, in `by_u`'s
+// first columns, with respect to u).
+template <int N>
+void chain_free_components(EndOf<N, Jet>& e, const EndOf<N, Jet>& by_u,
+                           const Eigen::Matrix<double, Eigen::Dynamic, K>& du_dp) {
+  const auto k = du_dp.rows();
+  const auto add = [&](Jet& x, const Jet& x_u) { x.v += du_dp.transpose() * x_u.v.head(k); };
+  for (int i = 0; i < 6; ++i) add(e.stress(i), by_u.stress(i));
+  for (int i = 0; i < 6; ++i) add(e.sample_stress(i), by_u.sample_stress(i));
+  for (int i = 0; i < 9; ++i) add(e.orientation(i), by_u.orientation(i));
+  for (int a = 0; a < e.mu.size(); ++a) {
+    add(e.mu(a), by_u.mu(a));
+    add(e.r_s(a), by_u.r_s(a));
+    add(e.slip(a), by_u.slip(a));
+  }
+}
+
+Mat3Of<Jet> constant_jets(const Mat3& L) {
+  return L.cast<Jet>();
+}
+
+}  // namespace
+
 template <int N>
 void carry_grain_sensitivity(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L, double dt,
-                             const GrainState<N>& s1, GrainSensitivity& d) {
-  const int n = ph.slip_count;
+                             const GrainState<N>& s1, GrainSensitivity& d,
+                             MixedControlSensitivity* mixed) {
   const auto& law = ph.laws.front();
   const JetLaw seeded{law::BasicSubloadingFrictionJet<Jet>(law, true)};
   const JetLaw constant{law::BasicSubloadingFrictionJet<Jet>(law, false)};
   // The converged slips (rate = dgamma / dt: zero exactly where the step did not slip).
   const typename SlipTypes<N>::VecN dgamma = s1.rate * dt;
-  std::vector<int> active;
-  for (int a = 0; a < n; ++a)
-    if (dgamma(a) != 0.0) active.push_back(a);
-  const int m = static_cast<int>(active.size());
-  const StartOf<N, Jet> start = start_jets(ph, s0, d, true);
-  VecNOf<N, Jet> slips(n);
-  for (int a = 0; a < n; ++a) slips(a) = Jet(dgamma(a));
-
-  if (m > 0) {
-    // R_p + R_s0 ds0/dp: the residuals at the converged slips held constant.
-    const EndOf<N, Jet> at_root = replay(ph, seeded, start, L, dt, slips);
-    Eigen::MatrixXd r_p(m, K), r_dgamma(m, m);
-    for (int i = 0; i < m; ++i) r_p.row(i) = at_root.residual(active[i]).v.transpose();
-    // R_dgamma, K slips at a time, everything else constant.
-    GrainSensitivity none;
-    for (SlipGradients* g : {&none.mu, &none.r_s, &none.slip}) g->setZero(n, K);
-    const StartOf<N, Jet> fixed = start_jets(ph, s0, none, false);
-    for (int first = 0; first < m; first += K) {
-      VecNOf<N, Jet> seeded_slips = slips;
-      const int count = std::min(K, m - first);
-      for (int k = 0; k < count; ++k)
-        seeded_slips(active[first + k]) = Jet(dgamma(active[first + k]), k);
-      const EndOf<N, Jet> e = replay(ph, constant, fixed, L, dt, seeded_slips);
-      for (int i = 0; i < m; ++i)
-        r_dgamma.block(i, first, 1, count) = e.residual(active[i]).v.head(count).transpose();
+  GrainSensitivity none;
+  for (SlipGradients* g : {&none.mu, &none.r_s, &none.slip}) g->setZero(ph.slip_count, K);
+  const StartOf<N, Jet> fixed = start_jets(ph, s0, none, false);
+  const SlipLinearisation lin =
+      linearise_in_slips(ph, constant, fixed, constant_jets(L), dt, dgamma);
+  EndOf<N, Jet> e = differentiated_end(ph, seeded, start_jets(ph, s0, d, true), constant_jets(L),
+                                       dt, dgamma, lin);
+  if (mixed && !mixed->directions.empty()) {
+    const auto k = static_cast<int>(mixed->directions.size());
+    if (k > K || mixed->held.size() != mixed->directions.size())
+      throw std::invalid_argument("grain sensitivities under mixed control: " + std::to_string(k) +
+                                  " free directions for " + std::to_string(mixed->held.size()) +
+                                  " held stress components (at most " + std::to_string(K) + ")");
+    // The end state's derivatives with respect to the free components, the start and the law
+    // held constant.
+    Mat3Of<Jet> l_free = constant_jets(L);
+    for (int c = 0; c < k; ++c)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) l_free(i, j).v(c) = mixed->directions[c](i, j);
+    const EndOf<N, Jet> by_u = differentiated_end(ph, constant, fixed, l_free, dt, dgamma, lin);
+    // The held stresses keep their values: d sigma_h/du du/dp + d sigma_h/dp = 0.
+    Eigen::MatrixXd s_u(k, k), s_p(k, K);
+    for (int h = 0; h < k; ++h) {
+      const Jet& sigma = by_u.sample_stress(mixed->held[h]);
+      s_u.row(h) = sigma.v.head(k).transpose();
+      s_p.row(h) = e.sample_stress(mixed->held[h]).v.transpose();
     }
-    const Eigen::FullPivLU<Eigen::MatrixXd> lu(r_dgamma);
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(s_u);
     if (!lu.isInvertible())
-      throw std::runtime_error("grain sensitivities: the step's flow rules are singular in its " +
-                               std::to_string(m) + " slipping systems' slips");
-    const Eigen::MatrixXd d_dgamma = -lu.solve(r_p);
-    for (int i = 0; i < m; ++i) slips(active[i]).v = d_dgamma.row(i).transpose();
+      throw std::runtime_error(
+          "grain sensitivities under mixed control: the held stresses do "
+          "not depend on the free components of L independently");
+    mixed->free_gradient = -lu.solve(s_p);
+    chain_free_components(e, by_u, mixed->free_gradient);
   }
-  write_gradients(replay(ph, seeded, start, L, dt, slips), d);
+  write_gradients(e, d);
 }
 
 template <int N>
 ReplayedStep<N> replayed_grain_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L,
                                     double dt, const typename SlipTypes<N>::VecN& dgamma) {
   const StartOf<N, double> start{s0.stress, s0.orientation, s0.mu, s0.r_s, s0.slip, ph.tau0(0)};
-  const EndOf<N, double> e =
-      replay(ph, DoubleLaw{ph.laws.front()}, start, L, dt, VecNOf<N, double>(dgamma));
+  const EndOf<N, double> e = replay(ph, DoubleLaw{ph.laws.front()}, start, Mat3Of<double>(L), dt,
+                                    VecNOf<N, double>(dgamma));
   ReplayedStep<N> out;
   out.state.stress = e.stress;
   out.state.orientation = e.orientation;
@@ -317,7 +402,8 @@ ReplayedStep<N> replayed_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
 
 #define SUBSLIP_GRAIN_SENSITIVITY(N)                                                           \
   template void carry_grain_sensitivity<N>(const Phase<N>&, const GrainState<N>&, const Mat3&, \
-                                           double, const GrainState<N>&, GrainSensitivity&);   \
+                                           double, const GrainState<N>&, GrainSensitivity&,    \
+                                           MixedControlSensitivity*);                          \
   template ReplayedStep<N> replayed_grain_step<N>(const Phase<N>&, const GrainState<N>&,       \
                                                   const Mat3&, double,                         \
                                                   const typename SlipTypes<N>::VecN&);

@@ -15,12 +15,15 @@ namespace subslip::crystal {
 GrainSensitivity initial_grain_sensitivity(int n, bool initial_mu_is_mu_s);
 
 // The sensitivities after the converged implicit step from s0 (sensitivities `d`) under L over
-// dt to s1, into `d`. The phase's systems share one law and one tau0 and no plane pressure (the
-// caller checks). Throws std::runtime_error where the step's equations are singular in its
-// slips (no sensitivity exists there).
+// dt to s1, into `d`; under mixed control (`mixed` with directions) through the free components'
+// own change as well (MixedControlSensitivity). The phase's systems share one law and one tau0
+// and no plane pressure (the caller checks). Throws std::runtime_error where the step's
+// equations are singular in its slips, or the held stresses in the free components (no
+// sensitivity exists there).
 template <int N>
 void carry_grain_sensitivity(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L, double dt,
-                             const GrainState<N>& s1, GrainSensitivity& d);
+                             const GrainState<N>& s1, GrainSensitivity& d,
+                             MixedControlSensitivity* mixed = nullptr);
 
 // The step's end state written from its signed slips dgamma (as carry_grain_sensitivity
 // differentiates it), and each slipping system's flow residual there (0 where dgamma_a = 0).

@@ -29,7 +29,8 @@ struct GrainPoint::Model {
   virtual std::string admissibility_violation(const GrainState& state) const = 0;
   // The update, then the step's sensitivities (crystal/grain_sensitivity.hpp) where it is ok.
   virtual void update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
-                      GrainUpdate& out, GrainSensitivity& sensitivity) const = 0;
+                      GrainUpdate& out, GrainSensitivity& sensitivity,
+                      MixedControlSensitivity* mixed) const = 0;
 
   // Why the phase has no sensitivities (empty where it has them), and whether its mu starts
   // from mu_s.
@@ -102,14 +103,15 @@ class PhaseModel final : public GrainPoint::Model {
   }
 
   void update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient, double dt,
-              GrainUpdate& out, GrainSensitivity& sensitivity) const override {
+              GrainUpdate& out, GrainSensitivity& sensitivity,
+              MixedControlSensitivity* mixed) const override {
     update(state, velocity_gradient, dt, out);
     if (!out.report.ok) return;
     cr::GrainState<N> s0, s1;
     cr::RateHistory<N> history;
     from_point(state, s0, history);
     from_point(out.state, s1, history);
-    cr::carry_grain_sensitivity(phase_, s0, velocity_gradient, dt, s1, sensitivity);
+    cr::carry_grain_sensitivity(phase_, s0, velocity_gradient, dt, s1, sensitivity, mixed);
   }
 
   std::string admissibility_violation(const GrainState& state) const override {
@@ -226,6 +228,23 @@ GrainSensitivity GrainPoint::initial_sensitivity() const {
 
 GrainUpdate GrainPoint::update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient,
                                double dt, GrainSensitivity& sensitivity) const {
+  return sensitivity_update(state, velocity_gradient, dt, sensitivity, nullptr);
+}
+
+GrainUpdate GrainPoint::update(const GrainState& state, const Eigen::Matrix3d& velocity_gradient,
+                               double dt, GrainSensitivity& sensitivity,
+                               MixedControlSensitivity& mixed) const {
+  for (const int h : mixed.held)
+    if (h < 0 || h > 5)
+      throw std::invalid_argument("mixed control: held stress component " + std::to_string(h) +
+                                  " is no Mandel index (0 ... 5)");
+  return sensitivity_update(state, velocity_gradient, dt, sensitivity, &mixed);
+}
+
+GrainUpdate GrainPoint::sensitivity_update(const GrainState& state,
+                                           const Eigen::Matrix3d& velocity_gradient, double dt,
+                                           GrainSensitivity& sensitivity,
+                                           MixedControlSensitivity* mixed) const {
   if (!model_->sensitivity_refusal.empty())
     throw std::invalid_argument(model_->sensitivity_refusal);
   model_->check(state);
@@ -235,7 +254,7 @@ GrainUpdate GrainPoint::update(const GrainState& state, const Eigen::Matrix3d& v
       throw std::invalid_argument("grain sensitivity of " + std::to_string(g->rows()) +
                                   " slip systems for a phase of " + std::to_string(n));
   GrainUpdate out;
-  model_->update(state, velocity_gradient, dt, out, sensitivity);
+  model_->update(state, velocity_gradient, dt, out, sensitivity, mixed);
   return out;
 }
 

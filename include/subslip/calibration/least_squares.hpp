@@ -55,8 +55,8 @@ struct CurveModel {
 };
 
 struct LeastSquaresProblem {
-  std::vector<std::string> names;  // of the free constants
-  std::vector<double> start;       // their starts, within the bounds
+  std::vector<std::string> names;   // of the free constants
+  std::vector<double> start;        // their starts, within the bounds
   std::vector<FreeParameter> free;  // their bounds and scales (index unused here)
   std::vector<CurveModel> curves;
   int max_iterations = 100;

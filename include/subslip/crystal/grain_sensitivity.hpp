@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "subslip/crystal/crystal_kernel.hpp"
 #include "subslip/law/parameter_table.hpp"
@@ -29,6 +30,18 @@ struct GrainSensitivity {
   GrainGradients<6> sample_stress = GrainGradients<6>::Zero();
   GrainGradients<9> orientation = GrainGradients<9>::Zero();  // g's entries, column by column
   SlipGradients mu, r_s, slip;                                // per system
+};
+
+// Mixed control of a step: the components u of the velocity gradient along `directions`
+// (dL/du_k, sample frame) are what a driver solves for so that the sample-frame Cauchy stress
+// components `held` (Mandel indices, one per direction) keep their prescribed values. The
+// constants then move the step's L as well: du/dp = -(d sigma_held/du)^-1 d sigma_held/dp at
+// fixed u, and the carried sensitivities include that change (the total derivative along the
+// mixed-controlled path); `free_gradient` receives du/dp (a row per direction) [1/time/unit].
+struct MixedControlSensitivity {
+  std::vector<Mat3> directions;
+  std::vector<int> held;
+  Eigen::Matrix<double, Eigen::Dynamic, kGrainParameterCount> free_gradient;
 };
 
 }  // namespace subslip::crystal
