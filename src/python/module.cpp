@@ -640,6 +640,7 @@ Array crystal_fit_predict(const std::string& scene, const std::string& text,
                           .g;
   curve.strain_rate = strain_rate;
   curve.strain.assign(e.data(), e.data() + e.size());
+  curve.stress.assign(curve.strain.size(), 0.0);  // (a measured curve's; the model ignores them)
   const subslip::model::CrystalCase c = crystal_case(scene, text, case_name);
   std::vector<double> stress;
   {

@@ -577,6 +577,24 @@ class CrystalFit(unittest.TestCase):
         self.assertAlmostEqual(report["estimate"]["mu_s"], 1.6, places=5)
         np.testing.assert_allclose(report["curves"][0]["fit"], stress, rtol=1e-6)
 
+    def test_the_model_is_the_tension_scenes_run(self):
+        # crystal_fit_predict's path (calibration::predict) against `subslip run` of the shipped
+        # [001] tension scene, the same grain, loading and 200 steps: sigma11 at every step's
+        # ln F11, to within the scene's mixed-control stress tolerance.
+        scene = scene_path("inputs", "fcc_single_crystal_tension_001.yaml")
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "run.h5")
+            done = subprocess.run([BINARY, "run", scene, "-o", out, "--quiet"],
+                                  capture_output=True, text=True)
+            self.assertEqual(done.returncode, 0, done.stderr)
+            with h5py.File(out, "r") as f:
+                F = f["cases/base/macro/F"][1:]
+                sigma = f["cases/base/macro/stress"][1:, 0, 0]
+        strain = np.log(F[:, 0, 0])
+        model = subslip._native.core().crystal_fit_predict(scene, "", "", [90, 90, 0], 1.0e-3,
+                                                           strain, 200)
+        np.testing.assert_allclose(model, sigma, rtol=0, atol=1e-5 * np.max(np.abs(sigma)))
+
     @staticmethod
     def _file(d, free, extra="", rate="1.0e-3", mu_s="1.6"):
         path = os.path.join(d, "fit.yaml")
