@@ -312,6 +312,26 @@ TEST(FitFile, ReadsACrystalFileInItsUnits) {
   EXPECT_EQ(p.phase.family_settings[0].initial_mu, 0.0);
 }
 
+TEST(FitFile, TheShippedCrystalExampleReads) {
+  const io::FitFile f = io::read_fit_file(std::filesystem::path(SUBSLIP_SOURCE_DIR) / "inputs" /
+                                          "crystal_fit_three_orientations.yaml");
+  EXPECT_EQ(f.kind, io::FitKind::crystal);
+  ASSERT_EQ(f.crystal.curves.size(), 3u);
+  // Each orientation puts its crystal direction along sample x: g e_x, the first column.
+  const std::vector<Eigen::Vector3d> along_x = {{0, 0, 1}, {1, 1, 1}, {-1, 2, 3}};
+  for (std::size_t c = 0; c < 3; ++c) {
+    const auto& curve = f.crystal.curves[c];
+    EXPECT_EQ(curve.strain.size(), 60u) << curve.name;
+    EXPECT_EQ(curve.strain_rate, 1.0e-3) << curve.name;
+    EXPECT_NEAR((curve.orientation.col(0) - along_x[c].normalized()).norm(), 0.0, 1e-8)
+        << curve.name;
+  }
+  std::vector<std::string> names;
+  for (const auto& p : f.crystal.free)
+    names.emplace_back(law::kLawParameters[static_cast<std::size_t>(p.index)].name);
+  EXPECT_EQ(names, (std::vector<std::string>{"mu_s", "mu_k", "kappa", "u_tilde"}));
+}
+
 TEST(FitFile, ACrystalFitsInitialMuWhereThePhaseGivesIt) {
   CrystalFitFiles files;
   files.write("a.csv", kTwoPoints);
