@@ -9,7 +9,8 @@ calibration::predict that `subslip fit` fits with): one grain of the copper phas
 inputs/fcc_single_crystal_tension_001.yaml (the constants the fit is to recover) pulled along
 sample x at 1e-3 /s with sigma22 = sigma33 = 0 and no shear, with crystal [001], [111] and
 [-1 2 3] along x. Its sigma11 [MPa] at 60 logarithmic strains from 0.002 to 0.1 (evenly in log)
-gets 1 % Gaussian noise (seed 2016). Needs the Python module built (build/python) and numpy.
+gets 1 % Gaussian noise (seed 2016). The path takes 400 equal steps, twice the fit file's, so that
+the data are the model's with a smaller step error than the fit's own evaluation of it. Needs the Python module built (build/python) and numpy.
 """
 
 import os
@@ -61,11 +62,12 @@ def main():
         path = os.path.join(SOURCE, "inputs", "fit_curves", name)
         label = "[" + " ".join(str(k) for k in direction) + "]"
         with open(path, "w", encoding="utf-8") as out:
-            out.write(f"# Synthetic tension curve of copper, crystal {label} along x (Bunge Euler "
-                      f"angles {euler[0]:g}, {euler[1]:g}, {euler[2]:g} deg)\n")
-            out.write("# at 1e-3 /s: inputs/fcc_single_crystal_tension_001.yaml's phase computed by "
-                      "subslip\n# (scripts/make_crystal_fit_curves.py), sigma11 with 1 % Gaussian "
-                      f"noise (seed {SEED}).\n")
+            angles = ", ".join(f"{a:g}" for a in euler)
+            out.write(f"# Synthetic tension curve of copper, crystal {label} along x (Bunge Euler\n"
+                      f"# angles {angles} deg) at 1e-3 /s: the phase of\n"
+                      "# inputs/fcc_single_crystal_tension_001.yaml computed by subslip\n"
+                      "# (scripts/make_crystal_fit_curves.py), sigma11 with 1 % Gaussian noise "
+                      f"(seed {SEED}).\n")
             out.write("strain [-], stress [MPa]\n")
             for e, s in zip(strains, stress):
                 out.write(f"{e:.6g}, {s * (1.0 + noise.gauss(0.0, 0.01)):.6g}\n")

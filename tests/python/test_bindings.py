@@ -609,8 +609,8 @@ class CrystalFit(unittest.TestCase):
                     "    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}\n"
                     f"free:\n  {free}\n"
                     "curves:\n"
-                    f"  - {{file: a.csv, orientation: [90, 35.2643897, 225], strain_rate: {rate}}}\n"
-                    + extra)
+                    "  - {file: a.csv, orientation: [90, 35.2643897, 225], "
+                    f"strain_rate: {rate}}}\n" + extra)
         return path
 
     def test_bad_inputs_raise_the_command_lines_messages(self):
