@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""The figure of a fit's report: data against fit for every curve, and the residuals.
+"""The figure of a fit's report (fit: contact or fit: crystal): data against fit for every curve,
+and the residuals.
 
     subslip fit FIT.yaml --output fit.json
     /usr/bin/python3 scripts/fit_report.py fit.json fit.png     # or fit.pdf

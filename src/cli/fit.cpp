@@ -36,8 +36,10 @@ void write_atomically(const std::string& path, const std::string& text) {
 
 void add_fit_command(CLI::App& app, FitArgs& a) {
   CLI::App* cmd = app.add_subcommand(
-      "fit", "Fit the law's constants to measured friction curves (FIT.yaml and its CSV files)");
-  cmd->add_option("file", a.file, "Fit file (fit: contact)")->required();
+      "fit",
+      "Fit the law's constants to measured friction curves or single-crystal stress-strain "
+      "curves (FIT.yaml and its CSV files)");
+  cmd->add_option("file", a.file, "Fit file (fit: contact or fit: crystal)")->required();
   cmd->add_flag("--json", a.json,
                 "Print the report as JSON (estimate, standard_error, interval, correlation, ...)");
   cmd->add_option("-o,--output", a.output,
@@ -47,7 +49,7 @@ void add_fit_command(CLI::App& app, FitArgs& a) {
 int run_fit(const FitArgs& a) {
   const io::FitFile f = io::read_fit_file(a.file);
   const auto start = std::chrono::steady_clock::now();
-  const calibration::FitResult r = calibration::fit(f.problem);
+  const calibration::FitResult r = fit_of(f);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::ostringstream json;

@@ -1,5 +1,5 @@
-// subslip fit: the law's constants fitted to measured friction curves (io/fit_file.hpp reads
-// the problem, calibration/contact_fit.hpp solves it).
+// subslip fit: the law's constants fitted to measured friction curves or single-crystal curves
+// (io/fit_file.hpp reads the problem, calibration/contact_fit.hpp or crystal_fit.hpp solves it).
 #pragma once
 
 #include <CLI/CLI.hpp>

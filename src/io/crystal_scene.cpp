@@ -229,12 +229,15 @@ void parse_per_family(const CheckedNode& phase, const crystal::SlipGroupSettings
     d.custom_settings = family_settings({}, settings, phase_initial_mu, v);
 }
 
+}  // namespace
+
 // Every independent part is read, each error reported; a part that needs a failed one (the
 // elasticity and c/a need the families, per_family the law) is skipped.
-void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
+crystal::PhaseDescription parse_crystal_phase(const CheckedNode& node, SceneValues& v,
+                                              std::string& elasticity_type) {
   node.allow_keys({"families", "slip_systems", "c_over_a", "elasticity", "tau0", "law",
                    "initial_mu", "per_family", "latent", "pressure_sensitive", "kinematics"});
-  crystal::PhaseDescription& d = c.phase;
+  crystal::PhaseDescription d;
   InputErrorList errors;
   const bool systems = errors.attempt([&] {
     if (*node.one_of({"families", "slip_systems"}, true) == "families") {
@@ -246,7 +249,7 @@ void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
   if (systems) {
     errors.attempt([&] { parse_c_over_a(node, d); });
     errors.attempt([&] {
-      d.stiffness = parse_elasticity(node.required("elasticity"), d.families, c.elasticity_type, v);
+      d.stiffness = parse_elasticity(node.required("elasticity"), d.families, elasticity_type, v);
     });
   }
   crystal::SlipGroupSettings settings;
@@ -277,6 +280,13 @@ void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
     }
   });
   errors.throw_if_any();
+  return d;
+}
+
+namespace {
+
+void parse_phase(const CheckedNode& node, CrystalCase& c, SceneValues& v) {
+  c.phase = parse_crystal_phase(node, v, c.elasticity_type);
 }
 
 // ---------------------------------------------------------------- orientations
@@ -358,22 +368,36 @@ model::OrientationFile orientation_file(const CheckedNode& node,
   return file;
 }
 
+}  // namespace
+
+EulerDegrees parse_euler_degrees(const CheckedNode& node, bool weighted) {
+  const auto v = node.as_doubles();
+  if (weighted ? (v.size() != 3 && v.size() != 4) : v.size() != 3)
+    node.fail(weighted ? "expected [phi1, Phi, phi2] or [phi1, Phi, phi2, weight] in degrees"
+                       : "expected [phi1, Phi, phi2] in degrees");
+  // The ranges of orientation files (docs/orientations.md).
+  if (!(v[1] >= 0.0 && v[1] <= 180.0)) node.fail("Phi must be in [0, 180] degrees");
+  if (std::abs(v[0]) > 360.0 || std::abs(v[2]) > 360.0)
+    node.fail("phi1 and phi2 must be in [-360, 360] degrees");
+  if (v.size() == 4 && !(v[3] > 0.0)) node.fail("the weight must be > 0");
+  EulerDegrees out;
+  out.degrees = crystal::Vec3(v[0], v[1], v[2]);
+  out.orientation = crystal::Orientation::from_euler(crystal::degrees_to_radians(out.degrees),
+                                                     v.size() == 4 ? v[3] : 1.0);
+  return out;
+}
+
+namespace {
+
 std::vector<crystal::Orientation> inline_euler(const CheckedNode& node, OrientationSource& source) {
   if (node.size() == 0) node.fail("needs at least one orientation");
   std::vector<crystal::Orientation> out;
   double largest = 0.0;
   for (const CheckedNode& element : node.elements()) {
-    const auto v = element.as_doubles();
-    if (v.size() != 3 && v.size() != 4)
-      element.fail("expected [phi1, Phi, phi2] or [phi1, Phi, phi2, weight] in degrees");
-    // The ranges of orientation files (docs/orientations.md).
-    if (!(v[1] >= 0.0 && v[1] <= 180.0)) element.fail("Phi must be in [0, 180] degrees");
-    if (std::abs(v[0]) > 360.0 || std::abs(v[2]) > 360.0)
-      element.fail("phi1 and phi2 must be in [-360, 360] degrees");
-    if (v.size() == 4 && !(v[3] > 0.0)) element.fail("the weight must be > 0");
-    largest = std::max({largest, std::abs(v[0]), std::abs(v[1]), std::abs(v[2])});
-    const crystal::Vec3 euler = crystal::degrees_to_radians(crystal::Vec3(v[0], v[1], v[2]));
-    out.push_back(crystal::Orientation::from_euler(euler, v.size() == 4 ? v[3] : 1.0));
+    const EulerDegrees e = parse_euler_degrees(element, true);
+    largest =
+        std::max({largest, std::abs(e.degrees[0]), std::abs(e.degrees[1]), std::abs(e.degrees[2])});
+    out.push_back(e.orientation);
   }
   source = {"euler_deg", std::to_string(out.size()) + " inline Bunge Euler angle sets", largest};
   return out;

@@ -4,10 +4,12 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string_view>
 #include <vector>
 
+#include "subslip/io/crystal_scene.hpp"
 #include "subslip/io/law_block.hpp"
 #include "subslip/io/scene_common.hpp"
 #include "subslip/law/parameter_table.hpp"
@@ -57,18 +59,6 @@ Column find_column(const std::vector<std::string>& header, std::string_view name
       "missing column (write it as '" + std::string(example) + "'); the header has " + has);
 }
 
-// The factor from the header's length unit to the fit's.
-double length_factor(const std::string& unit, const model::Units& units, const std::string& file,
-                     int line) {
-  const auto given = model::parse_unit(unit);
-  if (!given || !(given->dimension == model::dimension::length))
-    throw InputError(file, line, "slip",
-                     "unit '" + unit + "' is not a length (the fit's lengths are in " +
-                         units.length + "; write 'slip [" + units.length + "]')");
-  const model::Unit fit_unit = units.unit(model::dimension::length);
-  return model::convert(1.0, given->scale, fit_unit.scale);
-}
-
 double number(const std::string& text, const std::string& file, int line, std::string_view key) {
   double x = 0.0;
   const char* end = text.data() + text.size();
@@ -80,19 +70,65 @@ double number(const std::string& text, const std::string& file, int line, std::s
   return x;
 }
 
-}  // namespace
+// A column a curve file must have: its name, how to write it (for messages), and the factor
+// from the unit its header gives to the fit's (throwing at the header's line for a wrong unit).
+struct ColumnSpec {
+  std::string name;
+  std::string written;  // "slip [mm]"
+  std::function<double(const std::string& unit, const std::string& file, int line)> factor;
+};
 
-calibration::Curve read_curve_csv(const std::filesystem::path& path, const model::Units& units) {
+// A column of a dimensionless quantity: its unit is written '-' (or '1').
+ColumnSpec dimensionless(const std::string& name, const std::string& what) {
+  return {name, name + " [-]",
+          [name, what](const std::string& unit, const std::string& file, int line) {
+            if (!(unit == "-" || unit == "1"))
+              throw InputError(
+                  file, line, name,
+                  "unit '" + unit + "': " + what + " is dimensionless, write '" + name + " [-]'");
+            return 1.0;
+          }};
+}
+
+// A column of dimension `d`, converted to the fit's unit of it; `what` and `plural` name the
+// dimension in messages ("a length", "lengths").
+ColumnSpec dimensional(const std::string& name, model::Dimension d, const std::string& what,
+                       const std::string& plural, const model::Units& units) {
+  const model::Unit fit_unit = units.unit(d);
+  return {name, name + " [" + fit_unit.name + "]",
+          [name, d, what, plural, fit_unit](const std::string& unit, const std::string& file,
+                                            int line) {
+            const auto given = model::parse_unit(unit);
+            if (!given || !(given->dimension == d))
+              throw InputError(file, line, name,
+                               "unit '" + unit + "' is not " + what + " (the fit's " + plural +
+                                   " are in " + fit_unit.name + "; write '" + name + " [" +
+                                   fit_unit.name + "]')");
+            return model::convert(1.0, given->scale, fit_unit.scale);
+          }};
+}
+
+struct TwoColumns {
+  std::vector<double> x, y;  // converted to the fit's units
+};
+
+// The columns `xs` and `ys` of a curve file: a header naming them (other columns are ignored),
+// then one row per point, comma-separated, `#` starting a comment line; every value finite.
+// `check` sees each row's x (converted), as written, and its line, with the x before it, and
+// throws where the row cannot follow them.
+using RowCheck = std::function<void(double x, const std::string& written, int line,
+                                    const std::vector<double>& before)>;
+TwoColumns read_two_columns(const std::filesystem::path& path, const ColumnSpec& xs,
+                            const ColumnSpec& ys, const RowCheck& check) {
   const std::string file = path.string();
   std::ifstream in(path);
   if (!in) throw InputError(file, 0, "", "cannot open the curve file");
-  calibration::Curve curve;
-  curve.name = path.filename().string();
+  TwoColumns out;
   std::string line;
   int number_of_line = 0, header_line = 0;
   std::vector<std::string> header;
-  Column slip{}, ratio{};
-  double factor = 1.0;
+  Column x_column{}, y_column{};
+  double x_factor = 1.0, y_factor = 1.0;
   while (std::getline(in, line)) {
     ++number_of_line;
     const std::string text = trim(line);
@@ -101,77 +137,143 @@ calibration::Curve read_curve_csv(const std::filesystem::path& path, const model
     if (header.empty()) {
       header = fields;
       header_line = number_of_line;
-      slip = find_column(header, "slip", file, header_line, "slip [" + units.length + "]");
-      ratio = find_column(header, "ratio", file, header_line, "ratio [-]");
-      factor = length_factor(slip.unit, units, file, header_line);
-      if (!(ratio.unit == "-" || ratio.unit == "1"))
-        throw InputError(file, header_line, "ratio",
-                         "unit '" + ratio.unit + "': f_t/f_n is dimensionless, write 'ratio [-]'");
+      x_column = find_column(header, xs.name, file, header_line, xs.written);
+      y_column = find_column(header, ys.name, file, header_line, ys.written);
+      x_factor = xs.factor(x_column.unit, file, header_line);
+      y_factor = ys.factor(y_column.unit, file, header_line);
       continue;
     }
     if (fields.size() != header.size())
       throw InputError(file, number_of_line, "",
                        std::to_string(fields.size()) + " fields where the header has " +
                            std::to_string(header.size()));
-    const double s = number(fields[slip.index], file, number_of_line, "slip") * factor;
-    const double r = number(fields[ratio.index], file, number_of_line, "ratio");
-    if (!(s > 0.0))
-      throw InputError(file, number_of_line, "slip",
-                       "distances are from rest and must be positive, not " + fields[slip.index]);
-    if (!curve.slip.empty() && !(s > curve.slip.back()))
-      throw InputError(
-          file, number_of_line, "slip",
-          "distances must increase: " + fields[slip.index] + " does not follow the row before");
-    curve.slip.push_back(s);
-    curve.ratio.push_back(r);
+    const std::string& written = fields[x_column.index];
+    const double x = number(written, file, number_of_line, xs.name) * x_factor;
+    const double y = number(fields[y_column.index], file, number_of_line, ys.name) * y_factor;
+    check(x, written, number_of_line, out.x);
+    out.x.push_back(x);
+    out.y.push_back(y);
   }
   if (header.empty())
-    throw InputError(file, 0, "", "no header (slip [" + units.length + "], ratio [-])");
-  if (curve.slip.empty()) throw InputError(file, header_line, "", "no rows after the header");
+    throw InputError(file, 0, "", "no header (" + xs.written + ", " + ys.written + ")");
+  if (out.x.empty()) throw InputError(file, header_line, "", "no rows after the header");
+  return out;
+}
+
+}  // namespace
+
+calibration::Curve read_curve_csv(const std::filesystem::path& path, const model::Units& units) {
+  const std::string file = path.string();
+  const auto check = [&file](double s, const std::string& written, int line,
+                             const std::vector<double>& before) {
+    if (!(s > 0.0))
+      throw InputError(file, line, "slip",
+                       "distances are from rest and must be positive, not " + written);
+    if (!before.empty() && !(s > before.back()))
+      throw InputError(file, line, "slip",
+                       "distances must increase: " + written + " does not follow the row before");
+  };
+  TwoColumns read = read_two_columns(
+      path, dimensional("slip", model::dimension::length, "a length", "lengths", units),
+      dimensionless("ratio", "f_t/f_n"), check);
+  calibration::Curve curve;
+  curve.name = path.filename().string();
+  curve.slip = std::move(read.x);
+  curve.ratio = std::move(read.y);
+  return curve;
+}
+
+calibration::CrystalCurve read_crystal_curve_csv(const std::filesystem::path& path,
+                                                 const model::Units& units, double strain_rate) {
+  const std::string file = path.string();
+  const double sign = strain_rate > 0.0 ? 1.0 : -1.0;
+  const auto check = [&file, sign, strain_rate](double e, const std::string& written, int line,
+                                                const std::vector<double>& before) {
+    std::ostringstream rate;
+    rate << strain_rate;
+    // The path starts from the virgin grain at zero strain and runs at one rate.
+    if (!(sign * e > 0.0))
+      throw InputError(file, line, "strain",
+                       "strains are from the unloaded crystal and must be nonzero and of the "
+                       "strain rate's sign (" +
+                           rate.str() + "), not " + written);
+    if (!before.empty() && !(std::abs(e) > std::abs(before.back())))
+      throw InputError(
+          file, line, "strain",
+          "strains must increase in magnitude: " + written + " does not follow the row before");
+  };
+  TwoColumns read = read_two_columns(
+      path, dimensionless("strain", "the logarithmic strain ln F11"),
+      dimensional("stress", model::dimension::stress, "a stress", "stresses", units), check);
+  calibration::CrystalCurve curve;
+  curve.name = path.filename().string();
+  curve.strain_rate = strain_rate;
+  curve.strain = std::move(read.x);
+  curve.stress = std::move(read.y);
   return curve;
 }
 
 namespace {
 
+// The bounds `node` gives a free constant `name` (column `index`) that starts at `start`, read
+// in `unit` within `range`; `source` says where the start comes from. Positive ranges are fitted
+// in log scale.
+calibration::FreeParameter bounded(const CheckedNode& node, std::string_view name, int index,
+                                   double start, const Unit& unit, const Range& range,
+                                   std::string_view source) {
+  const std::vector<double> b = node.as_quantities(unit, range, 2);
+  if (!(b[0] < b[1])) node.fail("the lower bound must lie below the upper one");
+  if (!(start >= b[0] && start <= b[1])) {
+    std::ostringstream msg;
+    msg << "the bounds exclude the start " << name << " = " << start << " (" << source << ")";
+    node.fail(msg.str());
+  }
+  return {index, b[0], b[1], b[0] > 0.0};
+}
+
+std::vector<std::string_view> law_parameter_names() {
+  std::vector<std::string_view> names;
+  for (const auto& p : law::kLawParameters) names.push_back(p.name);
+  return names;
+}
+
+// The law's constants `node` frees, in law::kLawParameters' order, from their values in `start`.
+std::vector<calibration::FreeParameter> free_law_constants(const CheckedNode& node,
+                                                           const law::LawParameters& start,
+                                                           const LawUnits& units,
+                                                           std::string_view source) {
+  std::vector<calibration::FreeParameter> free;
+  for (std::size_t k = 0; k < law::kLawParameters.size(); ++k) {
+    const auto& info = law::kLawParameters[k];
+    if (const auto bounds = node.optional(info.name))
+      free.push_back(bounded(*bounds, info.name, static_cast<int>(k), info.value(start),
+                             law_constant_unit(units, info.unit), law_constant_range(info.bound),
+                             source));
+  }
+  return free;
+}
+
 std::vector<calibration::FreeParameter> parse_free(const CheckedNode& node,
                                                    const law::LawParameters& start,
                                                    const LawUnits& units) {
   node.expect_map();
-  std::vector<std::string_view> names;
-  for (const auto& p : law::kLawParameters) names.push_back(p.name);
-  node.allow_keys(names);
-  std::vector<calibration::FreeParameter> free;
-  for (std::size_t k = 0; k < law::kLawParameters.size(); ++k) {
-    const auto& info = law::kLawParameters[k];
-    const auto bounds = node.optional(info.name);
-    if (!bounds) continue;
-    const std::vector<double> b = bounds->as_quantities(law_constant_unit(units, info.unit),
-                                                        law_constant_range(info.bound), 2);
-    if (!(b[0] < b[1])) bounds->fail("the lower bound must lie below the upper one");
-    const double value = info.value(start);
-    if (!(value >= b[0] && value <= b[1])) {
-      std::ostringstream msg;
-      msg << "the bounds exclude the start " << info.name << " = " << value
-          << " (the law block's value)";
-      bounds->fail(msg.str());
-    }
-    free.push_back({static_cast<int>(k), b[0], b[1], b[0] > 0.0});
-  }
+  node.allow_keys(law_parameter_names());
+  std::vector<calibration::FreeParameter> free =
+      free_law_constants(node, start, units, "the law block's value");
   if (free.empty()) node.fail("no free constant: name at least one with its bounds");
   return free;
 }
 
-}  // namespace
+// More points than free constants, or nothing is determined.
+void check_points(const CheckedNode& curves, std::size_t points, std::size_t free) {
+  if (points <= free)
+    curves.fail(std::to_string(points) + " points for " + std::to_string(free) +
+                " free constants: the fit needs more points than constants");
+}
 
-FitFile read_fit_file(const std::filesystem::path& path) {
-  const YamlDocument document = YamlDocument::from_file(path);
-  const CheckedNode root = document.root();
+void read_contact(const CheckedNode& root, const std::filesystem::path& path, FitFile& f) {
   root.allow_keys({"fit", "title", "units", "law", "contact", "initial", "free", "curves", "steps",
                    "max_iterations"});
-  root.required("fit").as_choice({"contact"});
-  FitFile f;
-  f.file = path.string();
-  f.title = root.get_string("title", "");
   f.units = parse_units(root.required("units"));
   const SceneValues values(f.units);
   calibration::FitProblem& p = f.problem;
@@ -210,9 +312,145 @@ FitFile read_fit_file(const std::filesystem::path& path) {
   p.max_iterations = root.get_int("max_iterations", p.max_iterations, Range::at_least(1));
   std::size_t points = 0;
   for (const auto& c : p.curves) points += c.slip.size();
-  if (points <= p.free.size())
-    curves.fail(std::to_string(points) + " points for " + std::to_string(p.free.size()) +
-                " free constants: the fit needs more points than constants");
+  check_points(curves, points, p.free.size());
+}
+
+// ---- fit: crystal
+
+// The settings every slip system of `d` takes (one per family, or the custom systems').
+std::vector<crystal::SlipGroupSettings*> slip_groups(crystal::PhaseDescription& d) {
+  std::vector<crystal::SlipGroupSettings*> groups;
+  if (!d.custom_systems.empty()) {
+    groups.push_back(&d.custom_settings);
+  } else {
+    for (auto& g : d.family_settings) groups.push_back(&g);
+  }
+  return groups;
+}
+
+// Whether the phase block gives an initial friction coefficient (its own or a family's).
+bool gives_initial_mu(const CheckedNode& phase) {
+  if (phase.has("initial_mu")) return true;
+  const auto per_family = phase.optional("per_family");
+  if (!per_family) return false;
+  for (const std::string& family : per_family->keys())
+    if (per_family->required(family).has("initial_mu")) return true;
+  return false;
+}
+
+// A crystal fit's grain: its sensitivities are those of one law, one tau0 and one initial_mu on
+// every slip system, without plane pressure (point::GrainPoint). Where the phase gives no
+// initial_mu, every system starts from mu_s, and moves with it when mu_s is free.
+void check_fit_phase(const CheckedNode& node, crystal::PhaseDescription& d) {
+  if (d.pressure_sensitive)
+    node.required("pressure_sensitive")
+        .fail(
+            "the crystal fit's grain has no plane pressure (its sensitivities do not follow "
+            "the normal traction of the slip planes); remove pressure_sensitive");
+  const std::vector<crystal::SlipGroupSettings*> groups = slip_groups(d);
+  for (std::size_t k = 1; k < groups.size(); ++k) {
+    const crystal::SlipGroupSettings &first = *groups.front(), &g = *groups[k];
+    const char* differs = !(g.law == first.law)              ? "law"
+                          : g.tau0 != first.tau0             ? "tau0"
+                          : g.initial_mu != first.initial_mu ? "initial_mu"
+                                                             : nullptr;
+    if (differs) {
+      const auto per_family = node.optional("per_family");
+      (per_family ? *per_family : node)
+          .fail(
+              "the crystal fit needs one law, tau0 and initial_mu on every slip system (it "
+              "fits one set of constants): slip family " +
+              std::string(crystal::to_string(d.families[k])) + " differs from " +
+              std::string(crystal::to_string(d.families.front())) + " in " + differs);
+    }
+  }
+  if (!gives_initial_mu(node))
+    for (crystal::SlipGroupSettings* g : groups) g->initial_mu = 0.0;
+}
+
+// The free constants of a crystal fit: the law's (from the phase's values) and initial_mu
+// (where the phase gives it); tau0 is refused with the reason.
+std::vector<calibration::FreeParameter> parse_crystal_free(const CheckedNode& node,
+                                                           const crystal::PhaseDescription& d,
+                                                           const Units& units) {
+  node.expect_map();
+  std::vector<std::string_view> names = law_parameter_names();
+  names.push_back("initial_mu");
+  names.push_back("tau0");
+  node.allow_keys(names);
+  if (const auto tau0 = node.optional("tau0"))
+    tau0->fail(
+        "tau0 cannot be fitted: scaling tau0 by c and mu_s, mu_k, kappa, xi and initial_mu by "
+        "1/c leaves every stress unchanged, so the curves determine only the products (the "
+        "CRSS); keep tau0 fixed and fit the CRSS through mu_s or initial_mu");
+  const crystal::SlipGroupSettings& group =
+      d.custom_systems.empty() ? d.family_settings.front() : d.custom_settings;
+  std::vector<calibration::FreeParameter> free =
+      free_law_constants(node, group.law, crystal_law_units(units), "the phase's value");
+  if (const auto mu = node.optional("initial_mu")) {
+    if (!(group.initial_mu > 0.0))
+      mu->fail(
+          "the phase gives no initial_mu: its slip systems start from mu_s; free mu_s, or "
+          "give phase.initial_mu to fit the initial friction coefficient apart from it");
+    free.push_back(bounded(*mu, "initial_mu", crystal::kInitialMuColumn, group.initial_mu,
+                           units.unit(dimension::none), Range::positive(), "the phase's value"));
+  }
+  if (free.empty()) node.fail("no free constant: name at least one with its bounds");
+  return free;
+}
+
+void read_crystal(const CheckedNode& root, const std::filesystem::path& path, FitFile& f) {
+  root.allow_keys({"fit", "title", "units", "phase", "free", "curves", "steps", "max_iterations"});
+  f.kind = FitKind::crystal;
+  f.units = parse_units_without_length(root.required("units"));
+  SceneValues values(f.units);
+  calibration::CrystalFitProblem& p = f.crystal;
+  const CheckedNode phase = root.required("phase");
+  std::string elasticity_type;
+  p.phase = parse_crystal_phase(phase, values, elasticity_type);
+  check_fit_phase(phase, p.phase);
+  p.free = parse_crystal_free(root.required("free"), p.phase, f.units);
+  const std::filesystem::path dir = path.parent_path();
+  const CheckedNode curves = root.required("curves");
+  std::size_t points = 0;
+  for (const CheckedNode& c : curves.elements()) {
+    c.allow_keys({"file", "orientation", "strain_rate", "weight"});
+    const std::filesystem::path csv = dir / c.get_string("file");
+    const EulerDegrees euler = parse_euler_degrees(c.required("orientation"), false);
+    const double rate = values.get(c, "strain_rate", dimension::per_time);
+    if (!(rate != 0.0))
+      c.required("strain_rate").fail("must be nonzero (positive: tension, negative: compression)");
+    const double weight = c.get_double("weight", 1.0, Range::positive());
+    calibration::CrystalCurve curve = read_crystal_curve_csv(csv, f.units, rate);
+    curve.orientation = euler.orientation.g;
+    curve.weight = weight;
+    points += curve.strain.size();
+    p.curves.push_back(std::move(curve));
+    f.euler_degrees.push_back(euler.degrees);
+  }
+  if (p.curves.empty()) curves.fail("needs at least one curve");
+  if (const auto steps = root.optional("steps")) {
+    steps->allow_keys({"increments"});
+    p.steps.increments = steps->get_int("increments", p.steps.increments, Range::at_least(1));
+  }
+  p.max_iterations = root.get_int("max_iterations", p.max_iterations, Range::at_least(1));
+  check_points(curves, points, p.free.size());
+}
+
+}  // namespace
+
+FitFile read_fit_file(const std::filesystem::path& path) {
+  const YamlDocument document = YamlDocument::from_file(path);
+  const CheckedNode root = document.root();
+  const std::string kind = root.required("fit").as_choice({"contact", "crystal"});
+  FitFile f;
+  f.file = path.string();
+  f.title = root.get_string("title", "");
+  if (kind == "crystal") {
+    read_crystal(root, path, f);
+  } else {
+    read_contact(root, path, f);
+  }
   return f;
 }
 

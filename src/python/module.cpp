@@ -7,6 +7,8 @@
 // * ContactPoint, GrainPoint, TaylorPoint: the material-point API (material_point.hpp) with the
 //   parameters of a scene's case (parsed by io, so that names, units, checks and messages are a
 //   scene's), driven along paths given as numpy arrays; states as dicts of arrays.
+// * fit_report, crystal_fit_predict: `subslip fit FILE --json`'s report, and the crystal fit's
+//   model of one curve (the synthetic curves of the shipped crystal fit are made with it).
 // * von_mises_stress, von_mises_strain, equivalent_plastic_strain, weighted_mean_abs: the
 //   derived measures of crystal/measures.hpp on numpy arrays, the package's only implementation
 //   of them (python/subslip/tensors.py, derived.py), so that they are `subslip post`'s numbers.
@@ -28,6 +30,7 @@
 #include "../cli/fit_report.hpp"
 #include "../cli/run_scene.hpp"
 #include "subslip/calibration/contact_fit.hpp"
+#include "subslip/calibration/crystal_fit.hpp"
 #include "subslip/contact/contact_point.hpp"
 #include "subslip/crystal/aggregate.hpp"
 #include "subslip/crystal/measures.hpp"
@@ -613,9 +616,38 @@ std::string fit_report(const std::string& file) {
   {
     const py::gil_scoped_release released;
     const subslip::io::FitFile f = subslip::io::read_fit_file(file);
-    subslip::cli::write_fit_json(json, f, subslip::calibration::fit(f.problem));
+    subslip::cli::write_fit_json(json, f, subslip::cli::fit_of(f));
   }
   return json.str();
+}
+
+// The crystal fit's model (calibration::predict): sigma11 [stress] at the logarithmic axial
+// strains `strain` [-] of one grain of the phase of the crystal scene `scene` (its case
+// `case_name`), oriented by Bunge Euler angles `euler_deg` [deg], pulled along sample x at
+// `strain_rate` [1/time] with sigma22 = sigma33 = 0 and no shear, in at most `increments` steps
+// of equal strain (split at every strain). What scripts/make_crystal_fit_curves.py makes its
+// curves with.
+Array crystal_fit_predict(const std::string& scene, const std::string& text,
+                          const std::string& case_name, const std::vector<double>& euler_deg,
+                          double strain_rate, const py::handle& strains, int increments) {
+  if (euler_deg.size() != 3)
+    throw py::value_error("euler_deg: [phi1, Phi, phi2] in degrees expected");
+  const Array e = checked(strains, {-1}, "strain");
+  subslip::calibration::CrystalCurve curve;
+  curve.name = scene;
+  curve.orientation = cr::Orientation::from_euler(cr::degrees_to_radians(cr::Vec3(
+                                                      euler_deg[0], euler_deg[1], euler_deg[2])))
+                          .g;
+  curve.strain_rate = strain_rate;
+  curve.strain.assign(e.data(), e.data() + e.size());
+  curve.stress.assign(curve.strain.size(), 0.0);  // (a measured curve's; the model ignores them)
+  const subslip::model::CrystalCase c = crystal_case(scene, text, case_name);
+  std::vector<double> stress;
+  {
+    const py::gil_scoped_release released;
+    stress = subslip::calibration::predict(c.phase, curve, {increments}).stress;
+  }
+  return array_of(stress, {static_cast<py::ssize_t>(stress.size())});
 }
 
 }  // namespace
@@ -641,6 +673,9 @@ PYBIND11_MODULE(_core, m) {
     }
   });
   m.def("fit_report", &fit_report, py::arg("file"));
+  m.def("crystal_fit_predict", &crystal_fit_predict, py::arg("scene"), py::arg("scene_text"),
+        py::arg("case"), py::arg("euler_deg"), py::arg("strain_rate"), py::arg("strain"),
+        py::arg("increments") = subslip::calibration::CrystalPathSteps{}.increments);
   m.def("run_scene", &run_scene, py::arg("scene"), py::arg("scene_text"), py::arg("output"),
         py::arg("force"), py::arg("threads"), py::arg("settings") = std::vector<std::string>{});
   m.def(

@@ -11,7 +11,8 @@
   goes on;
 * a contact point, a grain and a Taylor point driven along a scene's steps give the driver's
   rows bitwise (the file's traction, mu, r_s, slip; macro and grain stress);
-* subslip.fit gives `subslip fit --json`'s report and its error messages, and draws the figure;
+* subslip.fit gives `subslip fit --json`'s report and its error messages, and draws the figure,
+  for a friction fit and a crystal fit;
 * the package installs offline (pip, no index, no build isolation) and runs from there.
 """
 
@@ -520,6 +521,128 @@ class Fit(unittest.TestCase):
         self.assertTrue(done.stderr.startswith(prefix), done.stderr)
         self.assertEqual(str(caught.exception), done.stderr[len(prefix):].rstrip("\n"))
         self.assertIn("speed_1.csv:3: ratio: not a finite number", str(caught.exception))
+
+
+class CrystalFit(unittest.TestCase):
+    """A crystal fit file through subslip.fit is `subslip fit --json` on it; its bad inputs are
+    the command line's messages, each naming the file, the line and the key or column."""
+    EXAMPLE = scene_path("inputs", "crystal_fit_three_orientations.yaml")
+
+    def test_the_report_is_the_command_lines(self):
+        done = subprocess.run([BINARY, "fit", self.EXAMPLE, "--json"], capture_output=True,
+                              text=True, cwd=SOURCE)
+        self.assertEqual(done.returncode, 0, done.stderr)
+        with warnings.catch_warnings(record=True):
+            warnings.simplefilter("always", subslip.FitWarning)
+            report = subslip.fit(self.EXAMPLE)
+        self.assertEqual(report, json.loads(done.stdout))
+        self.assertEqual(report["kind"], "crystal")
+        self.assertTrue(report["converged"])
+        self.assertEqual(sorted(report["estimate"]), ["kappa", "mu_k", "mu_s", "u_tilde"])
+        self.assertEqual(report["unit"]["kappa"], "1")
+        self.assertEqual(report["stress_unit"], "MPa")
+        # The CRSS the curves determine: mu_s tau0 (tau0 = 10 MPa in the file) at the estimate.
+        self.assertEqual(report["initial_crss"]["unit"], "MPa")
+        self.assertAlmostEqual(report["initial_crss"]["value"],
+                               10.0 * report["estimate"]["mu_s"], places=9)
+        self.assertEqual([c["orientation"] for c in report["curves"]],
+                         [[90, 90, 0], [90, 35.2643897, 225], [90, 53.3007748, 153.4349488]])
+        for c in report["curves"]:
+            self.assertEqual(len(c["strain"]), 60)
+            self.assertEqual(len(c["fit"]), 60)
+        with tempfile.TemporaryDirectory() as d:
+            figure = os.path.join(d, "fit.png")
+            subslip.fit_figure(report, figure)
+            with open(figure, "rb") as f:
+                self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+            self.assertEqual(os.listdir(d), ["fit.png"])
+
+    def test_the_model_is_the_fits(self):
+        # A curve made by crystal_fit_predict from a scene's phase, fitted from mu_s 25 % off:
+        # the fit finds the scene's mu_s, and its model there is the curve.
+        scene = scene_path("inputs", "fcc_single_crystal_tension_001.yaml")
+        strain = np.geomspace(0.002, 0.05, 12)
+        stress = subslip._native.core().crystal_fit_predict(scene, "", "", [90, 35.2643897, 225],
+                                                            1.0e-3, strain, 100)
+        self.assertEqual(stress.shape, (12,))
+        self.assertTrue(np.all(np.diff(stress) > 0.0))  # hardening in tension
+        with tempfile.TemporaryDirectory() as d:
+            with open(os.path.join(d, "a.csv"), "w", encoding="utf-8") as f:
+                f.write("strain [-], stress [MPa]\n")
+                for e, s in zip(strain, stress):
+                    f.write(f"{e!r}, {s!r}\n")
+            fit = self._file(d, "mu_s: [1, 3]", "steps: {increments: 100}\n", mu_s="2.0")
+            report = subslip.fit(fit)
+        self.assertTrue(report["converged"], report["termination"])
+        self.assertAlmostEqual(report["estimate"]["mu_s"], 1.6, places=5)
+        np.testing.assert_allclose(report["curves"][0]["fit"], stress, rtol=1e-6)
+
+    def test_the_model_is_the_tension_scenes_run(self):
+        # crystal_fit_predict's path (calibration::predict) against `subslip run` of the shipped
+        # [001] tension scene, the same grain, loading and 200 steps: sigma11 at every step's
+        # ln F11, to within the scene's mixed-control stress tolerance.
+        scene = scene_path("inputs", "fcc_single_crystal_tension_001.yaml")
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "run.h5")
+            done = subprocess.run([BINARY, "run", scene, "-o", out, "--quiet"],
+                                  capture_output=True, text=True)
+            self.assertEqual(done.returncode, 0, done.stderr)
+            with h5py.File(out, "r") as f:
+                F = f["cases/base/macro/F"][1:]
+                sigma = f["cases/base/macro/stress"][1:, 0, 0]
+        strain = np.log(F[:, 0, 0])
+        model = subslip._native.core().crystal_fit_predict(scene, "", "", [90, 90, 0], 1.0e-3,
+                                                           strain, 200)
+        np.testing.assert_allclose(model, sigma, rtol=0, atol=1e-5 * np.max(np.abs(sigma)))
+
+    @staticmethod
+    def _file(d, free, extra="", rate="1.0e-3", mu_s="1.6"):
+        path = os.path.join(d, "fit.yaml")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write("fit: crystal\nunits: {stress: MPa, time: s}\nphase:\n"
+                    "  families: [fcc_111_110]\n"
+                    "  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}\n"
+                    "  tau0: 10\n"
+                    "  law:\n"
+                    f"    friction: {{mu_s: {mu_s}, mu_k: 14.8, kappa: 20, xi: 0}}\n"
+                    "    subloading: {function: cot, u_tilde: 200}\n"
+                    "    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}\n"
+                    f"free:\n  {free}\n"
+                    "curves:\n"
+                    "  - {file: a.csv, orientation: [90, 35.2643897, 225], "
+                    f"strain_rate: {rate}}}\n" + extra)
+        return path
+
+    def test_bad_inputs_raise_the_command_lines_messages(self):
+        good = "strain [-], stress [MPa]\n0.002, 20\n0.004, 25\n"
+        cases = [  # (curve file, free, strain rate, file:line: key, a part of the message)
+            ("strain [-], stress [MPa]\n0.002, 20\n0.004, nan\n", "mu_s: [1, 3]", "1.0e-3",
+             "a.csv:3: stress", "not a finite number"),
+            ("strain [-], stress [MPa]\n0.002, 20\n0.006, 25\n0.004, 27\n", "mu_s: [1, 3]",
+             "1.0e-3", "a.csv:4: strain", "increase in magnitude"),
+            ("strain [-], sigma [MPa]\n0.002, 20\n", "mu_s: [1, 3]", "1.0e-3",
+             "a.csv:1: stress", "missing column"),
+            ("strain [-], stress [s]\n0.002, 20\n", "mu_s: [1, 3]", "1.0e-3",
+             "a.csv:1: stress", "not a stress"),
+            (good, "mu_s: [1, 3]", "-1.0e-3", "a.csv:2: strain", "strain rate's sign"),
+            (good, "mu_s: [2, 5]", "1.0e-3", "fit.yaml:12: free.mu_s",
+             "exclude the start mu_s = 1.6"),
+            (good, "tau0: [5, 20]", "1.0e-3", "fit.yaml:12: free.tau0", "tau0 cannot be fitted"),
+        ]
+        prefix = "subslip: error: "
+        for csv, free, rate, where, part in cases:
+            with self.subTest(where=where), tempfile.TemporaryDirectory() as d:
+                with open(os.path.join(d, "a.csv"), "w", encoding="utf-8") as f:
+                    f.write(csv)
+                fit = self._file(d, free, rate=rate)
+                done = subprocess.run([BINARY, "fit", fit], capture_output=True, text=True)
+                self.assertEqual(done.returncode, 2, done.stderr)
+                with self.assertRaises(subslip.SceneError) as caught:
+                    subslip.fit(fit)
+                message = str(caught.exception)
+                self.assertEqual(message, done.stderr[len(prefix):].rstrip("\n"))
+                self.assertIn(os.path.join(d, where) + ": ", message)
+                self.assertIn(part, message)
 
 
 class OfflineInstall(unittest.TestCase):

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <filesystem>
+#include <string>
 #include <string_view>
 
 #include "subslip/io/scene_common.hpp"
@@ -34,6 +35,21 @@ using model::to_string;
 // Top-level keys a sweep may reach into.
 inline constexpr std::array<std::string_view, 5> kCrystalSweepable = {
     "phase", "orientations", "loading", "integrator", "output"};
+
+// A scene's `phase:` block (slip families or systems, elasticity, tau0, law, initial_mu,
+// per_family, latent, pressure_sensitive, kinematics), every error reported; `elasticity_type`
+// gets the elasticity's `type`. Each family's initial_mu is resolved (mu_s where none is given).
+// The crystal fit file (io/fit_file.hpp) reads its phase with it too.
+crystal::PhaseDescription parse_crystal_phase(const CheckedNode& node, SceneValues& values,
+                                              std::string& elasticity_type);
+
+// One inline orientation: Bunge Euler angles [phi1, Phi, phi2] in degrees (with `weighted`, an
+// optional fourth entry, the weight), checked against the ranges of orientation files.
+struct EulerDegrees {
+  crystal::Vec3 degrees = crystal::Vec3::Zero();  // as written [deg]
+  crystal::Orientation orientation;
+};
+EulerDegrees parse_euler_degrees(const CheckedNode& node, bool weighted);
 
 // Reads, sweeps and checks a crystal scene, and reads every case's orientations (the whole set
 // in this process: model::read_all_orientations). Every problem is an InputError with file,
