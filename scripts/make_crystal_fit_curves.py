@@ -8,8 +8,8 @@ Each curve is subslip's own model of the crystal fit (subslip._core.crystal_fit_
 calibration::predict that `subslip fit` fits with): one grain of the copper phase of
 inputs/fcc_single_crystal_tension_001.yaml (the constants the fit is to recover) pulled along
 sample x at 1e-3 /s with sigma22 = sigma33 = 0 and no shear, with crystal [001], [111] and
-[-1 2 3] along x. Its sigma11 [MPa] at 60 logarithmic strains from 0.002 to 0.1 (evenly in log)
-gets 1 % Gaussian noise (seed 2016). The path takes 400 equal steps, twice the fit file's, so that
+[-1 2 3] along x. Its sigma11 [MPa] at 60 logarithmic strains from 0.002 to 0.3 (evenly in log)
+gets 1 % Gaussian noise (seed 2016). The path takes 600 equal steps, twice the fit file's, so that
 the data are the model's with a smaller step error than the fit's own evaluation of it. Needs the Python module built (build/python) and numpy.
 """
 
@@ -48,7 +48,7 @@ def orientation_matrix(euler_deg):
 
 
 def main():
-    strains = 0.002 * (0.1 / 0.002) ** (np.arange(60) / 59.0)
+    strains = 0.002 * (0.3 / 0.002) ** (np.arange(60) / 59.0)
     noise = random.Random(SEED)
     with open(SCENE, encoding="utf-8") as f:
         scene_text = f.read()
@@ -58,7 +58,7 @@ def main():
         if np.linalg.norm(along_x - d) > 1e-7:
             raise SystemExit(f"{name}: the Euler angles {euler} put {along_x} along x, not {d}")
         stress = core().crystal_fit_predict(SCENE, scene_text, "", list(euler), STRAIN_RATE,
-                                            strains, 400)
+                                            strains, 600)
         path = os.path.join(SOURCE, "inputs", "fit_curves", name)
         label = "[" + " ".join(str(k) for k in direction) + "]"
         with open(path, "w", encoding="utf-8") as out:
