@@ -235,12 +235,38 @@ double extrapolation_resolution(const law::SubloadingFrictionLaw& law,
          (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
 }
 
+// A segment's prescribed normal traction over time into it (linear: a ramp to a traction, or a
+// normal velocity against the normal stiffness), and the time it crosses zero inside the
+// segment, where the contact opens or closes. That crossing is a kink of the loading that a step
+// across it steps over: a step that ends open computes no slip for any part of it, so the
+// sliding before the opening inside the step (and the softening of mu by it) is lost, and every
+// extrapolated solution of the step, ending open too, agrees with the others. The adaptive
+// steps end on it (a stop of the clock), where the traction is exactly zero.
+struct NormalLoad {
+  const Segment& seg;
+  contact::ContactStiffness stiffness;
+  double fn_start;
+  double crossing = -1.0;  // time into the segment, or < 0 where it does not cross zero
+
+  NormalLoad(const Segment& s, const contact::ContactStiffness& c, double f0)
+      : seg(s), stiffness(c), fn_start(f0) {
+    const double f_end = contact::normal_traction_at(seg, stiffness, fn_start, seg.duration);
+    if (seg.duration > 0.0 && (fn_start > 0.0) != (f_end > 0.0)) {
+      const double t = seg.duration * (fn_start / (fn_start - f_end));
+      if (t > 0.0 && t < seg.duration) crossing = t;
+    }
+  }
+  double at(double t) const {
+    return t == crossing ? 0.0 : contact::normal_traction_at(seg, stiffness, fn_start, t);
+  }
+};
+
 // One step of the extrapolated integrator from s0 at time t0 into the segment to t1: backward
 // Euler with 1, 2, .., order substeps, combined (integrators/extrapolation.hpp).
 ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const IntegratorOptions& opt,
-                                   const Segment& seg, double fn_start, const ContactState& s0,
-                                   double t0, double t1) {
-  const contact::ContactStiffness& c = point.parameters().stiffness;
+                                   const NormalLoad& normal, const ContactState& s0, double t0,
+                                   double t1) {
+  const Segment& seg = normal.seg;
   std::array<Combined, integrators::kMaxExtrapolationOrder> solutions;
   ContactState one_step, finest;
   int iterations = 0;
@@ -251,8 +277,7 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
     for (int i = 1; i <= j; ++i) {
       const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
       const double h = end - t;
-      point::ContactUpdate a = update_point(point, s, seg.velocity * h,
-                                            contact::normal_traction_at(seg, c, fn_start, end), h);
+      point::ContactUpdate a = update_point(point, s, seg.velocity * h, normal.at(end), h);
       iterations += a.report.iterations;
       if (!a.report.ok) return {{s, iterations, false, std::move(a.report.why)}, 0.0};
       switched = switched || switches_phase(s0, a.state);
@@ -276,7 +301,7 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
   }
   {
     const double t_from_start = t1 - t0;
-    const double fn1 = contact::normal_traction_at(seg, c, fn_start, t1);
+    const double fn1 = normal.at(t1);
     out.error = std::max(
         out.error,
         filtered_local_error(point, s0, one_step, seg.velocity * t_from_start, fn1, t_from_start));
@@ -293,7 +318,7 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
     // is shortened until both meet the tolerance; it then ends near the switch, and its error
     // is the local error of one first-order step there.
     const double t_from_start = t1 - t0;
-    const double fn1 = contact::normal_traction_at(seg, c, fn_start, t1);
+    const double fn1 = normal.at(t1);
     out.error = std::max(
         {out.error, extrapolation_error(solutions[0] - solutions[1], out.attempt.state),
          local_error(point, s0, one_step, seg.velocity * t_from_start, fn1, t_from_start)});
@@ -307,26 +332,40 @@ ExtrapolatedStep extrapolated_step(const point::ContactPoint& point, const Integ
 void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOptions& opt,
                           const Segment& seg, int index, double t_start, ContactState& s,
                           RunStats& stats, const OutputCallback& on_output) {
-  const contact::ContactStiffness& c = point.parameters().stiffness;
-  const double fn_start = s.traction_n;
+  const NormalLoad normal(seg, point.parameters().stiffness, s.traction_n);
   const bool extrapolated = opt.order >= 2;
   const double resolution = extrapolated ? extrapolation_resolution(point.law(), opt) : 0.0;
   integrators::AdaptiveSegment clock(seg.duration, contact::increment_lengths(seg).front(),
                                      opt.tolerance, integrators::estimate_order(opt.order),
                                      integrators::after_accepted_limits(opt.order));
-  if (seg.output_at_times) clock.set_stops(seg.output_times);
+  // The steps end on the output times asked for and on the normal traction's crossing of zero;
+  // only the first are written.
+  std::vector<double> stops;
+  std::vector<bool> written;
+  if (seg.output_at_times) {
+    stops = seg.output_times;
+    written.assign(stops.size(), true);
+  }
+  if (normal.crossing > 0.0) {
+    const auto at = std::lower_bound(stops.begin(), stops.end(), normal.crossing);
+    if (at == stops.end() || *at != normal.crossing) {
+      written.insert(written.begin() + (at - stops.begin()), false);
+      stops.insert(at, normal.crossing);
+    }
+  }
+  if (!stops.empty()) clock.set_stops(stops);
+  std::size_t stops_passed = clock.stops_passed();
   for (;;) {
     const double h = clock.step();
     StepAttempt a;
     double error = 0.0;
     if (extrapolated) {
-      ExtrapolatedStep e =
-          extrapolated_step(point, opt, seg, fn_start, s, clock.time(), clock.end_time());
+      ExtrapolatedStep e = extrapolated_step(point, opt, normal, s, clock.time(), clock.end_time());
       a = std::move(e.attempt);
       error = e.error;
     } else {
       const Vec2 du = seg.velocity * h;
-      const double fn1 = contact::normal_traction_at(seg, c, fn_start, clock.end_time());
+      const double fn1 = normal.at(clock.end_time());
       point::ContactUpdate u = update_point(point, s, du, fn1, h);
       a = {std::move(u.state), u.report.iterations, u.report.ok, std::move(u.report.why)};
       error = a.ok ? local_error(point, s, a.state, du, fn1, h) : 0.0;
@@ -347,7 +386,10 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
     }
     const bool last = clock.last();
     s = a.state;
-    const bool stop = clock.accept(error);
+    clock.accept(error);
+    bool at_output = false;  // the step ended on an output time (and maybe the crossing)
+    for (; stops_passed < clock.stops_passed(); ++stops_passed)
+      at_output = at_output || written[stops_passed];
     // The time of every step's end from the segment's start and the time into it (the output
     // time where the step ends on one): the running sum of thousands of steps drifts by many
     // ulps of the absolute time, which on a steep ramp late in a history (a re-slide 61 min
@@ -356,7 +398,7 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
     ++stats.increments;
     ++stats.substeps;
     if (seg.output_at_times) {
-      if (stop) on_output(s, index);
+      if (at_output) on_output(s, index);
     } else if (last || clock.accepted() % seg.output_every == 0) {
       on_output(s, index);
     }

@@ -170,6 +170,8 @@ class AdaptiveSegment {
     return last() ? duration_ : t_ + dt_;
   }
   double time() const { return t_; }
+  // How many of the stops the accepted steps have reached or passed.
+  std::size_t stops_passed() const { return next_stop_; }
   // The step planned after the last accepted one (what a checkpoint records to resume with).
   double planned_step() const { return dt_; }
   long accepted() const { return accepted_; }
