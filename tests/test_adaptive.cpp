@@ -440,6 +440,35 @@ TEST(AdaptiveContact, HealingHoldInOneIncrementFollowsTheToleranceAgainstAnExact
   }
 }
 
+// Steady sliding at 1 mm/min, then a slide of 0.5 min in one increment while the normal traction
+// is ramped from 5.56 MPa to -1 MPa (the contact opens 0.424 min in), then 1 min open. Until the
+// opening the contact slides and mu softens; then nothing slides and mu recovers. mu at the end,
+// at tolerances 1e-3 and 1e-6, agrees with a run at 1e-10 to within 10 times the tolerance (of
+// mu_s). A step across the opening ends open in every extrapolated solution whose first
+// substep already ends open, and such a step lost the sliding before the opening unseen.
+TEST(AdaptiveContact, SlidingUntilTheContactOpensFollowsTheTolerance) {
+  const auto m = paper_model();
+  using contact::Vec2;
+  contact::Segment opening = segment(Vec2(1.0, 0), 0.5, 1);
+  opening.normal_traction = -1.0;
+  contact::Segment open = segment(Vec2(0, 0), 1.0, 1);
+  open.normal_traction = -1.0;
+  const std::vector<contact::Segment> history = {segment(Vec2(1.0, 0), 10.0, 100, 1e4), opening,
+                                                 open};
+  const ContactRun reference = run_contact(m, history, 1e-10, 2);
+  for (double tol : {1e-3, 1e-6}) {
+    const ContactRun run = run_contact(m, history, tol, 2);
+    const double error = std::abs(run.segment_ends[2].law.mu - reference.segment_ends[2].law.mu) /
+                         m.law.friction.mu_s;
+    measured() << "opening while sliding, tolerance " << tol << ": " << run.steps_per_segment[1]
+               << " steps to the open contact, mu " << std::setprecision(10)
+               << run.segment_ends[2].law.mu << " vs " << reference.segment_ends[2].law.mu
+               << std::setprecision(4) << ", error / mu_s " << error << "\n";
+    EXPECT_TRUE(run.all_admissible);
+    EXPECT_LT(error, 10.0 * tol) << "tolerance " << tol;
+  }
+}
+
 // ---- crystal ------------------------------------------------------------------------------
 
 namespace {
