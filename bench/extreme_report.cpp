@@ -510,13 +510,15 @@ struct AdaptiveTotals {
 };
 
 // Whether a reference run stopped because it cannot be computed at its tolerance, not because
-// the integrator broke: over the wall-time limit, or at the error estimate's noise floor
-// (AdaptiveSegment::noise_floor_message: backward Euler's estimate compares slip rates, which
-// a nearly rate-independent grain does not determine). The order-2 extrapolated integrator,
-// whose estimate is on the resolved shears, computes such references (docs/integrators.md).
+// the integrator broke: over the wall-time limit, at the error estimate's noise floor
+// (AdaptiveSegment::noise_floor_message), or where backward Euler's estimate does not fall
+// (AdaptiveSegment::not_falling_message: it compares slip rates, which a nearly rate-independent
+// grain does not determine). The order-2 extrapolated integrator, whose estimate is on the
+// resolved shears, computes such references (docs/integrators.md).
 bool reference_unavailable(const std::string& failure) {
   return failure.rfind(kTimeLimitPrefix, 0) == 0 ||
-         failure.find("below what double precision resolves") != std::string::npos;
+         failure.find("below what double precision resolves") != std::string::npos ||
+         failure.find("does not fall as the step shrinks") != std::string::npos;
 }
 
 template <class Case>

@@ -1,8 +1,9 @@
 // The adaptive step clock (integrators/step_control.hpp) and the extrapolation tableau
-// (integrators/extrapolation.hpp). The clock: the noise floor of the error estimate. A true
-// local error falls as dt^2 when a rejected step is retried shorter; an estimate that stays put
-// while the step shrinks by 1e3 is round-off, and the clock stops there with a message naming
-// the tolerance, instead of crawling down to dt ~ 1e-20.
+// (integrators/extrapolation.hpp). The clock's stops: an estimate at its round-off level (the
+// resolution the driver gives) is the noise floor, and the message names the smallest tolerance
+// that runs; backward Euler's estimate, which falls as dt^2 wherever it measures the step, stops
+// the segment when it has not even halved while the step shrank 1e3-fold, instead of crawling
+// down to dt ~ 1e-20; an estimate that falls more slowly than dt^2 is no stop.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -15,33 +16,41 @@
 #include "subslip/integrators/step_control.hpp"
 
 using subslip::integrators::AdaptiveSegment;
+using subslip::integrators::EstimateNoise;
 
-// An estimate that does not fall: stopped once the step is 1e3 times shorter, with the message.
-TEST(StepControl, EstimateThatDoesNotFallStopsAtTheNoiseFloor) {
+namespace {
+// Backward Euler's estimate with a resolution far below the tolerances used here.
+constexpr EstimateNoise kBackwardEuler{1e-15, true, true};
+}  // namespace
+
+// Backward Euler's estimate that does not fall: stopped once the step is 1e3 times shorter, with
+// a message that says what it compares is not determined, not that the tolerance is too small.
+TEST(StepControl, BackwardEulersEstimateThatDoesNotFallStops) {
   AdaptiveSegment clock(1.0, 1e-2, 1e-9);
   int refusals = 0;
-  while (clock.refuse(false, 3e-9)) ++refusals;
-  EXPECT_TRUE(clock.at_noise_floor());
+  while (clock.refuse(false, 3e-9, kBackwardEuler)) ++refusals;
+  EXPECT_TRUE(clock.estimate_does_not_fall());
+  EXPECT_FALSE(clock.at_noise_floor());
+  EXPECT_FALSE(clock.below_time_resolution());
   EXPECT_LE(clock.step(), 1e-5);
   EXPECT_LT(refusals, 20);  // 0.1 x per refusal at most: a few refusals, not a crawl to 1e-20
-  const std::string why = clock.noise_floor_message();
-  EXPECT_NE(why.find("no longer falls as the step shrinks (3e-09 at dt = 0.01"), std::string::npos)
+  const std::string why = clock.not_falling_message();
+  EXPECT_NE(why.find("does not fall as the step shrinks (3e-09 at dt = 0.01"), std::string::npos)
       << why;
-  EXPECT_NE(why.find("the tolerance 1e-09 is below what double precision resolves here; use a "
-                     "tolerance above 3e-09"),
-            std::string::npos)
-      << why;
+  EXPECT_NE(why.find("not determined by the step's equations"), std::string::npos) << why;
+  EXPECT_EQ(why.find("double precision"), std::string::npos) << why;
 }
 
-// An estimate that falls as dt^2 is a real error: retried until it fits, never a floor.
+// An estimate that falls as dt^2 is a real error: retried until it fits, never a stop.
 TEST(StepControl, EstimateThatFallsAsDtSquaredIsRetriedUntilItFits) {
   AdaptiveSegment clock(1.0, 1e-2, 1e-9);
   const double c = 1e-3 / (1e-2 * 1e-2);  // error 1e-3 at the first step
   double error = c * clock.step() * clock.step();
   int refusals = 0;
   while (error > 1e-9) {
-    ASSERT_TRUE(clock.refuse(false, error));
+    ASSERT_TRUE(clock.refuse(false, error, kBackwardEuler));
     ASSERT_FALSE(clock.at_noise_floor());
+    ASSERT_FALSE(clock.estimate_does_not_fall());
     error = c * clock.step() * clock.step();
     ++refusals;
   }
@@ -50,22 +59,57 @@ TEST(StepControl, EstimateThatFallsAsDtSquaredIsRetriedUntilItFits) {
   EXPECT_FALSE(clock.at_noise_floor());
 }
 
-// Failed attempts (no solution) halve the step without an estimate: no floor from them.
+// An estimate that falls only as dt (noise proportional to the step, as backward Euler's
+// estimate carries where the rates are steep in r) or as dt^(1/2) is no stop either: the step
+// shrinks until it fits, far beyond the 1e3-fold shrink.
+TEST(StepControl, EstimateThatFallsMoreSlowlyThanDtSquaredIsNoStop) {
+  for (const double power : {1.0, 0.5}) {
+    SCOPED_TRACE(power);
+    AdaptiveSegment clock(1.0, 1e-2, 1e-9);
+    const auto estimate = [&] { return 3e-5 * std::pow(clock.step() / 1e-2, power); };
+    double error = estimate();
+    while (error > 1e-9) {
+      ASSERT_TRUE(clock.refuse(false, error, kBackwardEuler)) << "dt = " << clock.step();
+      ASSERT_FALSE(clock.estimate_does_not_fall());
+      error = estimate();
+    }
+    EXPECT_LT(clock.step(), 1e-2 / 1e3 * (power == 1.0 ? 1.0 : 1e-3));
+    clock.accept(error);
+  }
+}
+
+// Failed attempts (no solution) halve the step without an estimate: no stop from them.
 TEST(StepControl, FailedAttemptsAreNoNoiseFloor) {
   AdaptiveSegment clock(1.0, 1e-2, 1e-9);
-  for (int i = 0; i < 15; ++i) ASSERT_TRUE(clock.refuse(true, 0.0));
+  for (int i = 0; i < 15; ++i) ASSERT_TRUE(clock.refuse(true, 0.0, kBackwardEuler));
   EXPECT_FALSE(clock.at_noise_floor());
-  EXPECT_TRUE(clock.refuse(false, 3e-9));  // the first estimate: the start of a new run
+  EXPECT_FALSE(clock.estimate_does_not_fall());
+  EXPECT_TRUE(clock.refuse(false, 3e-9, kBackwardEuler));  // the first estimate: a new start
   EXPECT_FALSE(clock.at_noise_floor());
+  EXPECT_FALSE(clock.estimate_does_not_fall());
+}
+
+// Backward Euler's estimate at its resolution, once it stops falling, is the noise floor: the
+// message names a tolerance at least the resolution.
+TEST(StepControl, BackwardEulersEstimateAtItsResolutionIsTheNoiseFloor) {
+  AdaptiveSegment clock(1.0, 1e-2, 1e-13);
+  const EstimateNoise noise{2.5e-12, true, true};
+  EXPECT_TRUE(clock.refuse(false, 2e-12, noise));  // below the resolution, but the first
+  EXPECT_TRUE(clock.refuse(false, 1e-12, noise));  // still falling
+  EXPECT_FALSE(clock.refuse(false, 1.2e-12, noise));
+  EXPECT_TRUE(clock.at_noise_floor());
+  EXPECT_FALSE(clock.estimate_does_not_fall());
+  const std::string why = clock.noise_floor_message();
+  EXPECT_NE(why.find("use a tolerance of at least 2.50e-12"), std::string::npos) << why;
 }
 
 // With the estimate's resolution given (the extrapolated integrators), a flat estimate above it
 // keeps shrinking the step (no 1000-fold rule), and one at the resolution stops with its message.
 TEST(StepControl, KnownResolutionDecidesTheNoiseFloor) {
   AdaptiveSegment clock(1.0, 1e-2, 1e-9, 3);
-  for (int k = 0; k < 12; ++k) ASSERT_TRUE(clock.refuse(false, 1e-6, 1e-11)) << "refusal " << k;
+  for (int k = 0; k < 12; ++k) ASSERT_TRUE(clock.refuse(false, 1e-6, {1e-11})) << "refusal " << k;
   EXPECT_LT(clock.step(), 1e-2 / 1e6);  // shrunk far below 1000-fold, still going
-  EXPECT_FALSE(clock.refuse(false, 1e-11, 1e-11));
+  EXPECT_FALSE(clock.refuse(false, 1e-11, {1e-11}));
   EXPECT_TRUE(clock.at_noise_floor());
   const std::string why = clock.noise_floor_message();
   EXPECT_NE(why.find("round-off"), std::string::npos) << why;
@@ -80,7 +124,7 @@ TEST(StepControl, NamedToleranceIsAtLeastTheResolutionAndPassesTheFloor) {
   for (const double resolution : {2.0000000000004e-12, 1.234567e-10, 9.996e-9, 3e-9}) {
     SCOPED_TRACE(resolution);
     AdaptiveSegment clock(1.0, 1e-2, 0.1 * resolution, 2);
-    EXPECT_FALSE(clock.refuse(false, resolution, resolution));
+    EXPECT_FALSE(clock.refuse(false, resolution, {resolution}));
     ASSERT_TRUE(clock.at_noise_floor());
     const std::string why = clock.noise_floor_message();
     const std::string key = "use a tolerance of at least ";
@@ -90,7 +134,7 @@ TEST(StepControl, NamedToleranceIsAtLeastTheResolutionAndPassesTheFloor) {
     EXPECT_GE(named, resolution);
     EXPECT_LE(named, resolution * (1.0 + 1e-2));  // three digits, rounded up by one at most
     AdaptiveSegment at_named(1.0, 1e-2, named, 2);
-    EXPECT_TRUE(at_named.refuse(false, 1.5 * named, resolution));
+    EXPECT_TRUE(at_named.refuse(false, 1.5 * named, {resolution}));
     EXPECT_FALSE(at_named.at_noise_floor());
   }
 }
@@ -109,7 +153,7 @@ TEST(StepControl, StepBelowTheTimesResolutionEndsTheSegment) {
   for (;;) {
     const double h = clock.step();
     for (int k = 1; k <= 4; ++k) EXPECT_NE(t + h / k, t) << "a substep of length zero";
-    if (!clock.refuse(false, 2.2e-9, 1e-12)) break;
+    if (!clock.refuse(false, 2.2e-9, {1e-12})) break;
     ++refusals;
   }
   EXPECT_GT(refusals, 20);

@@ -252,20 +252,23 @@ class TaylorAggregate final : public Aggregate {
         const double progress = clock.last() ? 1.0 : std::min(1.0, clock.end_time() / seg.duration);
         solved = mixed_.try_step(seg, fc, stress_target_at(seg, stress_start, progress), h, u_try,
                                  opt, why);
-        if (solved) error = grains_.local_error(h);
+        if (solved) {
+          error = grains_.local_error(h);
+          step_free_stress_error_ = mixed_.free_stress_error();
+        }
       }
       if (!solved || !(error.value <= opt.tolerance)) {
         solved ? ++stats_.rejected : ++stats_.cutbacks;
         if (!solved) mixed_.forget_free_trend();
         if (solved) why = describe_error(error);
-        if (!clock.refuse(!solved, error.value,
-                          extrapolated
-                              ? extrapolation_.resolution(grains_.phase(), opt,
-                                                          step_free_stress_error_, error.crss)
-                              : 0.0,
-                          true)) {
+        const integrators::EstimateNoise noise{
+            extrapolation_.resolution(grains_.phase(), opt, step_free_stress_error_, error.crss),
+            true, !extrapolated};
+        if (!clock.refuse(!solved, error.value, noise)) {
           if (clock.at_noise_floor())
             why = clock.noise_floor_message() + " (" + why + ")";
+          else if (clock.estimate_does_not_fall())
+            why = clock.not_falling_message() + " (" + why + ")";
           else if (clock.below_time_resolution())
             why = clock.time_resolution_message() + " (last attempt: " + why + ")";
           std::ostringstream msg;

@@ -136,9 +136,10 @@ void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
   extrapolated_macro_.stress = symmetric_from_mandel(grains.average_stress(grains.trial()));
 }
 
-// What the extrapolated estimate resolves (as for the contact point): the grains' states are
-// exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
-// control, to the free-stress error the step's substeps were accepted with (at most the free
+// What the error estimate resolves (as for the contact point), the extrapolated one or
+// backward Euler's (whose rates are the slip increments over their steps): the grains' states
+// are exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
+// control, to the free-stress error the step's solves were accepted with (at most the free
 // stresses' tolerance, often far below it); that is an error of the stress, and the estimate
 // divides the stress by the CRSS of the system that decides it (`deciding_crss`, at the step's
 // start), so it enters over that CRSS. The estimate's weights amplify the sum

@@ -224,11 +224,12 @@ struct ExtrapolatedStep {
   double error = 0.0;
 };
 
-// What the extrapolated estimate resolves: the states it combines are exact to a few ulps of
-// r (at most r_hat) and to the flow-rule tolerance (|dG/dr| >= 1: a residual delta leaves at
-// most delta in r), and the estimate's weights amplify that (estimate_noise_gain).
-double extrapolation_resolution(const law::SubloadingFrictionLaw& law,
-                                const IntegratorOptions& opt) {
+// What the error estimate resolves: the states it compares (the extrapolated estimate's), or
+// whose slip increments over their steps give the rates it compares (backward Euler's), are
+// exact to a few ulps of r (at most r_hat) and to the flow-rule tolerance (|dG/dr| >= 1: a
+// residual delta leaves at most delta in r), and the estimate's weights amplify that
+// (estimate_noise_gain).
+double estimate_resolution(const law::SubloadingFrictionLaw& law, const IntegratorOptions& opt) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
   const double largest_ratio = std::max(1.0, law.parameters().overstress.r_hat);
   return integrators::estimate_noise_gain(opt.order) *
@@ -334,7 +335,10 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
                           RunStats& stats, const OutputCallback& on_output) {
   const NormalLoad normal(seg, point.parameters().stiffness, s.traction_n);
   const bool extrapolated = opt.order >= 2;
-  const double resolution = extrapolated ? extrapolation_resolution(point.law(), opt) : 0.0;
+  // Backward Euler's resolution is a bound (a rate resolved far better than the flow-rule
+  // tolerance leaves the estimate far below it): its floor is an estimate that stopped falling.
+  const integrators::EstimateNoise noise{estimate_resolution(point.law(), opt), !extrapolated,
+                                         !extrapolated};
   integrators::AdaptiveSegment clock(seg.duration, contact::increment_lengths(seg).front(),
                                      opt.tolerance, integrators::estimate_order(opt.order),
                                      integrators::after_accepted_limits(opt.order));
@@ -373,10 +377,11 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
     stats.iterations += a.iterations;
     if (!a.ok || !(error <= opt.tolerance)) {
       a.ok ? ++stats.rejected : ++stats.cutbacks;
-      if (!clock.refuse(!a.ok, error, resolution)) {
-        std::string why = !a.ok ? a.why
-                          : clock.at_noise_floor()
-                              ? clock.noise_floor_message()
+      if (!clock.refuse(!a.ok, error, noise)) {
+        std::string why = !a.ok                    ? a.why
+                          : clock.at_noise_floor() ? clock.noise_floor_message()
+                          : clock.estimate_does_not_fall()
+                              ? clock.not_falling_message()
                               : "local error estimate stays above the tolerance";
         if (clock.below_time_resolution())
           why = clock.time_resolution_message() + " (last attempt: " + why + ")";

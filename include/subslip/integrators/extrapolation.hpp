@@ -23,6 +23,8 @@
 #include <cassert>
 #include <cmath>
 
+#include "subslip/integrators/step_control.hpp"
+
 namespace subslip::integrators {
 
 // The highest order offered: beyond 4 the tableau's weights grow (ill-conditioned in round-off)
@@ -93,11 +95,15 @@ constexpr int estimate_order(int order) {
   return order >= 2 ? order : 2;
 }
 
-// How much the estimate best - second amplifies errors of the solutions that do not follow the
-// expansion (round-off, Newton tolerances): the sum of abs(weight of y_j in best - second), 2, 4
-// and 9.3 for orders 2, 3 and 4. The estimate cannot resolve less than that times those errors.
+// How much the adaptive integrator's error estimate amplifies errors of the solutions that do
+// not follow the expansion (round-off, Newton tolerances); the estimate cannot resolve less than
+// that times those errors. Orders 2 ... 4: the sum of abs(weight of y_j in best - second), 2, 4
+// and 9.3. Order 1, backward Euler's estimate dt/2 |y'(end) - y'(start)|: its rates are
+// increments over their steps, so it carries half of the end state's error and half of the
+// start's times this step over the last, at most 4 (the growth after an accepted step): 2.5.
 inline double estimate_noise_gain(int order) {
-  assert(order >= 2 && order <= kMaxExtrapolationOrder);
+  assert(order >= 1 && order <= kMaxExtrapolationOrder);
+  if (order == 1) return 0.5 * (1.0 + kAfterAccepted.largest);
   using Scalar = std::array<double, 1>;
   struct One {  // a one-component vector for the tableau
     Scalar v{};

@@ -62,11 +62,34 @@ enum class ExplicitStability { refuse_unstable_steps, unchecked };
 // Consecutive refused attempts (rejected or failed) of one step before a driver gives up.
 inline constexpr int kMaxRefusedAttempts = 200;
 
-// The noise floor of the error estimate. A true local error falls as dt^2 (or faster), so after the
-// step shrank by kFloorShrink over rejected attempts it should be 1e-6 of what it was; an estimate
-// that has not even halved is round-off in the rates it compares (near r_hat, or at rates
-// resolved no better than the Newton tolerance), and no shorter step will meet the tolerance.
+// Backward Euler's estimate falls as dt^2 wherever it measures the step, so after the step shrank
+// by kFloorShrink over rejected attempts it should be 1e-6 of what it was; one that has not even
+// halved compares rates the step's equations do not determine (the split of slip among systems
+// that yield together, which the grain solve settles differently from attempt to attempt), and
+// no shorter step will meet the tolerance. The factor only has to separate dt^2 from no fall at
+// all: an estimate falling at any order of dt (noise proportional to the step, a first-order
+// error) falls 1000-fold over it.
 inline constexpr double kFloorShrink = 1e3;
+
+// What a refused attempt's error estimate resolves, for the stops of AdaptiveSegment::refuse.
+struct EstimateNoise {
+  // The estimate's round-off level (> 0): the states or rates it compares are exact to a few ulps
+  // and to the Newton tolerances, times the estimate's weights (estimate_noise_gain). An estimate
+  // above the tolerance and at most this is the floor: no shorter step resolves more, and from a
+  // tolerance of this on the floor no longer refuses a step.
+  double resolution = 0.0;
+  // The resolution is a bound that the estimate's actual round-off can lie far below, so an
+  // estimate at or below it is the floor only once it has stopped falling: it is no smaller than
+  // that of the longer attempt refused just before it.
+  bool flat_only = false;
+  // The estimate is backward Euler's own (dt/2 |y'(end) - y'(start)|, undivided steps): one that
+  // does not fall over a kFloorShrink-fold shrink stops the segment as well. (The extrapolated
+  // estimates can stay flat over a 1000-fold shrink outside their asymptotic range, a nonlinear
+  // relaxation at the start of a hold, many time scales inside one step, where shorter steps do
+  // help; and they divide a step into substeps, which need a step longer than the time's
+  // resolution, kSameTime of it.)
+  bool backward_euler = false;
+};
 
 // An output time within this fraction of the segment's duration of an increment's end is that
 // end (no step of round-off length is made to reach it).
@@ -199,49 +222,38 @@ class AdaptiveSegment {
   }
   // A refused attempt shortens the step: by the error estimate when it was too large, by half
   // when the step failed outright. False when the driver should give up: too many refusals in
-  // a row, or a step too short to advance the time.
-  // Also false at the estimate's noise floor (then at_noise_floor()). `resolution` is the
-  // round-off level of the estimate where the driver knows it: the extrapolated integrators
-  // compare states, resolved to a few ulps and the Newton tolerances, and an estimate at that
-  // level is the floor. Where it is 0 (backward Euler's estimate compares rates, whose
-  // resolution the driver does not know) the floor is an estimate that does not fall as the step
-  // shrinks (kFloorShrink). Outside their asymptotic range (a nonlinear relaxation at the start
-  // of a hold, many time scales inside one step) the extrapolated estimates can stay flat over
-  // a 1000-fold shrink, so the second rule would stop them where shorter steps do help.
-  // `flat_only`: the resolution is a bound that the estimate's actual round-off can lie far
-  // below (the crystal's: the free stresses' error over a CRSS, which the solutions of a step
-  // share in part), so an estimate at or below it is the floor only once it has stopped falling:
-  // it is no smaller than that of the longer attempt refused just before it.
-  bool refuse(bool failed, double error, double resolution = 0.0, bool flat_only = false) {
+  // a row, a step too short to advance the time, the estimate at its noise floor
+  // (at_noise_floor(): at most `noise.resolution`, see EstimateNoise), or backward Euler's
+  // estimate not falling as the step shrinks (estimate_does_not_fall()).
+  bool refuse(bool failed, double error, const EstimateNoise& noise) {
     const double h = step();
-    if (resolution > 0.0) {
-      dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, order_, kAfterRejected);
-      ++refusals_;
-      const double before = refused_error_;
-      refused_error_ = failed ? 0.0 : error;
-      noise_floor_ =
-          !failed && error <= resolution && (!flat_only || (before > 0.0 && error >= before));
-      if (noise_floor_) floor_start_ = floor_end_ = {h, resolution};
-      below_time_resolution_ = !resolvable(dt_);
-      return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && !below_time_resolution_;
-    }
     if (failed) {
-      floor_start_ = {};  // a failed attempt has no estimate: start again after it
-    } else if (refusals_ == 0 || floor_start_.error == 0.0) {
-      floor_start_ = {h, error};
+      first_refused_ = {};  // a failed attempt has no estimate: start again after it
+    } else if (refusals_ == 0 || first_refused_.error == 0.0) {
+      first_refused_ = {h, error};
     }
     dt_ = failed ? 0.5 * h : h * step_factor(error, tolerance_, order_, kAfterRejected);
     ++refusals_;
-    noise_floor_ = !failed && floor_start_.error > 0.0 && h <= floor_start_.step / kFloorShrink &&
-                   error >= 0.5 * floor_start_.error;
-    if (noise_floor_) floor_end_ = {h, error};
-    below_time_resolution_ = !(dt_ > 0.0 && t_ + dt_ != t_);
-    return !noise_floor_ && refusals_ <= kMaxRefusedAttempts && !below_time_resolution_;
+    const double before = refused_error_;
+    refused_error_ = failed ? 0.0 : error;
+    noise_floor_ = !failed && error <= noise.resolution &&
+                   (!noise.flat_only || (before > 0.0 && error >= before));
+    if (noise_floor_) floor_ = {h, noise.resolution};
+    not_falling_ = !noise_floor_ && noise.backward_euler && !failed && first_refused_.error > 0.0 &&
+                   h <= first_refused_.step / kFloorShrink && error >= 0.5 * first_refused_.error;
+    if (not_falling_) last_refused_ = {h, error};
+    below_time_resolution_ =
+        noise.backward_euler ? !(dt_ > 0.0 && t_ + dt_ != t_) : !resolvable(dt_);
+    return !noise_floor_ && !not_falling_ && refusals_ <= kMaxRefusedAttempts &&
+           !below_time_resolution_;
   }
   bool at_noise_floor() const { return noise_floor_; }
   // Whether the last refusal gave up because the step it planned is shorter than the time
   // resolves.
-  bool below_time_resolution() const { return !noise_floor_ && below_time_resolution_; }
+  bool estimate_does_not_fall() const { return not_falling_; }
+  bool below_time_resolution() const {
+    return !noise_floor_ && !not_falling_ && below_time_resolution_;
+  }
   // Why a driver stops below the time's resolution, for its failure message.
   std::string time_resolution_message() const {
     char buf[160];
@@ -251,29 +263,31 @@ class AdaptiveSegment {
     return buf;
   }
 
-  // Why a driver stops at the noise floor, for its failure message. With the estimate's
-  // resolution known (the extrapolated integrators), it names the smallest tolerance at or above
-  // that resolution in three digits: an attempt is refused at the floor only when its estimate
-  // is above the tolerance and at most the resolution, so from that tolerance on the floor no
-  // longer stops the run (where the resolution is the same along the path: the contact point,
-  // a crystal under prescribed L; under mixed control it follows the stress).
+  // Why a driver stops at the noise floor, for its failure message: the smallest tolerance at
+  // or above the estimate's resolution in three digits. An attempt is refused at the floor only
+  // when its estimate is above the tolerance and at most the resolution, so from that tolerance
+  // on the floor no longer stops the run (where the resolution is the same along the path: the
+  // contact point, a crystal under prescribed L; under mixed control it follows the stress).
   std::string noise_floor_message() const {
     char buf[400];
-    if (floor_start_.step == floor_end_.step && floor_start_.error == floor_end_.error) {
-      std::snprintf(buf, sizeof buf,
-                    "the local error estimate is at the round-off of what it compares (%.3g at "
-                    "dt = %.3g): the tolerance %.3g is below what double precision resolves "
-                    "here; use a tolerance of at least %s",
-                    floor_end_.error, floor_end_.step, tolerance_,
-                    three_digits_at_least(floor_end_.error).c_str());
-      return buf;
-    }
     std::snprintf(buf, sizeof buf,
-                  "the local error estimate no longer falls as the step shrinks (%.3g at dt = "
-                  "%.3g, %.3g at dt = %.3g): the tolerance %.3g is below what double precision "
-                  "resolves here; use a tolerance above %.3g",
-                  floor_start_.error, floor_start_.step, floor_end_.error, floor_end_.step,
-                  tolerance_, std::max(floor_start_.error, floor_end_.error));
+                  "the local error estimate is at the round-off of what it compares (%.3g at "
+                  "dt = %.3g): the tolerance %.3g is below what double precision resolves "
+                  "here; use a tolerance of at least %s",
+                  floor_.error, floor_.step, tolerance_,
+                  three_digits_at_least(floor_.error).c_str());
+    return buf;
+  }
+  // Why a driver stops where backward Euler's estimate does not fall (kFloorShrink).
+  std::string not_falling_message() const {
+    char buf[500];
+    std::snprintf(buf, sizeof buf,
+                  "backward Euler's local error estimate does not fall as the step shrinks "
+                  "(%.3g at dt = %.3g, %.3g at dt = %.3g): the rates it compares are not "
+                  "determined by the step's equations here; the extrapolated integrators' "
+                  "estimate (`order: 2`, the default with a tolerance) compares states instead",
+                  first_refused_.error, first_refused_.step, last_refused_.error,
+                  last_refused_.step);
     return buf;
   }
 
@@ -290,12 +304,12 @@ class AdaptiveSegment {
     return buf;
   }
 
-  // A step of the extrapolated integrators (those that pass the estimate's resolution to
-  // refuse) is one where it is longer than kSameTime of the time it starts at: they divide it
-  // into up to 4 substeps whose ends are times, and below that a substep's end rounds onto its
-  // start, a step of length zero that no solve resolves. (kSameTime is also what makes a stop
-  // that close to a step's end that end, and the fixed steps' rule.) Backward Euler's steps
-  // are not divided: for them a step is one that moves the time at all.
+  // A step of the extrapolated integrators (EstimateNoise::backward_euler false) is one where it is
+  // longer than kSameTime of the time it starts at: they divide it into up to 4 substeps whose ends
+  // are times, and below that a substep's end rounds onto its start, a step of length zero that no
+  // solve resolves. (kSameTime is also what makes a stop that close to a step's end that end, and
+  // the fixed steps' rule.) Backward Euler's steps are not divided: for them a step is one that
+  // moves the time at all.
   bool resolvable(double dt) const { return dt > kSameTime * std::abs(t_) && t_ + dt != t_; }
   // A time reaches a stop when it is at or past it, or short of it by round-off of the stop's
   // time (kSameTime).
@@ -322,8 +336,11 @@ class AdaptiveSegment {
     double step = 0.0;
     double error = 0.0;
   };
-  Attempt floor_start_, floor_end_;  // the first rejected attempt in a row, and the last
+  Attempt floor_;  // the attempt refused at the noise floor, with the resolution as its error
+  // The first attempt rejected in a row, and the last one, where the estimate did not fall.
+  Attempt first_refused_, last_refused_;
   bool noise_floor_ = false;
+  bool not_falling_ = false;
   // The estimate of the refused attempt before (0: none, or it failed): where the resolution is
   // a bound (refuse's `flat_only`), the floor is an estimate that stopped falling.
   double refused_error_ = 0.0;
