@@ -248,9 +248,10 @@ class AdaptiveSegment {
            !below_time_resolution_;
   }
   bool at_noise_floor() const { return noise_floor_; }
+  // Whether the last refusal gave up because backward Euler's estimate did not fall.
+  bool estimate_does_not_fall() const { return not_falling_; }
   // Whether the last refusal gave up because the step it planned is shorter than the time
   // resolves.
-  bool estimate_does_not_fall() const { return not_falling_; }
   bool below_time_resolution() const {
     return !noise_floor_ && !not_falling_ && below_time_resolution_;
   }
