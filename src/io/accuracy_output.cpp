@@ -25,7 +25,7 @@ constexpr const char* kReferenceCsv = "accuracy_reference.csv";
 constexpr const char* kMarkdown = "accuracy.md";
 constexpr const char* kHdf5 = "accuracy.h5";
 
-std::string format(const char* fmt, double x) {
+std::string format_or_blank(const char* fmt, double x) {
   if (std::isnan(x)) return "";
   char buf[64];
   std::snprintf(buf, sizeof buf, fmt, x);
@@ -88,15 +88,18 @@ void write_csv(const fs::path& path, const AccuracyReport& report) {
     for (const auto& p : c.result.points) {
       const long inc = planned_increments(c.result, p);
       out << csv_field(c.name) << ',' << study::to_string(p.setting.integrator) << ',' << kind_of(p)
-          << ',' << format("%.6g", p.setting.value) << ',' << (inc > 0 ? std::to_string(inc) : "")
-          << ',' << count_or_blank(p, p.counters.steps) << ','
-          << count_or_blank(p, p.counters.rejected) << ','
+          << ',' << format_or_blank("%.6g", p.setting.value) << ','
+          << (inc > 0 ? std::to_string(inc) : "") << ',' << count_or_blank(p, p.counters.steps)
+          << ',' << count_or_blank(p, p.counters.rejected) << ','
           << count_or_blank(p, p.counters.newton_iterations) << ','
-          << count_or_blank(p, p.counters.cutbacks) << ',' << format("%.6e", p.error.max_error)
-          << ',' << format("%.6e", p.error.max_error_time) << ',' << csv_field(p.max_error_on)
-          << ',' << format("%.6e", p.reference_error) << ',' << format("%.6e", p.error.end_error)
-          << ',' << format("%.6e", error_to_tolerance(p)) << ',' << format("%.6e", p.median_seconds)
-          << ',' << p.repeats << ',' << status_of(p) << ',' << csv_field(p.failure) << '\n';
+          << count_or_blank(p, p.counters.cutbacks) << ','
+          << format_or_blank("%.6e", p.error.max_error) << ','
+          << format_or_blank("%.6e", p.error.max_error_time) << ',' << csv_field(p.max_error_on)
+          << ',' << format_or_blank("%.6e", p.reference_error) << ','
+          << format_or_blank("%.6e", p.error.end_error) << ','
+          << format_or_blank("%.6e", error_to_tolerance(p)) << ','
+          << format_or_blank("%.6e", p.median_seconds) << ',' << p.repeats << ',' << status_of(p)
+          << ',' << csv_field(p.failure) << '\n';
     }
   }
 }
@@ -110,13 +113,15 @@ void write_reference_csv(const fs::path& path, const AccuracyReport& report) {
     const auto& r = c.result.reference;
     out << csv_field(c.name) << ',' << csv_field(report.title) << ','
         << csv_field(c.result.quantity) << ',' << csv_field(c.quantity_unit) << ','
-        << format("%.9g", r.scale) << ',' << study::to_string(r.setting.integrator) << ','
-        << format("%.6g", r.setting.value) << ',' << (r.extrapolated ? 1 : 0) << ','
-        << r.run.counters.steps << ',' << format("%.6e", r.run.seconds) << ','
-        << format("%.6g", r.check.value) << ',' << format("%.6e", r.self_convergence) << ','
-        << (r.cvode ? format("%.3g", report.cvode_check_rtol) : "") << ','
-        << format("%.6e", r.cvode_difference) << ',' << format("%.6e", r.interpolation_error) << ','
-        << csv_field(c.result.measured) << '\n';
+        << format_or_blank("%.9g", r.scale) << ',' << study::to_string(r.setting.integrator) << ','
+        << format_or_blank("%.6g", r.setting.value) << ',' << (r.extrapolated ? 1 : 0) << ','
+        << r.run.counters.steps << ',' << format_or_blank("%.6e", r.run.seconds) << ','
+        << format_or_blank("%.6g", r.check.value) << ','
+        << format_or_blank("%.6e", r.self_convergence) << ','
+        << (r.cvode ? format_or_blank("%.3g", report.cvode_check_rtol) : "") << ','
+        << format_or_blank("%.6e", r.cvode_difference) << ','
+        << format_or_blank("%.6e", r.interpolation_error) << ',' << csv_field(c.result.measured)
+        << '\n';
   }
 }
 
@@ -124,8 +129,8 @@ void write_reference_csv(const fs::path& path, const AccuracyReport& report) {
 
 std::string md_setting_of(const study::Setting& s) {
   if (study::is_fixed_step(s.integrator))
-    return format("x%g", s.value) + (s.uniform ? " uniform" : "");
-  return std::string(study::setting_kind(s.integrator)) + " " + format("%.0e", s.value);
+    return format_or_blank("x%g", s.value) + (s.uniform ? " uniform" : "");
+  return std::string(study::setting_kind(s.integrator)) + " " + format_or_blank("%.0e", s.value);
 }
 
 std::string md_setting(const PointResult& p) {
@@ -151,7 +156,7 @@ std::string describe_check(const study::ReferenceResult& r) {
 }
 
 std::string md_number(double x, const char* fmt = "%.2e") {
-  return std::isnan(x) ? "-" : format(fmt, x);
+  return std::isnan(x) ? "-" : format_or_blank(fmt, x);
 }
 
 void write_points_table(std::ostream& out, const StudyResult& study) {
@@ -202,7 +207,7 @@ void write_time_to_error_table(std::ostream& out, const StudyResult& study) {
   for (std::size_t k = 0; k < integrators.size() + 2; ++k) out << "---|";
   out << '\n';
   for (double level : levels) {
-    out << "| " << format("%.0e", level) << " |";
+    out << "| " << format_or_blank("%.0e", level) << " |";
     for (Integrator i : integrators) {
       out << ' ' << md_number(study::cheapest_time(study, i, level), "%.3g") << " |";
     }
@@ -245,17 +250,17 @@ void write_markdown(const fs::path& path, const AccuracyReport& report) {
       << "step of a run (max) and at the end; times are wall-clock medians of repeated runs "
          "that report only the scene's output points. Fixed-step settings multiply the scene's "
          "increments; CVODE runs at rtol with absolute tolerances min(rtol, "
-      << format("%.0e", report.cvode_atol) << ") x each component's scale.\n";
+      << format_or_blank("%.0e", report.cvode_atol) << ") x each component's scale.\n";
   for (const auto& c : report.cases) {
     const StudyResult& s = c.result;
     const auto& r = s.reference;
     out << "\n## Case `" << c.name << "`: " << s.quantity << " [" << c.quantity_unit << "]\n\n"
-        << "Scale: " << s.scale_description << " = " << format("%.6g", r.scale) << " ["
+        << "Scale: " << s.scale_description << " = " << format_or_blank("%.6g", r.scale) << " ["
         << c.quantity_unit << "].\n\nReference: " << describe_reference_setting(r) << " ("
-        << r.run.counters.steps << " steps, " << format("%.3g", r.run.seconds)
+        << r.run.counters.steps << " steps, " << format_or_blank("%.3g", r.run.seconds)
         << " s). Self-convergence (against " << describe_check(r)
         << "): " << md_number(r.self_convergence) << "; CVODE at rtol "
-        << format("%.0e", report.cvode_check_rtol) << ": "
+        << format_or_blank("%.0e", report.cvode_check_rtol) << ": "
         << (r.cvode ? (r.cvode->ok ? "differs by " + md_number(r.cvode_difference)
                                    : "failed (" + r.cvode->failure + ")")
                     : std::string("not available"))

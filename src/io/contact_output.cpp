@@ -14,7 +14,7 @@ using driver::ContactSummary;
 
 namespace {
 
-struct FieldSpec {
+struct ContactFieldSpec {
   std::size_t columns;  // 0: 1-D
   h5::Type type;
   std::string unit;
@@ -22,7 +22,7 @@ struct FieldSpec {
   std::string components = {};  // the meaning of the columns ("" for 1-D series)
 };
 
-FieldSpec field_spec(ContactField f, const Units& u) {
+ContactFieldSpec field_spec(ContactField f, const Units& u) {
   const std::string one(kDimensionless);
   switch (f) {
     case ContactField::time:
@@ -123,7 +123,7 @@ void write_summary(const h5::Group& g, const ContactSummary& summary, const Unit
 }
 
 // What a case's summary attributes hold until it ends.
-ContactSummary placeholder_summary() {
+ContactSummary placeholder_contact_summary() {
   ContactSummary s;
   s.peak_ratio = s.slip_at_peak = s.bottom_ratio = s.final_ratio = ContactSummary::kNone;
   s.steady_ratio_analytical = s.steady_speed = ContactSummary::kNone;
@@ -138,11 +138,11 @@ void ContactCaseWriter::lay_out(const h5::Group& cases, const ContactCase& c, in
   const h5::Group group =
       create_case_group(cases, c.name, index, c.overrides, SceneKind::contact, units);
   write_parameters(group, c, units);
-  write_summary(group, placeholder_summary(), units, true);
+  write_summary(group, placeholder_contact_summary(), units, true);
   group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
   const std::size_t chunk_rows = chunk_rows_for(c);
   for (ContactField f : c.fields) {
-    const FieldSpec spec = field_spec(f, units);
+    const ContactFieldSpec spec = field_spec(f, units);
     const h5::Series series =
         group.create_series({std::string(to_string(f)), spec.columns, spec.type, spec.unit,
                              spec.description, chunk_rows, kBlockRows, output_count(c.segments)});
@@ -158,7 +158,7 @@ ContactCaseWriter::ContactCaseWriter(const h5::Group& cases, const ContactCase& 
       index_(static_cast<std::size_t>(index)) {
   progress_.set_rows(index_, 0);  // rows left by a killed run are overwritten from row 0
   for (ContactField f : c.fields) {
-    const FieldSpec spec = field_spec(f, units);
+    const ContactFieldSpec spec = field_spec(f, units);
     series_[static_cast<std::size_t>(f)].emplace(
         group_.open_series(to_string(f), spec.type, 0, kBlockRows));
   }

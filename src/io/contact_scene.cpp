@@ -169,7 +169,7 @@ history::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
   return opt;
 }
 
-std::vector<ContactField> parse_output(const std::optional<CheckedNode>& node) {
+std::vector<ContactField> parse_contact_output(const std::optional<CheckedNode>& node) {
   const std::vector<ContactField> all(kAllContactFields.begin(), kAllContactFields.end());
   if (!node) return all;
   node->allow_keys({"fields", "at", kCompressionKeys[0], kCompressionKeys[1]});
@@ -225,14 +225,14 @@ void parse_output_at(const CheckedNode& root, std::vector<contact::Segment>& seg
   }
 }
 
-void check_top_level(const CheckedNode& root) {
+void check_contact_top_level(const CheckedNode& root) {
   root.allow_keys({"scene", "title", "units", "law", "contact", "initial", "loading", "integrator",
                    "output", "sweep"});
 }
 
 // Every block is read and each error reported; a block that needs a failed one (the initial
 // state needs the law, the loading the contact, output.at the loading) is skipped.
-ContactCase parse_case(SweepCase swept, const Units& units) {
+ContactCase parse_contact_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
   ContactCase c;
   c.name = std::move(swept.name);
@@ -248,7 +248,8 @@ ContactCase parse_case(SweepCase swept, const Units& units) {
     c.segments = parse_loading(root.required("loading"), c.model, values);
   });
   errors.attempt([&] { c.integrator = parse_integrator(root.optional("integrator")); });
-  const bool output = errors.attempt([&] { c.fields = parse_output(root.optional("output")); });
+  const bool output =
+      errors.attempt([&] { c.fields = parse_contact_output(root.optional("output")); });
   if (loading && output) errors.attempt([&] { parse_output_at(root, c.segments, units); });
   errors.throw_if_any();
   c.magnitudes = values.take_magnitudes();
@@ -269,7 +270,7 @@ ContactScene parse_contact_scene(const YamlDocument& document) {
   scene.makeup = makeup_of(document);
   InputErrorList errors;
   root.get_choice("scene", {"contact"});  // a scene of another kind is read no further
-  errors.attempt([&] { check_top_level(root); });
+  errors.attempt([&] { check_contact_top_level(root); });
   errors.attempt([&] { scene.title = root.get_string("title", ""); });
   const bool units = errors.attempt([&] { scene.units = parse_units(root.required("units")); });
   errors.attempt([&] { scene.compression = parse_compression(root.optional("output")); });
@@ -277,7 +278,7 @@ ContactScene parse_contact_scene(const YamlDocument& document) {
     const Units& u = scene.units;
     errors.attempt([&] {
       scene.cases = parse_sweep_cases(document, kContactSweepable, [&u](SweepCase swept) {
-        return parse_case(std::move(swept), u);
+        return parse_contact_case(std::move(swept), u);
       });
     });
   }

@@ -413,7 +413,7 @@ void write_summary(const h5::Group& g, const CrystalSummary& summary, const Unit
 }
 
 // What a case's summary attributes hold until it ends.
-CrystalSummary placeholder_summary() {
+CrystalSummary placeholder_crystal_summary() {
   const double nan = std::nan("");
   CrystalSummary s;
   s.final_state.time = nan;
@@ -436,7 +436,7 @@ void CrystalCaseWriter::lay_out(const h5::Group& cases, const CrystalCase& c, in
   write_law_parameters(group, c, units);
   write_run_parameters(group, c);
   group.set_attribute("orientations_digest", c.orientations_digest());
-  write_summary(group, placeholder_summary(), units, true);
+  write_summary(group, placeholder_crystal_summary(), units, true);
   group.reserve_string_attribute("failed", h5::kFailureMessageBytes);
   lay_out_macro(group, c, units);
   if (!c.output.grains.empty()) lay_out_grains(group, c, units);

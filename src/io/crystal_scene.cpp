@@ -735,7 +735,7 @@ std::vector<Field> parse_field_list(const CheckedNode& node, const std::array<Fi
   return out;
 }
 
-CrystalOutputSelection parse_output(const std::optional<CheckedNode>& node) {
+CrystalOutputSelection parse_crystal_output(const std::optional<CheckedNode>& node) {
   CrystalOutputSelection out;
   out.macro.assign(kAllMacroFields.begin(), kAllMacroFields.end());
   if (!node) return out;
@@ -800,14 +800,14 @@ void parse_output_at(const CheckedNode& root, CrystalCase& c, const Units& units
 
 // ---------------------------------------------------------------- the scene
 
-void check_top_level(const CheckedNode& root) {
+void check_crystal_top_level(const CheckedNode& root) {
   root.allow_keys({"scene", "title", "units", "phase", "orientations", "loading", "integrator",
                    "output", "sweep"});
 }
 
 // Every block is read and each error reported; a block that needs a failed one (the
 // integrator's checks need the phase, output.at the loading) is skipped.
-CrystalCase parse_case(SweepCase swept, const Units& units) {
+CrystalCase parse_crystal_case(SweepCase swept, const Units& units) {
   const CheckedNode root = swept.document.root();
   CrystalCase c;
   c.name = std::move(swept.name);
@@ -822,7 +822,8 @@ CrystalCase parse_case(SweepCase swept, const Units& units) {
       errors.attempt([&] { c.segments = parse_loading(root.required("loading"), values); });
   if (phase)
     errors.attempt([&] { c.options = parse_integrator(root.optional("integrator"), c.phase); });
-  const bool output = errors.attempt([&] { c.output = parse_output(root.optional("output")); });
+  const bool output =
+      errors.attempt([&] { c.output = parse_crystal_output(root.optional("output")); });
   if (loading && output) errors.attempt([&] { parse_output_at(root, c, units); });
   errors.throw_if_any();
   c.magnitudes = values.take_magnitudes();
@@ -849,7 +850,7 @@ CrystalScene describe_crystal_scene(const YamlDocument& document) {
   scene.makeup = makeup_of(document);
   InputErrorList errors;
   root.get_choice("scene", {"crystal"});  // a scene of another kind is read no further
-  errors.attempt([&] { check_top_level(root); });
+  errors.attempt([&] { check_crystal_top_level(root); });
   errors.attempt([&] { scene.title = root.get_string("title", ""); });
   const bool units =
       errors.attempt([&] { scene.units = parse_units_without_length(root.required("units")); });
@@ -858,7 +859,7 @@ CrystalScene describe_crystal_scene(const YamlDocument& document) {
     const Units& u = scene.units;
     errors.attempt([&] {
       scene.cases = parse_sweep_cases(document, kCrystalSweepable, [&u](SweepCase swept) {
-        return parse_case(std::move(swept), u);
+        return parse_crystal_case(std::move(swept), u);
       });
     });
   }

@@ -18,7 +18,7 @@ namespace subslip::io {
 
 namespace {
 
-std::string trim(std::string_view s) {
+std::string trimmed(std::string_view s) {
   const auto first = s.find_first_not_of(" \t\r");
   if (first == std::string_view::npos) return {};
   const auto last = s.find_last_not_of(" \t\r");
@@ -29,7 +29,7 @@ std::vector<std::string> split_fields(const std::string& line) {
   std::vector<std::string> fields;
   std::stringstream in(line);
   std::string field;
-  while (std::getline(in, field, ',')) fields.push_back(trim(field));
+  while (std::getline(in, field, ',')) fields.push_back(trimmed(field));
   if (!line.empty() && line.back() == ',') fields.emplace_back();
   return fields;
 }
@@ -38,7 +38,7 @@ std::vector<std::string> split_fields(const std::string& line) {
 std::pair<std::string, std::string> name_and_unit(const std::string& field) {
   const auto open = field.find('[');
   if (open == std::string::npos || field.back() != ']') return {field, ""};
-  return {trim(field.substr(0, open)), trim(field.substr(open + 1, field.size() - open - 2))};
+  return {trimmed(field.substr(0, open)), trimmed(field.substr(open + 1, field.size() - open - 2))};
 }
 
 struct Column {
@@ -131,7 +131,7 @@ TwoColumns read_two_columns(const std::filesystem::path& path, const ColumnSpec&
   double x_factor = 1.0, y_factor = 1.0;
   while (std::getline(in, line)) {
     ++number_of_line;
-    const std::string text = trim(line);
+    const std::string text = trimmed(line);
     if (text.empty() || text.front() == '#') continue;
     const std::vector<std::string> fields = split_fields(text);
     if (header.empty()) {

@@ -409,7 +409,12 @@ void print_case_datasets(std::ostream& out, const h5::Group& g, const ResultFile
     const bool text = d.value_class() == h5::ValueClass::string;
     auto shape = d.shape();
     if (!shape.empty()) shape[0] = usable_rows(d, shape, r.valid_rows(c, p));
-    Row row{p, text ? "text" : shape_text(shape), "[" + attribute_or(d, "unit", "-") + "]",
+    // Appended, not "[" + unit + "]": GCC 12 at -O3 reports a false overflow in that
+    // operator+ once the attribute's read is inlined here.
+    std::string unit = "[";
+    unit += attribute_or(d, "unit", "-");
+    unit += ']';
+    Row row{p, text ? "text" : shape_text(shape), std::move(unit),
             attribute_or(d, "description", "")};
     w_path = std::max(w_path, row.path.size());
     w_shape = std::max(w_shape, row.shape.size());
