@@ -95,9 +95,16 @@ fuzz_tests() {
     -DSUBSLIP_FUZZ=ON -DSUBSLIP_BUILD_TESTS=OFF -DSUBSLIP_WITH_CVODE=OFF -DSUBSLIP_WITH_MPI=OFF \
     > /dev/null
   cmake --build build-fuzz -j"$(nproc)" --target scene_fuzzer orientation_fuzzer
+  # libFuzzer runs one process: the two targets run side by side, one per core.
   run_fuzzer scene_fuzzer 8192 fuzz/seeds/scene inputs tests/data/scenes tests/data/crystal_scenes \
-    tests/data/bad
-  run_fuzzer orientation_fuzzer 2048 tests/data/orientations orientations
+    tests/data/bad &
+  local scene_pid=$!
+  run_fuzzer orientation_fuzzer 2048 tests/data/orientations orientations &
+  local orientation_pid=$!
+  local failed=0
+  wait "$scene_pid" || failed=1
+  wait "$orientation_pid" || failed=1
+  ((failed == 0)) || exit 1
   stage_done "fuzz build and runs" "$start"
 }
 
