@@ -1,6 +1,7 @@
-// subslip post (src/io/result_post.cpp, src/cli/post.cpp): the summary names the cases, units
-// and datasets; CSV export gives back every number of a dataset exactly (compared with reading
-// the HDF5 file directly); bad names are one clear error; nothing is overwritten silently.
+// subslip post (src/io/result_post.cpp, result_csv.cpp, result_table.cpp; src/cli/post.cpp): the
+// summary names the cases, units and datasets; CSV export gives back every number of a dataset
+// exactly (compared with reading the HDF5 file directly); bad names are one clear error; nothing
+// is overwritten silently.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>

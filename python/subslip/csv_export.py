@@ -1,4 +1,4 @@
-"""CSV files of a case: `subslip post --csv` (src/io/result_post.cpp) is the one CSV writer, and
+"""CSV files of a case: `subslip post --csv` (src/io/result_csv.cpp) is the one CSV writer, and
 `Case.to_csv` and `Case.to_table` run it (the command line must export without Python, and one
 writer cannot disagree with itself). The files are described in docs/python.md and docs/scenes.md: one per
 dataset, `<case>_<path>.csv`, a header of `name [unit]` columns, the valid rows only, numbers as
