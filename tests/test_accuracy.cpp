@@ -12,11 +12,13 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <numeric>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -415,6 +417,42 @@ TEST(AccuracyContact, UnstableForwardEulerIsADataPoint) {
   const PointResult& im = point(s, Integrator::implicit, 1);
   EXPECT_TRUE(im.ok);
   EXPECT_TRUE(std::isfinite(im.error.max_error));
+}
+
+// A reference tolerance below what the extrapolated estimate resolves (the flow rule's residual
+// tolerance 1e-9 here: it resolves about 2e-9) is refused at the noise floor, and the failure
+// carries the tolerance its message names. The study's reference then runs at that tolerance,
+// says so in its notes, and the points are measured against it.
+TEST(AccuracyContact, ReferenceRefusedAtItsNoiseFloorRunsAtTheToleranceItNames) {
+  hs::IntegratorOptions coarse_residual;
+  coarse_residual.residual_tolerance = 1e-9;
+  const ContactProblem problem(contact_model(1e3), {slide(1.0, 0.2, 200, 1.03, 10)},
+                               coarse_residual);
+  const Setting too_tight{Integrator::extrapolated_2, 1e-11};
+  const RunResult refused =
+      problem.run(too_tight, Report::scene_points, [](double, std::span<const double>, int) {});
+  ASSERT_FALSE(refused.ok) << "not refused: the case no longer shows the noise floor";
+  ASSERT_TRUE(std::isfinite(refused.smallest_tolerance)) << refused.failure;
+  EXPECT_GT(refused.smallest_tolerance, too_tight.value);
+  char named[64];
+  std::snprintf(named, sizeof named, "use a tolerance of at least %.2e",
+                refused.smallest_tolerance);
+  EXPECT_NE(refused.failure.find(named), std::string::npos) << refused.failure;
+
+  StudyOptions o;
+  o.reference = too_tight;
+  o.repeat = 1;
+  o.ladders = {{Integrator::extrapolated_2, {1e-4}, false}};
+  const StudyResult s = run_study(problem, o);
+  measured() << "reference refused at 1e-11, ran at " << s.reference.setting.value << "\n";
+  EXPECT_EQ(s.reference.setting.value, refused.smallest_tolerance);
+  EXPECT_EQ(s.reference.notes.size(), 1u);
+  ASSERT_FALSE(s.notes.empty());
+  EXPECT_NE(s.notes.front().find("refused at its noise floor"), std::string::npos) << s.notes[0];
+  const PointResult& p = point(s, Integrator::extrapolated_2, 1e-4);
+  ASSERT_TRUE(p.ok) << p.failure;
+  EXPECT_GT(p.error.max_error, 0.0);
+  EXPECT_LT(p.error.max_error, 10 * 1e-4);  // within 10 times its tolerance
 }
 
 TEST(AccuracyCrystal, FixedStepErrorsFallAtFirstOrder) {

@@ -218,27 +218,50 @@ StopTimes stops_of(const Trajectory& run) {
   return stops;
 }
 
-// The reference (options.reference, adaptive) and its 10x looser companion at a run's times;
-// throws ReferenceFailure when either fails.
-void reference_at(const Problem& problem, const StudyOptions& options, const StopTimes& stops,
-                  Trajectory& reference, Trajectory& companion) {
-  const Setting looser{options.reference.integrator, 10.0 * options.reference.value};
-  const PointObserver keep_reference = [&](double t, std::span<const double> v, int seg) {
-    reference.add(t, v, seg);
-  };
-  const PointObserver keep_companion = [&](double t, std::span<const double> v, int seg) {
-    companion.add(t, v, seg);
-  };
-  reference = {}, companion = {};
-  reference.times_into_segments = companion.times_into_segments = problem.times_into_segments();
-  for (const auto& [setting, keep] :
-       {std::pair{options.reference, &keep_reference}, std::pair{looser, &keep_companion}}) {
-    const RunResult r = problem.run(setting, Report::every_step, *keep, stops);
-    if (!r.ok) {
-      throw ReferenceFailure("the reference (" + std::string(to_string(setting.integrator)) + " " +
-                             format_setting(setting) + ") at a run's times failed: " + r.failure);
-    }
+// Runs `run(setting)`; where an adaptive setting is refused at its error estimate's noise floor,
+// runs it again at the tolerance the refusal names, as long as each refusal names a looser one
+// (each names the resolution of the estimate where it stopped, so a rerun that stops again has
+// met a coarser resolution further along the path). A reference is then as tight as the case
+// resolves. `setting` ends as the one that ran last; `notes` gets one line per refusal.
+template <class Run>
+RunResult at_resolved_tolerance(Setting& setting, Run&& run, std::vector<std::string>& notes) {
+  RunResult r = run(setting);
+  while (!r.ok && !is_fixed_step(setting.integrator) && r.smallest_tolerance > setting.value) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "reference %s %s refused at its noise floor; run at %.3g",
+                  std::string(to_string(setting.integrator)).c_str(),
+                  format_setting(setting).c_str(), r.smallest_tolerance);
+    notes.emplace_back(buf);
+    setting.value = r.smallest_tolerance;
+    r = run(setting);
   }
+  return r;
+}
+
+// The reference (options.reference, adaptive) and its 10x looser companion at a run's times;
+// throws ReferenceFailure when either fails. A reference refused at its noise floor runs at the
+// tolerance it names (at_resolved_tolerance), its companion at 10 times that.
+void reference_at(const Problem& problem, const StudyOptions& options, const StopTimes& stops,
+                  Trajectory& reference, Trajectory& companion, std::vector<std::string>& notes) {
+  const auto run_into = [&](Trajectory& path) {
+    return [&problem, &stops, &path](const Setting& setting) {
+      path = {};
+      path.times_into_segments = problem.times_into_segments();
+      return problem.run(
+          setting, Report::every_step,
+          [&path](double t, std::span<const double> v, int seg) { path.add(t, v, seg); }, stops);
+    };
+  };
+  const auto fail = [](const Setting& setting, const RunResult& r) {
+    throw ReferenceFailure("the reference (" + std::string(to_string(setting.integrator)) + " " +
+                           format_setting(setting) + ") at a run's times failed: " + r.failure);
+  };
+  Setting setting = options.reference;
+  const RunResult r = at_resolved_tolerance(setting, run_into(reference), notes);
+  if (!r.ok) fail(setting, r);
+  const Setting looser{setting.integrator, 10.0 * setting.value};
+  const RunResult c = run_into(companion)(looser);
+  if (!c.ok) fail(looser, c);
 }
 
 }  // namespace
@@ -281,7 +304,7 @@ PointResult measure_point(const Problem& problem, const Setting& setting,
   p.reached_time = measured.last_time;
   if (own_reference && measured.ok) {
     Trajectory at_run, companion;
-    reference_at(problem, options, stops_of(path), at_run, companion);
+    reference_at(problem, options, stops_of(path), at_run, companion, p.reference_notes);
     const PathInterpolant exact(at_run);
     p.error = measure_error(path, exact, scales, true);
     p.reference_error = measure_error(companion, exact, scales, true).max_error;
@@ -321,9 +344,14 @@ double predicted_seconds(const PointResult& previous, double next, long base_inc
   return per_increment * static_cast<double>(base_increments) * next;
 }
 
-// Runs the reference (or one of its companions); a failure stops the study.
-RunResult run_reference_setting(const Problem& problem, const Setting& setting, Trajectory& path) {
-  RunResult r = record(problem, setting, Report::every_step, path);
+// Runs the reference (or one of its companions); a failure stops the study. An adaptive
+// reference refused at its noise floor runs at the tolerance it names (at_resolved_tolerance):
+// `setting` is then that one.
+RunResult run_reference_setting(const Problem& problem, Setting& setting, Trajectory& path,
+                                std::vector<std::string>& notes) {
+  const RunResult r = at_resolved_tolerance(
+      setting, [&](const Setting& s) { return record(problem, s, Report::every_step, path); },
+      notes);
   if (!r.ok) {
     throw ReferenceFailure("the reference run (" + std::string(to_string(setting.integrator)) +
                            " " + format_setting(setting) + ") failed: " + r.failure);
@@ -336,10 +364,10 @@ RunResult run_reference_setting(const Problem& problem, const Setting& setting, 
 void fixed_reference(const Problem& problem, const StudyOptions& options, ReferenceResult& ref,
                      std::optional<Trajectory>& check) {
   const double r = ref.setting.value;
-  ref.run = run_reference_setting(problem, ref.setting, ref.path);
+  ref.run = run_reference_setting(problem, ref.setting, ref.path, ref.notes);
   ref.check = {ref.setting.integrator, 0.5 * r, ref.setting.uniform};
   Trajectory half;
-  const RunResult half_run = run_reference_setting(problem, ref.check, half);
+  const RunResult half_run = run_reference_setting(problem, ref.check, half, ref.notes);
   if (!options.richardson) {
     check = std::move(half);
     return;
@@ -362,7 +390,7 @@ ReferenceResult run_reference(const Problem& problem, const StudyOptions& option
   if (is_fixed_step(ref.setting.integrator)) {
     fixed_reference(problem, options, ref, check);
   } else {
-    ref.run = run_reference_setting(problem, ref.setting, ref.path);
+    ref.run = run_reference_setting(problem, ref.setting, ref.path, ref.notes);
     ref.check = {ref.setting.integrator, 10.0 * ref.setting.value};
     Trajectory looser;
     if (record(problem, ref.check, Report::every_step, looser).ok) check = std::move(looser);
@@ -405,6 +433,10 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
   out.scale_description = problem.error_scale_description();
   out.base_increments = problem.base_increments();
   out.reference = run_reference(problem, options);
+  for (const auto& note : out.reference.notes) {
+    out.notes.push_back(note);
+    say(options, note);
+  }
   say(options, describe_reference(problem, out.reference));
   const PathInterpolant reference(out.reference.path);
   for (const Ladder& ladder : options.ladders) {
@@ -439,6 +471,11 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
       }
       out.points.push_back(
           measure_point(problem, setting, reference, out.reference.scales, options));
+      for (const auto& note : out.points.back().reference_notes) {
+        out.notes.push_back(std::string(to_string(setting.integrator)) + " " +
+                            format_setting(setting) + ": " + note);
+        say(options, out.notes.back());
+      }
       if (out.points.back().error.max_error_channel >= 0) {
         out.points.back().max_error_on =
             problem.channel_name(out.points.back().error.max_error_channel);

@@ -134,6 +134,7 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
     out.ok = true;
   } catch (const history::StepFailure& e) {
     out.failure = e.what();
+    out.smallest_tolerance = e.smallest_tolerance;
   } catch (const cvode::CvodeFailure& e) {
     out.failure = e.what();
   }
@@ -337,6 +338,7 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
     out.ok = true;
   } catch (const crystal::CrystalStepFailure& e) {
     out.failure = e.what();
+    out.smallest_tolerance = e.smallest_tolerance;
   } catch (const cvode::CvodeFailure& e) {
     out.failure = e.what();
   }

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -204,7 +205,11 @@ struct RunControl {
 };
 
 struct CrystalStepFailure : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  explicit CrystalStepFailure(const std::string& what,
+                              double smallest_tolerance = std::numeric_limits<double>::quiet_NaN())
+      : std::runtime_error(what), smallest_tolerance(smallest_tolerance) {}
+  // As history::StepFailure::smallest_tolerance: the tolerance a noise-floor stop names, else NaN.
+  double smallest_tolerance;
 };
 
 // A runtime-polymorphic handle on a Taylor aggregate of some slip count (one virtual call per

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -48,7 +49,12 @@ struct StepStats {
 // (non-finite, out of the admissible set r_s <= r < r_hat, or no convergence). Throws
 // StepFailure when opt.max_cutbacks halvings do not help.
 struct StepFailure : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  explicit StepFailure(const std::string& what,
+                       double smallest_tolerance = std::numeric_limits<double>::quiet_NaN())
+      : std::runtime_error(what), smallest_tolerance(smallest_tolerance) {}
+  // Where an adaptive run stopped at its error estimate's noise floor: the tolerance the message
+  // names, from which on the floor no longer stops it; NaN for every other failure.
+  double smallest_tolerance;
 };
 contact::ContactState advance(const point::ContactPoint& point, const IntegratorOptions& opt,
                               const contact::ContactState& s0, const contact::Segment& seg,

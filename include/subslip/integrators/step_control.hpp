@@ -279,6 +279,11 @@ class AdaptiveSegment {
                   three_digits_at_least(floor_.error).c_str());
     return buf;
   }
+  // The tolerance noise_floor_message names, as a number: a failure carries it, so that a caller
+  // that can use any tolerance (a study's reference) runs at it.
+  double smallest_tolerance() const {
+    return std::strtod(three_digits_at_least(floor_.error).c_str(), nullptr);
+  }
   // Why a driver stops where backward Euler's estimate does not fall (kFloorShrink).
   std::string not_falling_message() const {
     char buf[500];

@@ -111,6 +111,8 @@ struct RunResult {
   std::string failure;      // when !ok: the integrator's message (a data point)
   double seconds = 0.0;     // wall time of the whole run (setup included)
   double last_time = kNaN;  // the time of the last reported point
+  // A failure at the error estimate's noise floor (adaptive): the tolerance it names, else NaN.
+  double smallest_tolerance = kNaN;
 };
 
 // Which points a run reports.
@@ -348,6 +350,8 @@ struct PointResult {
   // StudyOptions::reference_at_run_times: max |companion - reference| / scale at this run's
   // times, the resolution of its reference (NaN otherwise).
   double reference_error = kNaN;
+  // Its own reference's refusals at the noise floor and the tolerance it then ran at.
+  std::vector<std::string> reference_notes;
   double median_seconds = kNaN;  // of the timed runs (NaN when the run failed)
   int repeats = 0;
   double measured_seconds = 0.0;  // the run that measured the error (every step reported)
@@ -371,6 +375,8 @@ struct ReferenceResult {
   std::optional<RunResult> cvode;     // the CVODE cross-check (when available)
   Trajectory cvode_path;              // its every step
   double cvode_difference = kNaN;     // max |cvode - ref| / scale
+  // Refusals at the noise floor and the tolerance it then ran at (`setting` is that one).
+  std::vector<std::string> notes;
 };
 
 struct StudyResult {
@@ -389,7 +395,8 @@ struct ReferenceFailure : std::runtime_error {
 };
 
 // Runs the reference (and its checks), then every ladder. Throws ReferenceFailure when the
-// reference itself fails.
+// reference itself fails (an adaptive reference refused at its error estimate's noise floor runs
+// at the tolerance the refusal names first; StudyResult::notes say so).
 StudyResult run_study(const Problem& problem, const StudyOptions& options);
 
 // One ladder point: one run measures the error at every step; then `repeat` timed runs (fewer
