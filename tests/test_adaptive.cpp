@@ -873,6 +873,81 @@ TEST(AdaptiveScene, RefusedToleranceNamesTheSmallestThatRunsAndItRuns) {
   EXPECT_EQ(run_contact_text(with(refused.substr(at + key.size(), length))), "");
 }
 
+// The residual tolerance of a step's solves follows the tolerance asked of the run: at 1e-12 the
+// steps are solved to 1e-14, so the run reaches the end. Named in the scene, the residual
+// tolerance is used as given: with 1e-12 (the default's value) the same run is refused at the
+// estimate's floor, 2.5 times that. The result file records what the steps were solved to.
+TEST(AdaptiveScene, ResidualToleranceFollowsTheRunsToleranceUnlessNamed) {
+  const std::string scene =
+      kContactHead.substr(0, kContactHead.find("\nloading:") + 1) + R"(loading:
+  - slide: {speed: 1, direction: [1, 0], distance: 0.05}
+    increments: 250
+    growth: 1.02
+)";
+  const std::string tied = scene + "integrator: {method: implicit, tolerance: 1.0e-12}\n";
+  const auto parsed = [](const std::string& text) {
+    return subslip::io::parse_contact_scene(subslip::io::YamlDocument::from_string(text, "s.yaml"))
+        .cases.at(0)
+        .integrator;
+  };
+  EXPECT_EQ(history::effective_residual_tolerance(parsed(tied)), 1e-14);
+  EXPECT_EQ(run_contact_text(tied), "");
+  const std::string named =
+      scene + "integrator: {method: implicit, tolerance: 1.0e-12, residual_tolerance: 1.0e-12}\n";
+  EXPECT_EQ(history::effective_residual_tolerance(parsed(named)), 1e-12);
+  const std::string refused = run_contact_text(named);
+  EXPECT_NE(refused.find("use a tolerance of at least"), std::string::npos) << refused;
+  // Above 1e-10 the default residual tolerance is the tighter one: those runs are unchanged.
+  EXPECT_EQ(history::effective_residual_tolerance(
+                parsed(scene + "integrator: {method: implicit, tolerance: 1.0e-6}\n")),
+            1e-12);
+}
+
+// The same for a crystal under mixed control, where the free stresses are resolved to the
+// grains' residual tolerance and the estimate's floor follows them: a single FCC grain in
+// tension with free lateral stresses at 1e-12 runs to the end with its grains solved to 1e-14;
+// with residual_tolerance 1e-12 named it is refused at the floor near the end (the free
+// stresses' resolution, 1.4e-10 of the CRSS there).
+TEST(AdaptiveCrystal, ResidualToleranceFollowsTheRunsToleranceUnlessNamed) {
+  const std::string scene = R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [fcc_111_110]
+  elasticity: {type: cubic, C11: 168400, C12: 121400, C44: 75400}
+  tau0: 10.0
+  law:
+    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 5.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+orientations:
+  euler_deg: [[10, 20, 30]]
+loading:
+  - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    strain: 0.002
+    increments: 10
+)";
+  const auto run = [](const std::string& text) {
+    const auto parsed =
+        subslip::io::parse_crystal_scene(subslip::io::YamlDocument::from_string(text, "c.yaml"));
+    const auto& c = parsed.cases.at(0);
+    EXPECT_EQ(crystal::with_effective_grain_tolerance(c.options).grain.tolerance,
+              c.options.grain_tolerance_follows_tolerance ? 1e-14 : 1e-12);
+    auto agg = crystal::build_taylor_aggregate(c.phase, c.orientations);
+    try {
+      agg->run(c.segments, c.options,
+               [](const crystal::MacroState&, const crystal::GrainFields&) {});
+    } catch (const crystal::CrystalStepFailure& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(run(scene + "integrator: {method: implicit, tolerance: 1.0e-12}\n"), "");
+  const std::string refused = run(
+      scene + "integrator: {method: implicit, tolerance: 1.0e-12, residual_tolerance: 1.0e-12}\n");
+  EXPECT_NE(refused.find("use a tolerance of at least"), std::string::npos) << refused;
+}
+
 namespace {
 
 // The stiff contacts of the tolerance study, each as a scene without its integrator: the

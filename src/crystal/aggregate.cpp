@@ -5,6 +5,7 @@
 #include "mixed_control.hpp"
 #include "subslip/crystal/free_components.hpp"
 #include "subslip/integrators/extrapolation.hpp"
+#include "subslip/integrators/inner_tolerance.hpp"
 #include "subslip/integrators/step_control.hpp"
 
 #include <Eigen/LU>
@@ -58,8 +59,9 @@ class TaylorAggregate final : public Aggregate {
            sizeof(GrainStepReport) + sizeof(double);
   }
 
-  AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& opt,
+  AggregateStats run(const std::vector<LoadSegment>& segments, const AggregateOptions& given,
                      const MacroObserver& observe, const RunControl& control) override {
+    const AggregateOptions opt = with_effective_grain_tolerance(given);
     session_start_ = std::chrono::steady_clock::now();
     const AggregateCheckpoint* resume = control.resume;
     size_t first = 0;
@@ -446,6 +448,12 @@ class TaylorAggregate final : public Aggregate {
 };
 
 }  // namespace
+
+AggregateOptions with_effective_grain_tolerance(AggregateOptions opt) {
+  opt.grain.tolerance = integrators::residual_tolerance_for(
+      opt.grain.tolerance, opt.grain_tolerance_follows_tolerance, opt.tolerance);
+  return opt;
+}
 
 template <int N>
 std::unique_ptr<Aggregate> make_taylor_aggregate(Phase<N> phase,

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "subslip/integrators/extrapolation.hpp"
+#include "subslip/integrators/inner_tolerance.hpp"
 #include "subslip/integrators/step_control.hpp"
 
 namespace subslip::history {
@@ -47,12 +48,17 @@ point::ContactUpdate update_point(const point::ContactPoint& point, const Contac
 
 }  // namespace
 
+double effective_residual_tolerance(const IntegratorOptions& opt) {
+  return integrators::residual_tolerance_for(opt.residual_tolerance, opt.residual_follows_tolerance,
+                                             opt.tolerance);
+}
+
 point::ContactParameters point_parameters(const contact::ContactModel& model,
                                           const IntegratorOptions& opt) {
   point::ContactParameters p;
   p.law = model.law;
   p.stiffness = model.stiffness;
-  p.residual_tolerance = opt.residual_tolerance;
+  p.residual_tolerance = effective_residual_tolerance(opt);
   p.method = opt.method;
   p.tangent = false;
   return p;
@@ -233,7 +239,7 @@ double estimate_resolution(const law::SubloadingFrictionLaw& law, const Integrat
   constexpr double kEps = std::numeric_limits<double>::epsilon();
   const double largest_ratio = std::max(1.0, law.parameters().overstress.r_hat);
   return integrators::estimate_noise_gain(opt.order) *
-         (opt.residual_tolerance + 4.0 * kEps * (1.0 + largest_ratio));
+         (effective_residual_tolerance(opt) + 4.0 * kEps * (1.0 + largest_ratio));
 }
 
 // A segment's prescribed normal traction over time into it (linear: a ramp to a traction, or a

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <utility>
 
+#include "subslip/history/contact_history.hpp"
 #include "subslip/io/case_group.hpp"
 #include "subslip/io/law_block.hpp"
 #include "subslip/law/parameter_table.hpp"
@@ -83,7 +84,8 @@ void write_parameters(const h5::Group& g, const ContactCase& c, const Units& u) 
   set_with_unit(g, "initial_mu", c.model.initial_law_state.mu, one);
   g.set_attribute("integrator",
                   c.integrator.method == contact::Method::implicit ? "implicit" : "forward_euler");
-  g.set_attribute("residual_tolerance", c.integrator.residual_tolerance);
+  // What the steps are solved to (with a tolerance, tied to it unless the scene names its own).
+  g.set_attribute("residual_tolerance", history::effective_residual_tolerance(c.integrator));
   g.set_attribute("tolerance", c.integrator.tolerance);  // 0: fixed increments
   g.set_attribute("order", c.integrator.order);          // 1: backward Euler's estimate
   g.set_attribute("max_cutbacks", c.integrator.max_cutbacks);

@@ -160,6 +160,8 @@ history::IntegratorOptions parse_integrator(const std::optional<CheckedNode>& no
   // (0, 1) in traction-ratio units, as point::ContactPoint requires of its flow-rule tolerance.
   opt.residual_tolerance = node->get_double("residual_tolerance", opt.residual_tolerance,
                                             Range::in_open_interval(0.0, 1.0));
+  // A residual tolerance the scene names is used as given, not tied to the tolerance.
+  opt.residual_follows_tolerance = !node->has("residual_tolerance");
   if (auto tol = node->optional("tolerance")) {
     if (opt.method != contact::Method::implicit)
       tol->fail("adaptive stepping needs method: implicit");

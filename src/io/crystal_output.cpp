@@ -212,7 +212,8 @@ void write_run_parameters(const h5::Group& g, const CrystalCase& c) {
   const auto& o = c.options;
   g.set_attribute("integrator",
                   o.method == crystal::CrystalMethod::implicit ? "implicit" : "forward_euler");
-  g.set_attribute("residual_tolerance", o.grain.tolerance);
+  // What the steps are solved to (with a tolerance, tied to it unless the scene names its own).
+  g.set_attribute("residual_tolerance", crystal::with_effective_grain_tolerance(o).grain.tolerance);
   g.set_attribute("tolerance", o.tolerance);  // 0: fixed increments
   g.set_attribute("order", o.order);          // 1: backward Euler's estimate
   g.set_attribute("max_iterations", o.grain.max_iterations);

@@ -700,6 +700,8 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
   opt.order = parse_adaptive_order(*node, opt.tolerance);
   opt.grain.tolerance =
       node->get_double("residual_tolerance", opt.grain.tolerance, Range::positive());
+  // A residual tolerance the scene names is used as given, not tied to the tolerance.
+  opt.grain_tolerance_follows_tolerance = !node->has("residual_tolerance");
   opt.grain.max_iterations =
       node->get_int("max_iterations", opt.grain.max_iterations, Range::in_closed_interval(1, 1000));
   opt.max_cutbacks =

@@ -83,6 +83,10 @@ enum class MixedPredictor { last, trend };
 struct AggregateOptions {
   CrystalMethod method = CrystalMethod::implicit;
   GrainStepOptions grain;
+  // With a tolerance, the grains' steps are solved to tolerance / 100 where that is tighter
+  // than grain.tolerance (integrators/inner_tolerance.hpp); false: to grain.tolerance as given
+  // (a scene that names its residual_tolerance).
+  bool grain_tolerance_follows_tolerance = true;
   int max_cutbacks = 20;  // halvings of one increment
   // Mixed control: |sigma_free - target| relative to the stress scale. The accepted error is a
   // strain error the next increment starts from, so a run drifts by up to increments x this
@@ -103,6 +107,10 @@ struct AggregateOptions {
   // (every system's resolved shear stress over its CRSS).
   int order = 1;
 };
+
+// `opt` with grain.tolerance as its run solves the grains' steps to
+// (grain_tolerance_follows_tolerance).
+AggregateOptions with_effective_grain_tolerance(AggregateOptions opt);
 
 // What an observer sees at an output step.
 struct MacroState {

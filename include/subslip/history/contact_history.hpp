@@ -19,6 +19,10 @@ struct IntegratorOptions {
   contact::Method method = contact::Method::implicit;
   int max_cutbacks = 40;              // halvings of one increment before giving up
   double residual_tolerance = 1e-12;  // implicit: |G| in traction-ratio units
+  // With a tolerance, the steps are solved to tolerance / 100 where that is tighter than
+  // residual_tolerance (integrators/inner_tolerance.hpp); false: to residual_tolerance as given
+  // (a scene that names its residual_tolerance).
+  bool residual_follows_tolerance = true;
   // Adaptive stepping (implicit only) when > 0: the local error of each step, estimated as
   // dt/2 |rate of f_t at the end - at the start| in units of the yield traction f_n mu, is kept
   // below `tolerance`; the step grows and shrinks with it. A segment's increments then only
@@ -31,6 +35,9 @@ struct IntegratorOptions {
   // traction (traction, mu relative, r_s) and whose error follows the tolerance.
   int order = 1;
 };
+
+// The flow-rule tolerance the history's steps are solved to (residual_follows_tolerance).
+double effective_residual_tolerance(const IntegratorOptions& opt);
 
 // The contact point a history with these options steps: the model's law and stiffness, the
 // options' update and flow-rule tolerance, no tangent (the history needs none).
