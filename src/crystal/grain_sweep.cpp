@@ -264,6 +264,20 @@ std::array<double, 2> GrainSweep<N>::largest_stress_and_strength() const {
   return largest;
 }
 
+template <int N>
+double GrainSweep<N>::smallest_strength() const {
+  std::array<double, 1> negated{-std::numeric_limits<double>::max()};
+  for (const auto& s : trial_) {
+    const VecN fn = phase_.pressure_sensitive
+                        ? VecN(phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress)
+                        : phase_.tau0;
+    for (int a = 0; a < fn.size(); ++a)
+      if (fn(a) > 0.0) negated[0] = std::max(negated[0], -s.mu(a) * fn(a));
+  }
+  team_.max(negated);
+  return -negated[0];
+}
+
 // The grains' tangents are d sigma / d(D dt) along the free components' strain directions
 // (tangent_directions_): column b is d sigma / d u_b per dt. Only the free components' rows of
 // the mean tangent enter the mixed control's Jacobian (free_entries), so only those entries of

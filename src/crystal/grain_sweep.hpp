@@ -68,6 +68,9 @@ class GrainSweep final : public GrainFields {
   Mat6 average_stiffness() const;
   // The largest stress and the largest strength mu f_n of the trial states, over the team.
   std::array<double, 2> largest_stress_and_strength() const;
+  // The smallest strength mu f_n (f_n > 0) of any slip system of the trial states, over every
+  // rank; the largest double where no plane carries one.
+  double smallest_strength() const;
   // The weighted mean of the grains' tangents, in the free components' rows `rows` (the others
   // zero), over the team.
   Tangent mean_tangent(const std::array<int, 6>& rows, int k) const;

@@ -1,6 +1,7 @@
 #include "mixed_control.hpp"
 
 #include "subslip/crystal/measures.hpp"
+#include "subslip/integrators/inner_tolerance.hpp"
 
 #include <Eigen/LU>
 #include <Eigen/SVD>
@@ -499,6 +500,22 @@ Eigen::VectorXd MixedControl<N>::continued_free(const Eigen::VectorXd& u, double
   return start;
 }
 
+// How close the free stresses are brought to their targets: stress_tolerance x scale, and with
+// a run tolerance T (stress_tolerance_follows_tolerance) at most T / kResidualPerTolerance of the
+// smallest strength of any slip system. An adaptive step's estimate, in units of the CRSS of the
+// system deciding it, resolves nothing below the free-stress error over that CRSS, so a fixed
+// relative tolerance was a floor under every run tolerance where a CRSS lies far below the
+// stresses (0.163 MPa against the GPa of an HCP crystal's elastic directions: refused below
+// about 3e-6); tied, the floor is the stresses' round-off (stress_resolution), which the
+// iteration meets as well as it can.
+template <int N>
+double MixedControl<N>::free_stress_tolerance(const AggregateOptions& opt, double scale) const {
+  const double given = opt.stress_tolerance * scale;
+  if (!opt.stress_tolerance_follows_tolerance || !(opt.tolerance > 0.0)) return given;
+  return std::min(given,
+                  opt.tolerance / integrators::kResidualPerTolerance * grains_.smallest_strength());
+}
+
 // try_step's iteration from the free components u (on success their solution).
 template <int N>
 bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
@@ -515,7 +532,6 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
   const double scale =
       std::max(target.cwiseAbs().maxCoeff(),
                std::max(macro_.stress.cwiseAbs().maxCoeff(), grains_.phase().tau0.maxCoeff()));
-  const double tolerance = opt.stress_tolerance * scale;
   // At most max_mixed_iterations Newton updates and twice as many aggregate solves in all
   // (line-search trials included): a step that fails is cut back, which is cheaper.
   int budget = 2 * opt.max_mixed_iterations;
@@ -524,6 +540,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
   int nonmonotone = 0;
   MixedIterate it;
   if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false, true)) return false;
+  const double tolerance = free_stress_tolerance(opt, scale);
   // The Jacobian of the step's first iterate serves every update of the step (a chord
   // iteration: the averaged tangent barely changes over the few iterations of one step, and
   // the later grain solves need no tangent); it is renewed where its update does not decrease

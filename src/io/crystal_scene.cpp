@@ -708,6 +708,7 @@ crystal::AggregateOptions parse_integrator(const std::optional<CheckedNode>& nod
       node->get_int("max_cutbacks", opt.max_cutbacks, Range::in_closed_interval(0, 200));
   opt.stress_tolerance =
       node->get_double("stress_tolerance", opt.stress_tolerance, Range::positive());
+  opt.stress_tolerance_follows_tolerance = !node->has("stress_tolerance");
   opt.max_mixed_iterations = node->get_int("max_mixed_iterations", opt.max_mixed_iterations,
                                            Range::in_closed_interval(1, 1000));
   if (auto p = node->optional("predictor")) {
