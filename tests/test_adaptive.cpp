@@ -679,6 +679,25 @@ TEST(AdaptiveCrystal, SegmentTimeResolvesStepsTheAbsoluteTimeCannot) {
   EXPECT_GT(repeated_times, 0) << "the case no longer shows what segment_time is for";
 }
 
+namespace {
+
+// The crystal scene `text` parsed, its first case run to the end: "" when it gets there, else
+// the failure's message.
+std::string run_crystal_text(const std::string& text) {
+  const auto parsed =
+      subslip::io::parse_crystal_scene(subslip::io::YamlDocument::from_string(text, "c.yaml"));
+  const auto& c = parsed.cases.at(0);
+  auto agg = crystal::build_taylor_aggregate(c.phase, c.orientations);
+  try {
+    agg->run(c.segments, c.options, [](const crystal::MacroState&, const crystal::GrainFields&) {});
+  } catch (const crystal::CrystalStepFailure& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
 // A nearly rate-independent grain (the parser edge initial_mu = 0.01, eta_v = 1e-9 s, n = 0.5,
 // r_hat = 1 + 1e-6, u_tilde = 1e6 of inputs/extreme/crystal_parser_edges.yaml) with its tension
 // given as one increment, order 2 at 1e-9: 0.05 s in, the estimate stays at about 2e-9 however
@@ -712,17 +731,7 @@ loading:
     increments: 1
 integrator: {method: implicit, order: 2, stress_tolerance: 1.0e-10, tolerance: )";
   const auto run = [&](const std::string& tolerance) {
-    const auto scene = subslip::io::parse_crystal_scene(
-        subslip::io::YamlDocument::from_string(text + tolerance + "}\n", "edge.yaml"));
-    const auto& c = scene.cases.at(0);
-    auto agg = crystal::build_taylor_aggregate(c.phase, c.orientations);
-    try {
-      agg->run(c.segments, c.options,
-               [](const crystal::MacroState&, const crystal::GrainFields&) {});
-    } catch (const crystal::CrystalStepFailure& e) {
-      return std::string(e.what());
-    }
-    return std::string();
+    return run_crystal_text(text + tolerance + "}\n");
   };
   const std::string message = run("1.0e-9");
   ASSERT_FALSE(message.empty()) << "the run reached the end: the case no longer shows the limit";
@@ -878,7 +887,7 @@ TEST(AdaptiveScene, RefusedToleranceNamesTheSmallestThatRunsAndItRuns) {
 // The residual tolerance of a step's solves follows the tolerance asked of the run: at 1e-12 the
 // steps are solved to 1e-14, so the run reaches the end. Named in the scene, the residual
 // tolerance is used as given: with 1e-12 (the default's value) the same run is refused at the
-// estimate's floor, 2.5 times that. The result file records what the steps were solved to.
+// estimate's floor, 2.5 times that.
 TEST(AdaptiveScene, ResidualToleranceFollowsTheRunsToleranceUnlessNamed) {
   const std::string scene =
       kContactHead.substr(0, kContactHead.find("\nloading:") + 1) + R"(loading:
@@ -936,19 +945,7 @@ loading:
     strain: 0.01
     increments: 1
 )";
-  const auto run = [](const std::string& text) {
-    const auto parsed =
-        subslip::io::parse_crystal_scene(subslip::io::YamlDocument::from_string(text, "c.yaml"));
-    const auto& c = parsed.cases.at(0);
-    auto agg = crystal::build_taylor_aggregate(c.phase, c.orientations);
-    try {
-      agg->run(c.segments, c.options,
-               [](const crystal::MacroState&, const crystal::GrainFields&) {});
-    } catch (const crystal::CrystalStepFailure& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
+  const auto run = [](const std::string& text) { return run_crystal_text(text); };
   EXPECT_EQ(run(scene + "integrator: {method: implicit, tolerance: 1.0e-7}\n"), "");
   const std::string refused =
       run(scene + "integrator: {method: implicit, tolerance: 1.0e-7, stress_tolerance: 1.0e-10}\n");
