@@ -506,14 +506,16 @@ Eigen::VectorXd MixedControl<N>::continued_free(const Eigen::VectorXd& u, double
 // system deciding it, resolves nothing below the free-stress error over that CRSS, so a fixed
 // relative tolerance was a floor under every run tolerance where a CRSS lies far below the
 // stresses (0.163 MPa against the GPa of an HCP crystal's elastic directions: refused below
-// about 3e-6); tied, the floor is the stresses' round-off (stress_resolution), which the
-// iteration meets as well as it can.
+// about 3e-6); tied, the floor is what the grains' solves resolve the free stresses to
+// (`grain_noise`: below it the iteration could not converge) and the stresses' round-off.
 template <int N>
-double MixedControl<N>::free_stress_tolerance(const AggregateOptions& opt, double scale) const {
+double MixedControl<N>::free_stress_tolerance(const AggregateOptions& opt, double scale,
+                                              double grain_noise) const {
   const double given = opt.stress_tolerance * scale;
   if (!opt.stress_tolerance_follows_tolerance || !(opt.tolerance > 0.0)) return given;
-  return std::min(given,
-                  opt.tolerance / integrators::kResidualPerTolerance * grains_.smallest_strength());
+  const double tied =
+      opt.tolerance / integrators::kResidualPerTolerance * grains_.smallest_strength();
+  return std::min(given, std::max(tied, grain_noise));
 }
 
 // try_step's iteration from the free components u (on success their solution).
@@ -540,7 +542,8 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
   int nonmonotone = 0;
   MixedIterate it;
   if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false, true)) return false;
-  const double tolerance = free_stress_tolerance(opt, scale);
+  const double tolerance =
+      free_stress_tolerance(opt, scale, stress_resolution(it.l, dt, opt).grain_noise);
   // The Jacobian of the step's first iterate serves every update of the step (a chord
   // iteration: the averaged tangent barely changes over the few iterations of one step, and
   // the later grain solves need no tangent); it is renewed where its update does not decrease
