@@ -255,9 +255,7 @@ std::array<double, 2> GrainSweep<N>::largest_stress_and_strength() const {
   std::array<double, 2> largest{0.0, 0.0};  // stress, strength
   for (const auto& s : trial_) {
     largest[0] = std::max(largest[0], s.stress.cwiseAbs().maxCoeff());
-    const VecN fn = phase_.pressure_sensitive
-                        ? VecN(phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress)
-                        : phase_.tau0;
+    const VecN fn = normal_traction(phase_, s);
     largest[1] = std::max(largest[1], s.mu.cwiseProduct(fn).cwiseAbs().maxCoeff());
   }
   team_.max(largest);
@@ -268,9 +266,7 @@ template <int N>
 double GrainSweep<N>::smallest_strength() const {
   std::array<double, 1> negated{-std::numeric_limits<double>::max()};
   for (const auto& s : trial_) {
-    const VecN fn = phase_.pressure_sensitive
-                        ? VecN(phase_.tau0 - phase_.plane_normal_dyad.transpose() * s.stress)
-                        : phase_.tau0;
+    const VecN fn = normal_traction(phase_, s);
     for (int a = 0; a < fn.size(); ++a)
       if (fn(a) > 0.0) negated[0] = std::max(negated[0], -s.mu(a) * fn(a));
   }

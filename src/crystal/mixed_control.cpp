@@ -508,14 +508,15 @@ Eigen::VectorXd MixedControl<N>::continued_free(const Eigen::VectorXd& u, double
 // stresses (0.163 MPa against the GPa of an HCP crystal's elastic directions: refused below
 // about 3e-6); tied, the floor is what the grains' solves resolve the free stresses to
 // (`grain_noise`: below it the iteration could not converge) and the stresses' round-off.
+// (Fixed steps compute nothing here: the two reductions over the grains are for adaptive runs.)
 template <int N>
 double MixedControl<N>::free_stress_tolerance(const AggregateOptions& opt, double scale,
-                                              double grain_noise) const {
+                                              const Mat3& l, double dt) const {
   const double given = opt.stress_tolerance * scale;
   if (!opt.stress_tolerance_follows_tolerance || !(opt.tolerance > 0.0)) return given;
   const double tied =
       opt.tolerance / integrators::kResidualPerTolerance * grains_.smallest_strength();
-  return std::min(given, std::max(tied, grain_noise));
+  return std::min(given, std::max(tied, stress_resolution(l, dt, opt).grain_noise));
 }
 
 // try_step's iteration from the free components u (on success their solution).
@@ -542,8 +543,7 @@ bool MixedControl<N>::solve_free_components(const LoadSegment& seg,
   int nonmonotone = 0;
   MixedIterate it;
   if (!evaluate_mixed(seg, fc, target, dt, u, opt, it, why, false, true)) return false;
-  const double tolerance =
-      free_stress_tolerance(opt, scale, stress_resolution(it.l, dt, opt).grain_noise);
+  const double tolerance = free_stress_tolerance(opt, scale, it.l, dt);
   // The Jacobian of the step's first iterate serves every update of the step (a chord
   // iteration: the averaged tangent barely changes over the few iterations of one step, and
   // the later grain solves need no tangent); it is renewed where its update does not decrease

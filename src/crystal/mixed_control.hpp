@@ -122,7 +122,8 @@ class MixedControl {
   Eigen::MatrixXd general_jacobian(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                                    const Eigen::VectorXd& u, double dt) const;
   StressResolution stress_resolution(const Mat3& l, double dt, const AggregateOptions& opt) const;
-  double free_stress_tolerance(const AggregateOptions& opt, double scale, double grain_noise) const;
+  double free_stress_tolerance(const AggregateOptions& opt, double scale, const Mat3& l,
+                               double dt) const;
   Eigen::MatrixXd free_stress_jacobian(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                                        const Eigen::VectorXd& u, double dt) const;
   bool evaluate_mixed(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
