@@ -5,7 +5,7 @@ error on the path against a tight reference, as a multiple of the tolerance.
 
     bench/tolerance_sweep.py SUBSLIP SCENE.yaml ... [--tolerances 1e-3 ... 1e-8]
         [--reference-tolerance 1e-11] [--order K] [--compare-order-1] [--workdir DIR]
-        [--max-cases N] [--crystal-measure state|stress]
+        [--max-cases N] [--crystal-measure state|stress|resolved]
 
 SUBSLIP is the built CLI (build/src/subslip). Contact scenes: each case (one per element of the
 scene's sweep) runs with `integrator: {method: implicit, tolerance: T}` (plus `order: K` with
@@ -237,7 +237,7 @@ def main():
     p.add_argument("--compare-order-1", action="store_true")
     p.add_argument("--workdir", default=None)
     p.add_argument("--max-cases", type=int, default=0, help="per scene, 0: all")
-    p.add_argument("--crystal-measure", choices=["state", "stress"], default="state")
+    p.add_argument("--crystal-measure", choices=["state", "stress", "resolved"], default="state")
     p.add_argument("--max-run-seconds", type=float, default=120.0)
     args = p.parse_args()
     global RUN_SECONDS

@@ -57,7 +57,7 @@ loading:
 )";
 
 const std::string kAllGrains =
-    "output:\n  grains: [stress, orientation, slip, slip_rate, crss, r, r_s]\n";
+    "output:\n  grains: [stress, orientation, slip, slip_rate, crss, r, r_s, tau]\n";
 
 fs::path scratch_dir() {
   return subslip::testing::scratch_dir("crystal");
@@ -66,7 +66,7 @@ fs::path scratch_dir() {
 // What the aggregate handed to the observer at one output step.
 struct Reported {
   crystal::MacroState macro;
-  std::vector<double> stress, orientation, slip, slip_rate, crss, r, r_s;
+  std::vector<double> stress, orientation, slip, slip_rate, crss, r, r_s, tau;
 };
 
 Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
@@ -79,6 +79,7 @@ Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
              std::vector<double>(n * k),
              std::vector<double>(n * k),
              std::vector<double>(n * k),
+             std::vector<double>(n * k),
              std::vector<double>(n * k)};
   g.values(crystal::GrainField::stress, r.stress.data());
   g.values(crystal::GrainField::orientation, r.orientation.data());
@@ -87,6 +88,7 @@ Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
   g.values(crystal::GrainField::crss, r.crss.data());
   g.values(crystal::GrainField::r, r.r.data());
   g.values(crystal::GrainField::r_s, r.r_s.data());
+  g.values(crystal::GrainField::tau, r.tau.data());
   return r;
 }
 
@@ -203,7 +205,8 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
                            {"slip_rate", systems, &Reported::slip_rate, "1/s"},
                            {"crss", systems, &Reported::crss, "MPa"},
                            {"r", systems, &Reported::r, "1"},
-                           {"r_s", systems, &Reported::r_s, "1"}};
+                           {"r_s", systems, &Reported::r_s, "1"},
+                           {"tau", systems, &Reported::tau, "MPa"}};
   for (const Expect& x : expect) {
     SCOPED_TRACE(x.name);
     const auto d = g.open_dataset(x.name);
@@ -214,6 +217,14 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
     for (std::size_t k = 0; k < n; ++k)
       EXPECT_EQ(step_of(values, k, grains * x.k), seen[k].*x.field);
   }
+  // The resolved shear is the one r reports: |tau| = r mu tau0 = r CRSS (no plane pressure).
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t i = 0; i < grains * systems; ++i) {
+      const double resolved = seen[k].r[i] * seen[k].crss[i];
+      EXPECT_NEAR(std::abs(seen[k].tau[i]), resolved, 1e-13 * (1.0 + resolved)) << k << " " << i;
+    }
+  }
+  EXPECT_NE(seen.back().tau[0], 0.0);
   // The grain stress as full 3x3 tensors [n, G, 3, 3]: the kernel's 11 22 33 23 13 12 at (i, j)
   // and (j, i).
   const auto grain_stress = g.open_dataset("stress");

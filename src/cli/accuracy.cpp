@@ -152,6 +152,13 @@ std::vector<StudyCase> contact_cases(const AccuracyArgs& a, const io::YamlDocume
   return out;
 }
 
+study::CrystalProblem::Measure crystal_measure(const std::string& name) {
+  using Measure = study::CrystalProblem::Measure;
+  if (name == "stress") return Measure::stress;
+  if (name == "resolved") return Measure::resolved;
+  return Measure::state;
+}
+
 std::vector<StudyCase> crystal_cases(const AccuracyArgs& a, const io::YamlDocument& doc,
                                      io::AccuracyReport& rep) {
   const io::CrystalScene scene = io::parse_crystal_scene(doc);
@@ -161,14 +168,12 @@ std::vector<StudyCase> crystal_cases(const AccuracyArgs& a, const io::YamlDocume
   std::vector<StudyCase> out;
   for (const auto& c : scene.cases) {
     if (!selected(a, c.name)) continue;
-    out.push_back(
-        {c.name, scene.units.stress,
-         std::make_unique<study::CrystalProblem>(
-             c.phase, c.orientations, c.segments, c.options, driver::loading_component(c.segments),
-             a.measure == "stress" ? study::CrystalProblem::Measure::stress
-                                   : study::CrystalProblem::Measure::state,
-             a.reference_at_run_times ? study::CrystalProblem::TimeAxis::segment
-                                      : study::CrystalProblem::TimeAxis::absolute)});
+    out.push_back({c.name, scene.units.stress,
+                   std::make_unique<study::CrystalProblem>(
+                       c.phase, c.orientations, c.segments, c.options,
+                       driver::loading_component(c.segments), crystal_measure(a.measure),
+                       a.reference_at_run_times ? study::CrystalProblem::TimeAxis::segment
+                                                : study::CrystalProblem::TimeAxis::absolute)});
   }
   return out;
 }
@@ -269,10 +274,11 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
       ->needs(tolerance);
   cmd->add_option("--measure", a.measure,
                   "Crystal: what the error is measured on besides the loading component: "
-                  "'state', every grain's r, ln(CRSS) and r_s of each system (the "
-                  "extrapolated estimate bounds r); 'stress', every grain's stress (where the "
+                  "'state', every grain's r, ln(CRSS) and r_s of each system; 'resolved', "
+                  "every grain's resolved shear of each system over its CRSS (what the "
+                  "extrapolated estimate bounds); 'stress', every grain's stress (where the "
                   "split of slip among systems, and so each CRSS, is not determined)")
-      ->check(CLI::IsMember({"state", "stress"}))
+      ->check(CLI::IsMember({"state", "stress", "resolved"}))
       ->capture_default_str();
   cmd->add_option("--cvode-check-rtol", a.cvode_check_rtol,
                   "rtol of the CVODE run that cross-checks the reference")

@@ -43,7 +43,8 @@ class Extrapolation {
 
  private:
   VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;
-  bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order) const;
+  bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
+                      const GrainState<N>& combined, const Mat3& velocity_gradient) const;
   void combine_macro(int order, const GrainSweep<N>& grains);
 
   // The start state, the solutions with 1 .. k substeps, the combined macroscopic state and

@@ -375,6 +375,15 @@ void GrainSweep<N>::subloading_ratio(double* out) const {
 }
 
 template <int N>
+void GrainSweep<N>::resolved_shear(double* out) const {
+  const int n = phase_.slip_count;
+  per_grain(out, n, [&](const GrainState<N>& s, double* row) {
+    const VecN tau = phase_.schmid.transpose() * s.stress;
+    for (int a = 0; a < n; ++a) row[a] = tau(a);
+  });
+}
+
+template <int N>
 void GrainSweep<N>::values(GrainField f, double* out) const {
   switch (f) {
     case GrainField::stress:
@@ -391,6 +400,8 @@ void GrainSweep<N>::values(GrainField f, double* out) const {
       return ratio(out);
     case GrainField::r_s:
       return subloading_ratio(out);
+    case GrainField::tau:
+      return resolved_shear(out);
   }
 }
 

@@ -118,6 +118,7 @@ class GrainSweep final : public GrainFields {
   void crss(double* out) const;
   void ratio(double* out) const;
   void subloading_ratio(double* out) const;
+  void resolved_shear(double* out) const;
   void solve_implicit_grain(
       size_t gi, const Mat3& l, double dt, const GrainStepOptions& grain_options, Tangent* t,
       bool warm, bool carried, bool slip_tangent,

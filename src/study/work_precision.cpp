@@ -267,7 +267,7 @@ void reference_at(const Problem& problem, const StudyOptions& options, const Sto
 }  // namespace
 
 PointResult measure_point(const Problem& problem, const Setting& setting,
-                          const PathInterpolant& reference, const std::vector<double>& scales,
+                          const PathInterpolant& reference, const ErrorScales& scales,
                           const StudyOptions& options) {
   PointResult p;
   p.setting = setting;
@@ -396,7 +396,7 @@ ReferenceResult run_reference(const Problem& problem, const StudyOptions& option
     if (record(problem, ref.check, Report::every_step, looser).ok) check = std::move(looser);
   }
   ref.scales = problem.error_scales(ref.path);
-  ref.scale = ref.scales.front();
+  ref.scale = ref.scales.front().value;
   const PathInterpolant interpolant(ref.path);
   ref.interpolation_error = interpolant.estimated_error(ref.scales);
   if (check) ref.self_convergence = measure_error(*check, interpolant, ref.scales, true).max_error;
@@ -476,9 +476,12 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
                             format_setting(setting) + ": " + note);
         say(options, out.notes.back());
       }
-      if (out.points.back().error.max_error_channel >= 0) {
-        out.points.back().max_error_on =
-            problem.channel_name(out.points.back().error.max_error_channel);
+      if (const ErrorMeasure& e = out.points.back().error; e.max_error_channel >= 0) {
+        // Times into segments name their segment (the time alone is ambiguous).
+        out.points.back().max_error_on = problem.channel_name(e.max_error_channel) +
+                                         (problem.times_into_segments() && e.max_error_segment >= 0
+                                              ? " in segment " + std::to_string(e.max_error_segment)
+                                              : "");
       }
       say(options, describe_point(out.points.back()));
       previous = out.points.size() - 1;

@@ -120,9 +120,8 @@ double PathInterpolant::at(double t, int segment) const {
   return out[0];
 }
 
-double PathInterpolant::estimated_error(std::span<const double> scales) const {
+double PathInterpolant::estimated_error(const ErrorScales& scales) const {
   const auto w = static_cast<std::size_t>(width_);
-  const auto scale = [&](std::size_t c) { return scales.empty() ? 1.0 : scales[c]; };
   double worst = 0.0;
   std::vector<double> value(w);
   for (const auto& p : pieces_) {
@@ -138,14 +137,17 @@ double PathInterpolant::estimated_error(std::span<const double> scales) const {
     if ((n - 1) % 2 != 0) keep(n - 1);  // keep the last node
     for (std::size_t k = 1; k + 1 < n; k += 2) {
       local_cubic_at(t2, y2, width_, p.t[k], value);
-      for (std::size_t c = 0; c < w; ++c)
-        worst = std::max(worst, std::abs(value[c] - p.y[k * w + c]) / scale(c));
+      const std::span<const double> node(p.y.data() + k * w, w);
+      for (std::size_t c = 0; c < w; ++c) {
+        const double scale = scales.empty() ? 1.0 : scales[c].at(node);
+        worst = std::max(worst, std::abs(value[c] - node[c]) / scale);
+      }
     }
   }
   return worst;
 }
 
-ErrorAccumulator::ErrorAccumulator(const PathInterpolant& reference, std::vector<double> scales)
+ErrorAccumulator::ErrorAccumulator(const PathInterpolant& reference, ErrorScales scales)
     : reference_(reference),
       scales_(std::move(scales)),
       interpolated_(static_cast<std::size_t>(reference.width())) {
@@ -164,7 +166,7 @@ void ErrorAccumulator::add(double time, std::span<const double> values, int segm
   double d = 0.0;
   int channel = 0;
   for (std::size_t c = 0; c < values.size(); ++c) {
-    const double dc = std::abs(values[c] - interpolated_[c]) / scales_[c];
+    const double dc = std::abs(values[c] - interpolated_[c]) / scales_[c].at(interpolated_);
     if (std::isnan(dc) || dc > d) {  // a NaN wins
       d = dc;
       channel = static_cast<int>(c);
@@ -176,6 +178,7 @@ void ErrorAccumulator::add(double time, std::span<const double> values, int segm
     e_.max_error = d;
     e_.max_error_time = time;
     e_.max_error_channel = channel;
+    e_.max_error_segment = segment;
   }
   e_.end_error = d;
   any_ = true;
@@ -187,7 +190,7 @@ ErrorMeasure ErrorAccumulator::result(bool complete) const {
 }
 
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference,
-                           const std::vector<double>& scales, bool complete) {
+                           const ErrorScales& scales, bool complete) {
   ErrorAccumulator acc(reference, scales);
   for (std::size_t k = 0; k < run.size(); ++k) acc.add(run.time[k], run.at(k), run.segment[k]);
   return acc.result(complete);
@@ -195,7 +198,7 @@ ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& referen
 
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
                            bool complete) {
-  return measure_error(run, reference, std::vector<double>{scale}, complete);
+  return measure_error(run, reference, ErrorScales{ErrorScale(scale)}, complete);
 }
 
 Trajectory richardson(const Trajectory& fine, const Trajectory& coarse) {

@@ -180,13 +180,20 @@ std::string CrystalProblem::quantity() const {
   return "sigma_" + std::to_string(component_.first + 1) + std::to_string(component_.second + 1);
 }
 
-std::vector<double> CrystalProblem::error_scales(const Trajectory& reference) const {
+ErrorScales CrystalProblem::error_scales(const Trajectory& reference) const {
   double largest = 0.0;
   for (double v : reference.headline()) largest = std::max(largest, std::abs(v));
   largest = largest > 0.0 ? largest : 1.0;
-  std::vector<double> scales(static_cast<std::size_t>(reference.width),
-                             measure_ == Measure::stress ? largest : 1.0);
-  scales[0] = largest;
+  ErrorScales scales(static_cast<std::size_t>(reference.width),
+                     ErrorScale(measure_ == Measure::stress ? largest : 1.0));
+  scales[0] = ErrorScale(largest);
+  if (measure_ == Measure::resolved) {
+    // (tau, CRSS) pairs: tau over the CRSS beside it; the CRSS itself is not measured.
+    for (std::size_t c = 1; c + 1 < scales.size(); c += 2) {
+      scales[c] = ErrorScale::of_channel(static_cast<int>(c + 1));
+      scales[c + 1] = ErrorScale(std::numeric_limits<double>::infinity());
+    }
+  }
   return scales;
 }
 
@@ -194,18 +201,30 @@ std::string CrystalProblem::error_scale_description() const {
   const std::string flow = "the largest |" + quantity() +
                            "| of the reference along the path (the flow stress the test reaches)";
   if (measure_ == Measure::stress) return flow + ", for every grain's stress as well";
+  if (measure_ == Measure::resolved)
+    return flow +
+           "; every grain's resolved shear of each slip system: the reference's CRSS of "
+           "that system at the same point";
   return flow + "; every grain's r, ln(CRSS) and r_s of each slip system: 1";
 }
 
 namespace {
-constexpr int kPerSystem = 3;  // r, ln(mu tau0), r_s
+constexpr int kPerSystem = 3;          // r, ln(mu tau0), r_s
+constexpr int kPerSystemResolved = 2;  // tau, mu tau0 (its scale)
 constexpr const char* kStressNames[6] = {"sigma_11", "sigma_22", "sigma_33",
                                          "sigma_23", "sigma_13", "sigma_12"};
 }  // namespace
 
 std::string CrystalProblem::measured() const {
-  return quantity() + (measure_ == Measure::stress ? " and every grain's stress"
-                                                   : " and every grain's r, ln(CRSS), r_s");
+  switch (measure_) {
+    case Measure::stress:
+      return quantity() + " and every grain's stress";
+    case Measure::resolved:
+      return quantity() + " and every grain's resolved shear over its CRSS";
+    case Measure::state:
+      break;
+  }
+  return quantity() + " and every grain's r, ln(CRSS), r_s";
 }
 
 std::string CrystalProblem::channel_name(int channel) const {
@@ -214,6 +233,12 @@ std::string CrystalProblem::channel_name(int channel) const {
   if (measure_ == Measure::stress)
     return "grain " + std::to_string(k / 6) + " " + kStressNames[k % 6];
   const int slips = crystal::checked_slip_count(phase_);
+  if (measure_ == Measure::resolved) {
+    const int system = (k / kPerSystemResolved) % slips;
+    const int grain = k / kPerSystemResolved / slips;
+    return "grain " + std::to_string(grain) + " system " + std::to_string(system) +
+           (k % kPerSystemResolved == 0 ? " tau" : " CRSS");
+  }
   const int system = (k / kPerSystem) % slips;
   const int grain = k / kPerSystem / slips;
   static constexpr const char* kWhat[kPerSystem] = {"r", "ln(CRSS)", "r_s"};
@@ -268,7 +293,7 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
   LastTime seen{observe};
   const auto [i, j] = component_;
   // Reused from point to point (the observer runs between steps, never concurrently).
-  std::vector<double> ratio, crss, r_s, channels;
+  std::vector<double> ratio, crss, r_s, tau, channels;
   const auto record = [&](const crystal::MacroState& m, const crystal::GrainFields& grains) {
     // (The initial state, segment -1, is at time 0 on either clock.)
     const double time = clock_ == TimeAxis::segment && m.segment >= 0 ? m.segment_time : m.time;
@@ -286,6 +311,18 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
     }
     const auto n = static_cast<std::size_t>(grains.grain_count()) *
                    static_cast<std::size_t>(grains.slip_count());
+    if (measure_ == Measure::resolved) {
+      tau.resize(n), crss.resize(n), channels.resize(1 + kPerSystemResolved * n);
+      grains.values(crystal::GrainField::tau, tau.data());
+      grains.values(crystal::GrainField::crss, crss.data());
+      channels[0] = m.stress(i, j);
+      for (std::size_t k = 0; k < n; ++k) {
+        channels[1 + kPerSystemResolved * k] = tau[k];
+        channels[2 + kPerSystemResolved * k] = crss[k];
+      }
+      seen(time, channels, m.segment);
+      return;
+    }
     ratio.resize(n), crss.resize(n), r_s.resize(n), channels.resize(1 + kPerSystem * n);
     grains.values(crystal::GrainField::r, ratio.data());
     grains.values(crystal::GrainField::crss, crss.data());

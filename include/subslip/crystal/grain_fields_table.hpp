@@ -13,7 +13,7 @@
 namespace subslip::crystal {
 
 // In output order.
-enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s };
+enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s, tau };
 
 // How the file stores a grain's value of a field.
 enum class GrainFieldShape {
@@ -39,7 +39,7 @@ struct GrainFieldInfo {
 inline constexpr std::string_view kPerSystemComponents =
     "one value per slip system, in the order of slip_systems";
 
-inline constexpr std::array<GrainFieldInfo, 7> kGrainFieldTable = {{
+inline constexpr std::array<GrainFieldInfo, 8> kGrainFieldTable = {{
     {GrainField::stress, "stress", 6, GrainFieldShape::tensor, GrainFieldUnit::stress,
      "Cauchy stress of each grain, sample frame", ""},
     {GrainField::orientation, "orientation", 9, GrainFieldShape::quaternion, GrainFieldUnit::none,
@@ -55,6 +55,9 @@ inline constexpr std::array<GrainFieldInfo, 7> kGrainFieldTable = {{
      "dynamic loading ratio r = |tau| / (mu f_n)", kPerSystemComponents},
     {GrainField::r_s, "r_s", 0, GrainFieldShape::per_system, GrainFieldUnit::none,
      "subloading ratio r_s", kPerSystemComponents},
+    {GrainField::tau, "tau", 0, GrainFieldShape::per_system, GrainFieldUnit::stress,
+     "resolved shear stress tau = P : sigma (signed, along the slip direction)",
+     kPerSystemComponents},
 }};
 
 // Every field, in output order (the table's order).
@@ -67,7 +70,9 @@ inline constexpr std::array<GrainField, kGrainFieldTable.size()> kAllGrainFields
 constexpr const GrainFieldInfo& info(GrainField f) {
   return kGrainFieldTable[static_cast<std::size_t>(f)];
 }
-constexpr std::string_view to_string(GrainField f) { return info(f).name; }
+constexpr std::string_view to_string(GrainField f) {
+  return info(f).name;
+}
 
 // Values per grain as GrainFields gives them, for a phase of `slip_count` systems.
 constexpr std::size_t given_width(GrainField f, std::size_t slip_count) {

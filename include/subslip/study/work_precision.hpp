@@ -21,6 +21,7 @@
 // scene's output points.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <functional>
 #include <limits>
@@ -130,6 +131,25 @@ using StopTimes = std::vector<std::pair<int, double>>;
 // Receives each reported point: time, measured channels, loading segment (-1: initial state).
 using PointObserver = std::function<void(double time, std::span<const double> values, int segment)>;
 
+// What divides one channel's error: a fixed scale, or the reference's own value of another
+// channel at the same point (the CRSS of a system for its resolved shear, which hardens along
+// the path). A channel with an infinite fixed scale is never an error itself (it only scales).
+struct ErrorScale {
+  ErrorScale(double fixed = 1.0) : value(fixed) {}  // NOLINT: a plain scale reads as a number
+  static ErrorScale of_channel(int c) {
+    ErrorScale s;
+    s.channel = c;
+    return s;
+  }
+  double value = 1.0;  // the fixed scale (channel < 0)
+  int channel = -1;    // >= 0: |the reference's channel| at the point
+  // The scale at a point whose reference values are `reference`.
+  double at(std::span<const double> reference) const {
+    return channel < 0 ? value : std::abs(reference[static_cast<std::size_t>(channel)]);
+  }
+};
+using ErrorScales = std::vector<ErrorScale>;
+
 // A case the study can run at any setting. run() never throws for a numerical failure: the
 // failure is returned (forward Euler at coarse steps diverges, and that is a result).
 class Problem {
@@ -147,8 +167,8 @@ class Problem {
   virtual long base_increments() const = 0;
   virtual std::string quantity() const = 0;  // channel 0: "f_t/f_n", "sigma_33", ...
   // The scale that divides each channel's error, from the reference path (channel 0: the yield
-  // scale of the problem).
-  virtual std::vector<double> error_scales(const Trajectory& reference) const = 0;
+  // scale of the problem, a fixed one).
+  virtual ErrorScales error_scales(const Trajectory& reference) const = 0;
   virtual std::string error_scale_description() const = 0;
   // What channel c is ("sigma_33", "grain 3 system 7 r", ...).
   virtual std::string channel_name(int channel) const = 0;
@@ -179,8 +199,8 @@ class ContactProblem final : public Problem {
   bool supports(Integrator integrator) const override;
   long base_increments() const override;
   std::string quantity() const override { return "f_t/f_n"; }
-  std::vector<double> error_scales(const Trajectory&) const override {
-    return {model_.law.friction.mu_s};
+  ErrorScales error_scales(const Trajectory&) const override {
+    return {ErrorScale(model_.law.friction.mu_s)};
   }
   std::string error_scale_description() const override;
   std::string channel_name(int) const override { return quantity(); }
@@ -200,9 +220,16 @@ class ContactProblem final : public Problem {
 // frame), with channel 0's scale. For laws whose slip is split among systems that round-off
 // cannot tell apart (nearly rate-independent, every system yielding at once), each system's
 // CRSS follows its own slip and is not determined, while the stress is.
+//
+// Measure::resolved: after channel 0, grain by grain and system by system, the resolved shear
+// tau = P : sigma over the reference's CRSS of that system at the same point (the CRSS rides
+// along as a channel that only scales): what the extrapolated integrators' estimate bounds, step
+// by step (crystal/aggregate_extrapolation.cpp). Determined where the split of slip is not, and
+// blind to stress components that no system resolves (a grain of one family held elastic), on
+// which the stress measure sees the elastic response.
 class CrystalProblem final : public Problem {
  public:
-  enum class Measure { state, stress };
+  enum class Measure { state, stress, resolved };
   // The times a run reports its points at: absolute, or the time into each point's segment
   // (exact, where an absolute time resolves a step only to an ulp of itself: the first steps of
   // a reversal at 1e4 /s a million seconds into a history are 1e-10 s, one ulp of 1e6 s, and a
@@ -220,7 +247,7 @@ class CrystalProblem final : public Problem {
   bool times_into_segments() const override { return clock_ == TimeAxis::segment; }
   long base_increments() const override;
   std::string quantity() const override;
-  std::vector<double> error_scales(const Trajectory& reference) const override;
+  ErrorScales error_scales(const Trajectory& reference) const override;
   std::string error_scale_description() const override;
   std::string channel_name(int channel) const override;
   std::string measured() const override;
@@ -252,7 +279,7 @@ class PathInterpolant {
   // scale (`scales` empty: 1): the same interpolation built on every second node, evaluated at
   // the dropped nodes. Where the path is smooth the error falls as h^4, so at the full node
   // density it is about 16 times smaller than this.
-  double estimated_error(std::span<const double> scales = {}) const;
+  double estimated_error(const ErrorScales& scales = {}) const;
 
  private:
   struct Piece {
@@ -269,6 +296,7 @@ struct ErrorMeasure {
   double max_error = kNaN;       // max over the run's points and channels of |value - ref| / scale
   double max_error_time = kNaN;  // where the maximum is
   int max_error_channel = -1;    // and on which channel
+  int max_error_segment = -1;    // and in which loading segment
   double end_error = kNaN;       // at the run's last point (NaN when the run failed)
 };
 
@@ -276,21 +304,21 @@ struct ErrorMeasure {
 class ErrorAccumulator {
  public:
   // scales: one per channel of the reference.
-  ErrorAccumulator(const PathInterpolant& reference, std::vector<double> scales);
+  ErrorAccumulator(const PathInterpolant& reference, ErrorScales scales);
   void add(double time, std::span<const double> values, int segment);
   // NaN errors unless `complete` (a failed run has no end, and its error is not a result).
   ErrorMeasure result(bool complete) const;
 
  private:
   const PathInterpolant& reference_;
-  std::vector<double> scales_;
+  ErrorScales scales_;
   std::vector<double> interpolated_;  // the reference at the current point
-  ErrorMeasure e_{0.0, kNaN, -1, kNaN};
+  ErrorMeasure e_{0.0, kNaN, -1, -1, kNaN};
   bool any_ = false;
 };
 
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference,
-                           const std::vector<double>& scales, bool complete);
+                           const ErrorScales& scales, bool complete);
 // One channel, one scale.
 ErrorMeasure measure_error(const Trajectory& run, const PathInterpolant& reference, double scale,
                            bool complete);
@@ -361,12 +389,12 @@ struct PointResult {
 
 struct ReferenceResult {
   Setting setting;
-  RunResult run;               // the reference run (R, for an extrapolated one)
-  Trajectory path;             // the reference path: every step
-  double scale = kNaN;         // the error scale of channel 0
-  std::vector<double> scales;  // of every channel
-  bool extrapolated = false;   // Richardson: from `setting` and half its increments
-  Setting check;               // the coarser companion of the self-convergence estimate
+  RunResult run;              // the reference run (R, for an extrapolated one)
+  Trajectory path;            // the reference path: every step
+  double scale = kNaN;        // the error scale of channel 0
+  ErrorScales scales;         // of every channel
+  bool extrapolated = false;  // Richardson: from `setting` and half its increments
+  Setting check;              // the coarser companion of the self-convergence estimate
   // max |companion - ref| / scale: for a plain fixed-step reference (first order) this
   // estimates the reference's own error; for an extrapolated or adaptive one, the error of the
   // coarser companion, an upper estimate of the reference's.
@@ -403,7 +431,7 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options);
 // when they would take more than repeat_budget_seconds; at least one) report only the scene's
 // output points, and their median is the time.
 PointResult measure_point(const Problem& problem, const Setting& setting,
-                          const PathInterpolant& reference, const std::vector<double>& scales,
+                          const PathInterpolant& reference, const ErrorScales& scales,
                           const StudyOptions& options);
 
 // The cheapest measured run of `integrator` whose maximum error is at most `error`: its median

@@ -447,6 +447,8 @@ class TaylorOde final : private crystal::GrainFields {
         return ratio(out);
       case crystal::GrainField::r_s:
         return subloading_ratio(out);
+      case crystal::GrainField::tau:
+        return resolved_shear(out);
     }
   }
   template <class F>
@@ -480,6 +482,12 @@ class TaylorOde final : private crystal::GrainFields {
   }
   void ratio(double* out) const {
     per_system(out, [&](int g, int a) { return slips_[static_cast<size_t>(g)].r(a); });
+  }
+  void resolved_shear(double* out) const {  // stress in the lattice frame (Mandel, first 6)
+    for (int g = 0; g < grains_; ++g) {
+      const VecN tau = phase_.schmid.transpose() * Eigen::Map<const Vec6>(view_ + g * grain_size_);
+      for (int a = 0; a < n_; ++a) out[g * n_ + a] = tau(a);
+    }
   }
   void subloading_ratio(double* out) const {
     per_system(out, [&](int g, int a) {
