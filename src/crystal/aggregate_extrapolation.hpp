@@ -43,8 +43,18 @@ class Extrapolation {
 
  private:
   VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;
+  // d|tau|/dt of every system at a state, and the rounding of its terms (loading()).
+  struct Loading {
+    VecN growth, rounding;
+    bool loading(int a) const { return growth(a) > rounding(a); }
+    bool unloading(int a) const { return growth(a) < -rounding(a); }
+  };
+  static Loading loading(const Phase<N>& phase, const GrainState<N>& s,
+                         const Mat3& velocity_gradient);
   bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
-                      const GrainState<N>& combined, const Mat3& velocity_gradient) const;
+                      const GrainState<N>& combined) const;
+  static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
+                          const GrainState<N>& combined, const Mat3& velocity_gradient, double dt);
   void combine_macro(int order, const GrainSweep<N>& grains);
 
   // The start state, the solutions with 1 .. k substeps, the combined macroscopic state and
