@@ -237,7 +237,7 @@ def main():
     p.add_argument("--compare-order-1", action="store_true")
     p.add_argument("--workdir", default=None)
     p.add_argument("--max-cases", type=int, default=0, help="per scene, 0: all")
-    p.add_argument("--crystal-measure", choices=["state", "stress", "resolved"], default="state")
+    p.add_argument("--crystal-measure", choices=["state", "stress", "resolved"], default="resolved")
     p.add_argument("--max-run-seconds", type=float, default=120.0)
     args = p.parse_args()
     global RUN_SECONDS

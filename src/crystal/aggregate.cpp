@@ -367,7 +367,10 @@ class TaylorAggregate final : public Aggregate {
       macro_ = macro_start;
       return false;
     }
-    extrapolation_.combine(order, t1 - t0, grains_);
+    // The loading at the step's start: the last step's L, or the segment's own at its start.
+    const std::optional<Mat3> start_l =
+        t0 > 0.0 ? std::optional<Mat3>(macro_start.velocity_gradient) : std::nullopt;
+    extrapolation_.combine(order, t1 - t0, grains_, start_l);
     return grains_.every_grain_ok(stats_, why);
   }
 

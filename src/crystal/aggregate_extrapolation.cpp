@@ -17,14 +17,19 @@ Mat3 log_strain(const Mat3& f) {
 // trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
 // estimates in errors_, the restoring reports in reports_.
 template <int N>
-void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains) {
+void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
+                               const std::optional<Mat3>& start_l) {
   grains.forget_solve();  // its trial states are no longer the last solve's
   const Phase<N>& phase = grains.phase();
   std::vector<GrainState<N>>& trial = grains.trial();
   std::vector<GrainStepReport>& reports = grains.reports();
   const auto k = static_cast<size_t>(order);
   const long n = static_cast<long>(grains.committed().size());
-  const Mat3 step_l = solution_macros_[k - 1].velocity_gradient;  // (mixed control: as solved)
+  // The loading at the step's end: the solutions' L (under mixed control as solved, each its last
+  // substep's mean) combined like the states, L at the end to the combination's order; the next
+  // step reads it as its start's (MacroState::velocity_gradient of the combination).
+  const Mat3 l_at_end = combined_velocity_gradient(order);
+  const Mat3 l_at_start = start_l.value_or(l_at_end);
 #pragma omp parallel for schedule(static) if (n > 1)
   for (long g = 0; g < n; ++g) {
     const auto gi = static_cast<size_t>(g);
@@ -65,7 +70,8 @@ void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains) {
         error(a) = integrators::guarded_estimate(error(a), previous(a), before(a));
     }
     if (!switches_phase(phase, step_start_[gi], gi, order, out)) {
-      errors_[gi] = errors_[gi].cwiseMax(turn_errors(phase, step_start_[gi], out, step_l, dt));
+      errors_[gi] =
+          errors_[gi].cwiseMax(turn_errors(phase, step_start_[gi], out, l_at_start, l_at_end, dt));
     } else {
       // A system switched between elastic and slipping inside the step: the solution has a
       // kink there and no error expansion in powers of the step, so the step is judged as a
@@ -160,19 +166,20 @@ bool Extrapolation<N>::switches_phase(const Phase<N>& phase, const GrainState<N>
 // (g0 < 0) and growing at the end (g1 > 0), linear in between, that part is g1^2 dt /
 // (2 (g1 - g0)), an upper bound on the error (slip would have held |tau| lower). It falls like
 // the square of the step's part after the turn, so the step shrinks towards the turn at the
-// clock's order. (Judged instead as a backward Euler step, a turn among the 240 idle systems of
-// the five-family HCP aggregate made every step one: 5.4 times the steps at 1e-5.) Measured
-// without it on the prismatic case of the same scene: 3e-7 ... 1.3e-6 of the CRSS off at 1e-8.
+// clock's order. `start_l` and `end_l`: the L each state is loaded by (the combinations' L of
+// this step and of the one before: a turn is seen once, where the sign changes from one step's
+// end to the next's). Measured without it on the prismatic case of the same scene: 3e-7 ...
+// 1.3e-6 of the CRSS off at 1e-8; docs/integrators.md has the readings that did not work.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::turn_errors(const Phase<N>& phase,
                                                               const GrainState<N>& start,
                                                               const GrainState<N>& combined,
-                                                              const Mat3& velocity_gradient,
-                                                              double dt) {
+                                                              const Mat3& start_l,
+                                                              const Mat3& end_l, double dt) {
   const int n = phase.slip_count;
   VecN error = VecN::Zero(n);
-  const Loading at_start = loading(phase, start, velocity_gradient);
-  const Loading at_end = loading(phase, combined, velocity_gradient);
+  const Loading at_start = loading(phase, start, start_l);
+  const Loading at_end = loading(phase, combined, end_l);
   for (int a = 0; a < n; ++a) {
     if (combined.rate(a) != 0.0 || !at_start.unloading(a) || !at_end.loading(a)) continue;
     const double g0 = at_start.growth(a), g1 = at_end.growth(a);
@@ -184,16 +191,25 @@ typename Extrapolation<N>::VecN Extrapolation<N>::turn_errors(const Phase<N>& ph
 // The macroscopic state of the combination: F and L extrapolated like the grains (with mixed
 // control they differ between the solutions), the strain from F, the stress averaged anew.
 template <int N>
+Mat3 Extrapolation<N>::combined_velocity_gradient(int order) const {
+  const auto k = static_cast<size_t>(order);
+  std::array<Mat3, integrators::kMaxExtrapolationOrder> l;
+  for (size_t j = 0; j < l.size(); ++j)  // (unused rows: the finest, kept finite)
+    l[j] = solution_macros_[std::min(j, k - 1)].velocity_gradient;
+  return integrators::extrapolate_implicit_euler(l, order).best;
+}
+
+template <int N>
 void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
   const auto k = static_cast<size_t>(order);
-  std::array<Mat3, integrators::kMaxExtrapolationOrder> f, l, strain;
+  std::array<Mat3, integrators::kMaxExtrapolationOrder> f, strain;
   for (size_t j = 0; j < f.size(); ++j) {  // (unused rows: the finest, kept finite)
     const MacroState& m = solution_macros_[std::min(j, k - 1)];
-    f[j] = m.deformation_gradient, l[j] = m.velocity_gradient, strain[j] = m.strain;
+    f[j] = m.deformation_gradient, strain[j] = m.strain;
   }
   extrapolated_macro_ = solution_macros_[0];  // time and segment: the same in every solution
   extrapolated_macro_.deformation_gradient = integrators::extrapolate_implicit_euler(f, order).best;
-  extrapolated_macro_.velocity_gradient = integrators::extrapolate_implicit_euler(l, order).best;
+  extrapolated_macro_.velocity_gradient = combined_velocity_gradient(order);
   extrapolated_macro_.strain = grains.phase().kinematics == Kinematics::small_strain
                                    ? integrators::extrapolate_implicit_euler(strain, order).best
                                    : log_strain(extrapolated_macro_.deformation_gradient);

@@ -9,6 +9,7 @@
 #include "subslip/integrators/extrapolation.hpp"
 
 #include <array>
+#include <optional>
 #include <vector>
 
 namespace subslip::crystal::aggregate_parts {
@@ -32,7 +33,9 @@ class Extrapolation {
   const MacroState& macro() const { return extrapolated_macro_; }
 
   // `dt`: the step's length (backward Euler's own estimate on steps with a switch).
-  void combine(int order, double dt, GrainSweep<N>& grains);
+  // `start_l`: the velocity gradient the grains were loaded by at the step's start (the last
+  // step's), or none at a segment's start (the step's own).
+  void combine(int order, double dt, GrainSweep<N>& grains, const std::optional<Mat3>& start_l);
   ErrorEstimate error(const GrainSweep<N>& grains) const {
     return grains.worst_error([&](size_t g) { return errors_[g]; });
   }
@@ -54,8 +57,10 @@ class Extrapolation {
   bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
                       const GrainState<N>& combined) const;
   static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
-                          const GrainState<N>& combined, const Mat3& velocity_gradient, double dt);
+                          const GrainState<N>& combined, const Mat3& start_l, const Mat3& end_l,
+                          double dt);
   void combine_macro(int order, const GrainSweep<N>& grains);
+  Mat3 combined_velocity_gradient(int order) const;
 
   // The start state, the solutions with 1 .. k substeps, the combined macroscopic state and
   // per-grain error estimates.
