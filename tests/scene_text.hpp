@@ -44,4 +44,27 @@ inline std::string copper_scene_start(std::string_view header = "") {
          kCopperPhase;
 }
 
+// A crystal scene up to its loading: the soft magnesium case of
+// inputs/extreme/crystal_hcp_families.yaml, slip on `families` only (e.g. "hcp_basal_a"),
+// tau0 = 0.163 MPa (G/tau0 = 1e5), finite rotation, eight random grains (seed 6).
+inline std::string soft_magnesium_scene_start(std::string_view families) {
+  return R"(scene: crystal
+units: {stress: MPa, time: s}
+phase:
+  families: [)" +
+         std::string(families) +
+         R"(]
+  c_over_a: 1.624
+  elasticity: {type: hexagonal, C11: 59500, C12: 26100, C13: 21800, C33: 65600, C44: 16300}
+  tau0: 0.163
+  law:
+    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 10.0, xi: 0.0}
+    subloading: {function: cot, u_tilde: 200}
+    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
+  kinematics: finite_rotation
+orientations:
+  random: {count: 8, seed: 6}
+)";
+}
+
 }  // namespace subslip::testing

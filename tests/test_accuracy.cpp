@@ -563,21 +563,8 @@ TEST(AccuracyCrystal, ExtrapolatedErrorFollowsTheToleranceOnEveryGrainsState) {
 // reference's companion itself 1.2e-6 off (a turn missed at 1e-9).
 TEST(AccuracyCrystal, SwitchesBetweenTheSolutionsSamplesAreSeen) {
   const SingleThread one;
-  const auto scene = io::parse_crystal_scene(io::YamlDocument::from_string(R"(scene: crystal
-units: {stress: MPa, time: s}
-phase:
-  families: [hcp_prismatic_a]
-  c_over_a: 1.624
-  elasticity: {type: hexagonal, C11: 59500, C12: 26100, C13: 21800, C33: 65600, C44: 16300}
-  tau0: 0.163
-  law:
-    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 10.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-  kinematics: finite_rotation
-orientations:
-  random: {count: 8, seed: 6}
-loading:
+  const auto scene = io::parse_crystal_scene(io::YamlDocument::from_string(
+      subslip::testing::soft_magnesium_scene_start("hcp_prismatic_a") + R"(loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
     stress: [[0, x, x], [x, 0, x], [x, x, x]]
     strain: 0.01
@@ -587,7 +574,7 @@ loading:
     duration: 0.03
     increments: 1
 )",
-                                                                           "switches.yaml"));
+      "switches.yaml"));
   const io::CrystalCase& c = scene.cases.front();
   const CrystalProblem problem(
       c.phase, c.orientations, c.segments, c.options, driver::loading_component(c.segments),

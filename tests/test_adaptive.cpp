@@ -921,21 +921,8 @@ TEST(AdaptiveScene, ResidualToleranceFollowsTheRunsToleranceUnlessNamed) {
 // in units of a CRSS 1e4 times smaller, cannot fall below about 1.5e-6: 1e-7 was refused at the
 // reversal. Tied, it runs to the end; with stress_tolerance named it is refused as before.
 TEST(AdaptiveCrystal, InnerTolerancesFollowTheRunsToleranceUnlessNamed) {
-  const std::string scene = R"(scene: crystal
-units: {stress: MPa, time: s}
-phase:
-  families: [hcp_basal_a]
-  c_over_a: 1.624
-  elasticity: {type: hexagonal, C11: 59500, C12: 26100, C13: 21800, C33: 65600, C44: 16300}
-  tau0: 0.163
-  law:
-    friction: {mu_s: 1.0, mu_k: 3.0, kappa: 10.0, xi: 0.0}
-    subloading: {function: cot, u_tilde: 200}
-    overstress: {form: exponential, eta_v: 1.0e-3, n: 16, r_hat: 1.6}
-  kinematics: finite_rotation
-orientations:
-  random: {count: 8, seed: 6}
-loading:
+  const std::string scene =
+      subslip::testing::soft_magnesium_scene_start("hcp_basal_a") + R"(loading:
   - L: [[x, 0, 0], [0, x, 0], [0, 0, 1.0e-3]]
     stress: [[0, x, x], [x, 0, x], [x, x, x]]
     strain: 0.1
