@@ -188,8 +188,8 @@ typename Extrapolation<N>::VecN Extrapolation<N>::turn_errors(const Phase<N>& ph
   return error;
 }
 
-// The macroscopic state of the combination: F and L extrapolated like the grains (with mixed
-// control they differ between the solutions), the strain from F, the stress averaged anew.
+// The solutions' L combined like the grains' states (with mixed control they differ between
+// the solutions): L at the step's end to the combination's order.
 template <int N>
 Mat3 Extrapolation<N>::combined_velocity_gradient(int order) const {
   const auto k = static_cast<size_t>(order);
@@ -199,6 +199,8 @@ Mat3 Extrapolation<N>::combined_velocity_gradient(int order) const {
   return integrators::extrapolate_implicit_euler(l, order).best;
 }
 
+// The macroscopic state of the combination: F and L extrapolated like the grains, the strain
+// from F, the stress averaged anew.
 template <int N>
 void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
   const auto k = static_cast<size_t>(order);
