@@ -1,5 +1,6 @@
 #include "aggregate_extrapolation.hpp"
 
+#include "kernel_detail.hpp"
 #include "subslip/crystal/rotation.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -93,7 +94,7 @@ void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
                         .cwiseMax(rate_estimate);
     }
   }
-  combine_macro(order, grains);
+  combine_macro(order, l_at_end, grains);
 }
 
 // An error estimate per system from a difference of the stress: the resolved shear stress
@@ -113,23 +114,21 @@ typename Extrapolation<N>::VecN Extrapolation<N>::system_errors(const Phase<N>& 
 
 // Whether |tau| of each system grows or falls at a state under L: d|tau|/dt = sign(tau) P : C :
 // (D - sum_b gdot_b P_b), the lattice stress rate with the state's slip rates. A rate within the
-// rounding of its terms (16 ulp of their sum of magnitudes) does neither: an idle system in a
-// hold, where the slipping systems' relaxation nearly balances, has no sign there.
+// rounding of its terms does neither (16 ulp of their sum of magnitudes, the round-off level the
+// grain solves take for their residuals): an idle system in a hold, where the slipping systems'
+// relaxation nearly balances, has no sign there.
 template <int N>
 typename Extrapolation<N>::Loading Extrapolation<N>::loading(const Phase<N>& phase,
                                                              const GrainState<N>& s,
                                                              const Mat3& velocity_gradient) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
-  SlipRates<N> slip;
-  slip.tau = phase.schmid.transpose() * s.stress;
-  slip.rate = s.rate;
-  GrainRates<N> rates;
-  grain_rates(phase, s, slip, velocity_gradient, rates);
-  const VecN elastic = phase.schmid.transpose() * (phase.stiffness * rates.strain_rate);
+  const Vec6 strain_rate = detail::lattice_kinematics(s.orientation, velocity_gradient).strain_rate;
+  const VecN elastic = phase.schmid.transpose() * (phase.stiffness * strain_rate);
   const VecN plastic = phase.interaction * s.rate;
   const VecN terms = elastic.cwiseAbs() + phase.interaction.cwiseAbs() * s.rate.cwiseAbs();
+  const VecN tau = phase.schmid.transpose() * s.stress;
   Loading out;
-  out.growth = (elastic - plastic).cwiseProduct(slip.tau.cwiseSign());
+  out.growth = (elastic - plastic).cwiseProduct(tau.cwiseSign());
   out.rounding = 16.0 * kEps * terms;
   return out;
 }
@@ -199,10 +198,11 @@ Mat3 Extrapolation<N>::combined_velocity_gradient(int order) const {
   return integrators::extrapolate_implicit_euler(l, order).best;
 }
 
-// The macroscopic state of the combination: F and L extrapolated like the grains, the strain
-// from F, the stress averaged anew.
+// The macroscopic state of the combination: F extrapolated like the grains, L as combined
+// (combined_velocity_gradient), the strain from F, the stress averaged anew.
 template <int N>
-void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
+void Extrapolation<N>::combine_macro(int order, const Mat3& velocity_gradient,
+                                     const GrainSweep<N>& grains) {
   const auto k = static_cast<size_t>(order);
   std::array<Mat3, integrators::kMaxExtrapolationOrder> f, strain;
   for (size_t j = 0; j < f.size(); ++j) {  // (unused rows: the finest, kept finite)
@@ -211,7 +211,7 @@ void Extrapolation<N>::combine_macro(int order, const GrainSweep<N>& grains) {
   }
   extrapolated_macro_ = solution_macros_[0];  // time and segment: the same in every solution
   extrapolated_macro_.deformation_gradient = integrators::extrapolate_implicit_euler(f, order).best;
-  extrapolated_macro_.velocity_gradient = combined_velocity_gradient(order);
+  extrapolated_macro_.velocity_gradient = velocity_gradient;
   extrapolated_macro_.strain = grains.phase().kinematics == Kinematics::small_strain
                                    ? integrators::extrapolate_implicit_euler(strain, order).best
                                    : log_strain(extrapolated_macro_.deformation_gradient);

@@ -59,7 +59,7 @@ class Extrapolation {
   static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
                           const GrainState<N>& combined, const Mat3& start_l, const Mat3& end_l,
                           double dt);
-  void combine_macro(int order, const GrainSweep<N>& grains);
+  void combine_macro(int order, const Mat3& velocity_gradient, const GrainSweep<N>& grains);
   Mat3 combined_velocity_gradient(int order) const;
 
   // The start state, the solutions with 1 .. k substeps, the combined macroscopic state and
