@@ -168,7 +168,7 @@ bool Extrapolation<N>::switches_phase(const Phase<N>& phase, const GrainState<N>
 // clock's order. `start_l` and `end_l`: the L each state is loaded by (the combinations' L of
 // this step and of the one before: a turn is seen once, where the sign changes from one step's
 // end to the next's). Measured without it on the prismatic case of the same scene: 3e-7 ...
-// 1.3e-6 of the CRSS off at 1e-8; docs/integrators.md has the readings that did not work.
+// 1.3e-6 of the CRSS off at 1e-8; docs/integrators.md has the readings not taken.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::turn_errors(const Phase<N>& phase,
                                                               const GrainState<N>& start,
