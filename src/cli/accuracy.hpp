@@ -22,7 +22,7 @@ struct AccuracyArgs {
   bool fe_uniform = false;            // forward Euler with uniform increments
   std::vector<double> implicit{0.25, 0.5, 1.0, 2.0, 4.0, 8.0};
   std::vector<double> adaptive{1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
-  std::vector<double> extrapolated{1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
+  std::vector<double> extrapolated{1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
   std::vector<double> cvode{1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
   double reference_factor = 0.0;        // 0: 16 x the largest implicit factor
   double reference_tolerance = 0.0;     // > 0: an adaptive reference instead
