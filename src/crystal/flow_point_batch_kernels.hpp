@@ -46,16 +46,20 @@ void flow_points_for(const law::LawParameters& p, double dt, double latent_self,
     const auto r_s =
         cf::cot_subloading_ratio_after(p.subloading.u_tilde, load(in.r0), load(in.cos0),
                                        load(in.one_minus_cos0), load(in.rate0), slip);
-    const Batch r = load(in.shear) / (mu.value * load(in.normal));
+    // r, dr/d|tau| and r/mu from one quotient (see StressSolver::flow_point).
+    const Batch normal = load(in.normal);
+    const Batch per_traction = 1.0 / (mu.value * normal);
+    const Batch r = load(in.shear) * per_traction;
+    const Batch r_per_mu = r * (per_traction * normal);
     const auto g = cf::exponential_flow_residual(p.overstress, r, r_s.value, slip, dt);
     // dG/d ds through r (hardening: dr/d ds = -r/mu dmu/d ds, q of it the system's own slip),
     // through r_s (dG/dr_s = -1) and the overstress term.
-    const Batch g_slip = g.d_r * (-r / mu.value * mu.slope * latent_self) - r_s.slope + g.d_slip;
+    const Batch g_slip = g.d_r * (-r_per_mu * mu.slope * latent_self) - r_s.slope + g.d_slip;
     // The Newton coefficients in the order of the solver's scalar path, so each rounds as there.
     const Batch inverse_slope = 1.0 / (-g_slip);
     (g.value * inverse_slope).store_aligned(out.newton_w.data() + a);
-    (g.d_r / (mu.value * load(in.normal)) * inverse_slope).store_aligned(out.newton_d.data() + a);
-    (g.d_r * (-r / mu.value) * mu.slope * inverse_slope).store_aligned(out.newton_l.data() + a);
+    (g.d_r * per_traction * inverse_slope).store_aligned(out.newton_d.data() + a);
+    (g.d_r * (-r_per_mu) * mu.slope * inverse_slope).store_aligned(out.newton_l.data() + a);
     const auto outside = !(r < p.overstress.r_hat) || !(mu.value > 0.0);
     xsimd::select(outside, Batch(inf), g.value).store_aligned(out.g.data() + a);
     g_slip.store_aligned(out.g_slip.data() + a);

@@ -108,9 +108,11 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const Vec
       p.l(a) = s * batch_out_.newton_l[i];
     } else {
       const double inverse_slope = 1.0 / (-f.g_s);
+      const double per_traction = 1.0 / (f.mu * fn(a));
+      const double r_per_mu = f.r * (per_traction * fn(a));
       p.w(a) = s * f.g * inverse_slope;
-      p.d(a) = f.g_dr / (f.mu * fn(a)) * inverse_slope;
-      p.l(a) = s * f.g_dr * (-f.r / f.mu) * f.dmu_de * inverse_slope;
+      p.d(a) = f.g_dr * per_traction * inverse_slope;
+      p.l(a) = s * f.g_dr * (-r_per_mu) * f.dmu_de * inverse_slope;
     }
   }
   return change;
@@ -267,10 +269,14 @@ inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double laten
   const auto mu = law.friction_coefficient_after(s0_.mu(a), effective, dt_);
   const auto& start = starts_[static_cast<size_t>(a)][against ? 1 : 0];
   const auto rs = law.subloading_ratio_after(start, slip);
-  const double r = abs_tau / (mu.value * ph_.tau0(a));
+  // r = |tau|/(mu f_n), its slope 1/(mu f_n) and r/mu from one quotient, as the batches take
+  // them (a division costs as much as a dozen products there).
+  const double per_traction = 1.0 / (mu.value * ph_.tau0(a));
+  const double r = abs_tau * per_traction;
   const auto g = law.flow_residual(r, rs.value, slip, dt_);
   if (!g.admissible || !(mu.value > 0.0)) return {kInf, 0.0, 0.0, 0.0, r, 0.0, mu.value, rs.value};
-  const double dr_dslip = -r / mu.value * mu.d_slip * q;
+  const double r_per_mu = r * (per_traction * ph_.tau0(a));
+  const double dr_dslip = -r_per_mu * mu.d_slip * q;
   const double g_slip = g.d_r * dr_dslip + g.d_rs * rs.d_slip + g.d_slip;
   return {g.value, slip > 0.0 ? g_slip * dslip_dz : 0.0, g_slip, g.d_r, r, mu.d_slip, mu.value,
           rs.value};
