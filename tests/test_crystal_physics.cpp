@@ -316,15 +316,17 @@ Mat3 contract_rotated_cubic(const Mat3& g, const Mat3& eps) {
 // leaves a 100x margin on both and would catch any wrong rotation, transposition or Mandel
 // weight (O(1) errors).
 // The phase's packed Schmid dyads give the lower triangle of P diag(d) P^T, the implicit step's
-// condensed matrix, for any weights d.
+// condensed matrix, for any weights d; the rows that pad them to whole vector batches give zero.
 TEST(CrystalPhase, SchmidDyadsGiveTheCondensedMatrix) {
   const Phase<12> ph = fcc_phase(crystal_law(1.7, 12.24, 46.45, 0.0, 200.0, 1e-3), 10.0,
                                  Kinematics::finite_rotation);
   const SlipTypes<12>::VecN d = SlipTypes<12>::VecN::LinSpaced(12, -1.0, 2.3);
   const Mat6 full = ph.schmid * d.asDiagonal() * ph.schmid.transpose();
-  const Eigen::Matrix<double, 21, 1> lower = ph.schmid_dyads * d;
-  for (int j = 0, k = 0; j < 6; ++j)
+  const Eigen::Matrix<double, Phase<12>::kDyadRows, 1> lower = ph.schmid_dyads * d;
+  int k = 0;
+  for (int j = 0; j < 6; ++j)
     for (int i = j; i < 6; ++i, ++k) EXPECT_NEAR(lower(k), full(i, j), 1e-15) << i << j;
+  for (; k < Phase<12>::kDyadRows; ++k) EXPECT_EQ(lower(k), 0.0) << k;
 }
 
 TEST(CrystalElasticity, OneStepMatchesRotatedCubicStiffness) {

@@ -98,7 +98,7 @@ void Phase<N>::assemble(const std::vector<Vec3>& s, const std::vector<Vec3>& m, 
     slip_spin.col(a) = 0.5 * m[static_cast<size_t>(a)].cross(s[static_cast<size_t>(a)]);
   }
   c_schmid = c * schmid;
-  schmid_dyads.resize(21, n);
+  schmid_dyads.setZero(kDyadRows, n);
   for (int a = 0; a < n; ++a)
     for (int j = 0, k = 0; j < 6; ++j)
       for (int i = j; i < 6; ++i) schmid_dyads(k++, a) = schmid(i, a) * schmid(j, a);

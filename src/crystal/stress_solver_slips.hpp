@@ -147,7 +147,8 @@ inline typename StressSolver<N>::Condensed StressSolver<N>::condense(const SlipP
   Mat6 s = ph_.compliance;
   // Symmetric: its lower triangle (which the L D L^T factorisation reads) as one product of the
   // phase's 21 x n dyads with d.
-  Eigen::Matrix<double, 21, 1> lower = Eigen::Matrix<double, 21, 1>::Zero();
+  using Lower = Eigen::Matrix<double, Phase<N>::kDyadRows, 1>;
+  Lower lower = Lower::Zero();
   for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
   for (int j = 0, k = 0; j < 6; ++j)
     for (int i = j; i < 6; ++i) s(i, j) += lower(k++);

@@ -76,8 +76,10 @@ struct Phase {
   typename T::Mat6N schmid;    // P_a = sym(s_a (x) m_a)
   typename T::Mat6N c_schmid;  // C P_a
   // The lower triangle of P_a P_a^T (column by column: 11, 21, ..., 61, 22, 32, ..., 66), so that
-  // the implicit step's C^-1 + P diag(d) P^T is one product of this with d.
-  Eigen::Matrix<double, 21, N, 0, 21, T::MaxN> schmid_dyads;
+  // the implicit step's C^-1 + P diag(d) P^T is one product of this with d; three rows of zeros
+  // after the 21, so that a column is whole batches of 4 or 8 (21 would be pairs and one).
+  static constexpr int kDyadRows = 24;
+  Eigen::Matrix<double, kDyadRows, N, 0, kDyadRows, T::MaxN> schmid_dyads;
   typename T::MatNN interaction;         // A_ab = P_a : C : P_b
   typename T::Mat6N plane_normal_dyad;   // M_a = m_a (x) m_a (pressure-sensitive reading)
   typename T::Mat6N c_normal_dyad;       // C M_a
