@@ -61,6 +61,7 @@ struct FlowPoint {
   double r = 0.0;
   double dmu_de = 0.0;  // d mu / d(effective slip)
   double mu = 0.0, r_s = 0.0;
+  double per_traction = 0.0;  // 1/(mu f_n) = dr/d|tau| (its system-by-system evaluation only)
 };
 
 template <int N>

@@ -108,10 +108,9 @@ inline typename StressSolver<N>::RoleChange StressSolver<N>::slip_rows(const Vec
       p.l(a) = s * batch_out_.newton_l[i];
     } else {
       const double inverse_slope = 1.0 / (-f.g_s);
-      const double per_traction = 1.0 / (f.mu * fn(a));
-      const double r_per_mu = f.r * (per_traction * fn(a));
+      const double r_per_mu = f.r * (f.per_traction * fn(a));
       p.w(a) = s * f.g * inverse_slope;
-      p.d(a) = f.g_dr * per_traction * inverse_slope;
+      p.d(a) = f.g_dr * f.per_traction * inverse_slope;
       p.l(a) = s * f.g_dr * (-r_per_mu) * f.dmu_de * inverse_slope;
     }
   }
@@ -146,7 +145,7 @@ inline typename StressSolver<N>::Condensed StressSolver<N>::condense(const SlipP
   Condensed c;
   Mat6 s = ph_.compliance;
   // Symmetric: its lower triangle (which the L D L^T factorisation reads) as one product of the
-  // phase's 21 x n dyads with d.
+  // phase's dyads with d (21 rows and the padding, Phase::schmid_dyads).
   using Lower = Eigen::Matrix<double, Phase<N>::kDyadRows, 1>;
   Lower lower = Lower::Zero();
   for (int a = 0; a < n_; ++a) lower += p.d(a) * ph_.schmid_dyads.col(a);
@@ -275,12 +274,16 @@ inline FlowPoint StressSolver<N>::flow_point(int a, double abs_tau, double laten
   const double per_traction = 1.0 / (mu.value * ph_.tau0(a));
   const double r = abs_tau * per_traction;
   const auto g = law.flow_residual(r, rs.value, slip, dt_);
-  if (!g.admissible || !(mu.value > 0.0)) return {kInf, 0.0, 0.0, 0.0, r, 0.0, mu.value, rs.value};
+  if (!g.admissible || !(mu.value > 0.0))
+    return {kInf, 0.0, 0.0, 0.0, r, 0.0, mu.value, rs.value, per_traction};
   const double r_per_mu = r * (per_traction * ph_.tau0(a));
   const double dr_dslip = -r_per_mu * mu.d_slip * q;
   const double g_slip = g.d_r * dr_dslip + g.d_rs * rs.d_slip + g.d_slip;
-  return {g.value, slip > 0.0 ? g_slip * dslip_dz : 0.0, g_slip, g.d_r, r, mu.d_slip, mu.value,
-          rs.value};
+  return {g.value,     slip > 0.0 ? g_slip * dslip_dz : 0.0,
+          g_slip,      g.d_r,
+          r,           mu.d_slip,
+          mu.value,    rs.value,
+          per_traction};
 }
 
 template <int N>
