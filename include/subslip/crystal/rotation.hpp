@@ -30,6 +30,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 
 namespace subslip::crystal {
 
@@ -93,7 +94,39 @@ double misorientation_angle(const Quaternion& a, const Quaternion& b);
 // Rodrigues' formula: the ACTIVE rotation matrix exp([w]x) that turns vectors by |w| about w/|w|
 // (right hand). Series near w = 0, so it is exact for tiny increments.
 //   rotation_exp(omega n) == axis_angle_to_matrix(n, omega)^T   (active = transpose of passive).
-Eigen::Matrix3d rotation_exp(const Eigen::Vector3d& axis_times_angle);
+// Inline: the grain step calls it a few times per step, and compiles it with its own instruction
+// set (grain_step_isa.hpp).
+inline Eigen::Matrix3d rotation_exp(const Eigen::Vector3d& w) {
+  const double theta2 = w.squaredNorm();
+  // sin(t)/t and (1 - cos t)/t^2 by their Taylor series to t^8 for t < 1/10 (the lattice
+  // spin of one step, nearly always): the first terms left out, t^10/11! and t^10/12!, are below
+  // 3e-18, under the rounding of the quotients, which would also pay a sine and a cosine. The
+  // series' coefficients are constants (Horner's form with multiplications: a division on this
+  // chain of dependent operations costs several multiplications' time, and the rotations of a
+  // grain step are a few per cent of it).
+  double a, b;
+  if (theta2 < 1e-2) {
+    constexpr double a1 = -1.0 / 6.0, a2 = 1.0 / 120.0, a3 = -1.0 / 5040.0, a4 = 1.0 / 362880.0;
+    constexpr double b1 = -1.0 / 24.0, b2 = 1.0 / 720.0, b3 = -1.0 / 40320.0, b4 = 1.0 / 3628800.0;
+    const double t2 = theta2;
+    a = 1.0 + t2 * (a1 + t2 * (a2 + t2 * (a3 + t2 * a4)));
+    b = 0.5 + t2 * (b1 + t2 * (b2 + t2 * (b3 + t2 * b4)));
+  } else {
+    // Through the half angle: 1 - cos t = 2 sin^2(t/2) keeps its digits.
+    const double theta = std::sqrt(theta2);
+    const double sin_half = std::sin(0.5 * theta), cos_half = std::cos(0.5 * theta);
+    a = 2.0 * sin_half * cos_half / theta;
+    b = 2.0 * sin_half * sin_half / theta2;
+  }
+  // R = I + a [w] + b [w]^2, with [w]^2 = w w^T - |w|^2 I.
+  Eigen::Matrix3d r = b * (w * w.transpose());
+  r.diagonal().array() += 1.0 - b * theta2;
+  r(0, 1) -= a * w.z(), r(1, 0) += a * w.z();
+  r(0, 2) += a * w.y(), r(2, 0) -= a * w.y();
+  r(1, 2) -= a * w.x(), r(2, 1) += a * w.x();
+  return r;
+}
+
 // The inverse: the axial vector (angle in [0, pi]) of an active rotation matrix.
 Eigen::Vector3d rotation_log(const Eigen::Matrix3d& active_rotation);
 
