@@ -1,7 +1,7 @@
 // subslip_grain_lanes: what SIMD lanes across grains (one grain per lane, as a batched material
 // point could hold them) would give the grain solver, against its lanes across slip systems.
 //
-// Two measurements (docs/grain_step.md, "Formulations not used, and why"):
+// Two measurements (docs/benchmarks.md, "SIMD lanes across grains"):
 // * Lockstep. Grains in lanes evaluate their flow rules together, so a batch of W grains takes as
 //   many evaluations as its slowest grain. The ExaCMech anchor's work (random FCC grains, latent
 //   ratio 1, D = 1e-3/s diag(1, -1/2, -1/2), steps of 0.1 s) through the material-point API:

@@ -94,8 +94,8 @@ double misorientation_angle(const Quaternion& a, const Quaternion& b);
 // Rodrigues' formula: the ACTIVE rotation matrix exp([w]x) that turns vectors by |w| about w/|w|
 // (right hand). Series near w = 0, so it is exact for tiny increments.
 //   rotation_exp(omega n) == axis_angle_to_matrix(n, omega)^T   (active = transpose of passive).
-// Inline: the grain step calls it a few times per step, and compiles it with its own instruction
-// set (grain_step_isa.hpp).
+// Inline: the grain step calls it a few times per step and compiles it with its own
+// instruction set.
 inline Eigen::Matrix3d rotation_exp(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();
   // sin(t)/t and (1 - cos t)/t^2 by their Taylor series to t^8 for t < 1/10 (the lattice
