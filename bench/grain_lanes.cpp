@@ -90,10 +90,11 @@ Lockstep lockstep_evaluations(int grains, int steps, const std::vector<int>& wid
 }
 
 // A plausible trial point of `count` systems: loaded near r = 0.95, slipping a little.
-void fill_trial_points(int count, cr::detail::FlowBatchInput& in) {
+void fill_trial_points(const subslip::law::LawParameters& law, int count,
+                       cr::detail::FlowBatchInput& in) {
   cr::detail::SubloadingStartBatch starts;
   for (int a = 0; a < count; ++a) starts.r0[static_cast<size_t>(a)] = 0.9;
-  cr::detail::batched_subloading_starts(200.0, count, starts);
+  cr::detail::batched_subloading_starts(law.subloading.u_tilde, count, starts);
   for (int a = 0; a < count; ++a) {
     const auto i = static_cast<size_t>(a);
     in.mu0[i] = 1.7 + 0.01 * a;
@@ -111,7 +112,7 @@ void fill_trial_points(int count, cr::detail::FlowBatchInput& in) {
 double nanoseconds_per_system(int count, int calls) {
   const subslip::law::LawParameters law = anchor_phase().family_settings[0].law;
   cr::detail::FlowBatchInput in;
-  fill_trial_points(count, in);
+  fill_trial_points(law, count, in);
   cr::detail::FlowBatchOutput out;
   std::vector<double> runs;
   double sink = 0.0;
