@@ -22,7 +22,7 @@ inline double sign_of(double v) {
 // triangular: the implicit step's condensed Newton matrix, factored once or twice per grain
 // step. Written out because at this size the factorisation is a chain of dependent operations:
 // Eigen's LLT<Mat6> takes six square roots and six divisions on that chain (about 4 % of a
-// grain step's time, 2026-11-28), this one six divisions and no root. No pivoting: a positive
+// grain step's time, measured), this one six divisions and no root. No pivoting: a positive
 // definite matrix needs none (its pivots are the positive D).
 class SymmetricFactor6 {
  public:

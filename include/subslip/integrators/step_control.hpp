@@ -25,7 +25,7 @@ namespace subslip::integrators {
 // form (err ~ dt^q) holds, so a larger growth risks refused steps, and a smaller one turns a
 // scene's small first increment into a long ramp of steps the tolerance does not ask for.
 // The extrapolated integrators' estimates (on states the grain determines) grow the next step
-// at most 10x, the bound of DOPRI5 and of CVODE after its first step (at 4x, until 2026-11-27,
+// at most 10x, the bound of DOPRI5 and of CVODE after its first step (at 4x,
 // the 1000-grain aggregate's first increment of 1.4e-6 strain took 8 steps to 1 % at every
 // tolerance from 1e-2 down, 0.061 times 1e-2; at 10x 5 steps, 0.11; docs/integrators.md).
 // Backward Euler's own estimate (`order: 1`, whose error follows the square root of the
