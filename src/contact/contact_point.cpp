@@ -185,7 +185,9 @@ template <bool kSensitivity>
   const detail::PathMinimum<double> lowest = detail::lowest_ratio_on_path(
       s0.traction_t, s0.traction_n, trial, fn1,
       [&](double l) { return law.friction_coefficient_after(s0.law.mu, 0.0, l * dt).value; });
-  const bool dips = lowest.ratio < s0.law.r_s;
+  // At the path's start the state has r_s <= r, so a minimum there below r_s is round-off of
+  // |f_t|, not a dip: taken as one it would lower r_s by an ulp on every step of steady sliding.
+  const bool dips = lowest.at > 0.0 && lowest.ratio < s0.law.r_s;
   const double rs_start = dips ? lowest.ratio : s0.law.r_s;
   const double slip_time = dips && lowest.at < 1.0 ? (1.0 - lowest.at) * dt : dt;
 
@@ -262,11 +264,21 @@ template <bool kSensitivity>
     ds = (ft_trial - ft) / c.alpha_t;
   }
   const law::ValueAndSlope mu = law.friction_coefficient_after(s0.law.mu, ds, dt);
-  s.r = ft / (fn1 * mu.value);
+  const double rs_after = law.subloading_ratio_after(rs_start, ds).value;
+  if (law.is_rate_independent()) {
+    // The flow rule is r = r_s: the traction lies on the subloading surface. Taken from the
+    // slip, r would miss r_s by the root's residual, one way or the other, and r_s = min(r_s, r)
+    // would keep every miss below: over the 1e5 ... 1e6 steps of a tight tolerance r_s would
+    // drift down by their sum (4e-9 after a 2-D change of direction), the more the tighter.
+    ft = rs_after * fn1 * mu.value;
+    s.r = rs_after;
+  } else {
+    s.r = ft / (fn1 * mu.value);
+  }
   const double dr = -c.alpha_t / (fn1 * mu.value) - s.r / mu.value * mu.d_slip;  // d r / d ds
   s.law.mu = mu.value;
   s.traction_t = trial * (ft / ft_trial);
-  s.law.r_s = std::min(law.subloading_ratio_after(rs_start, ds).value, s.r);
+  s.law.r_s = std::min(rs_after, s.r);
   s.vp_slip = s0.vp_slip + ds;
   s.vp_rate = ds / slip_time;  // the end rate of the flow rule
   StepAttempt out{s, iterations, true, {}};
