@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -302,6 +303,47 @@ TEST(AdaptiveContact, DryFrictionReversalRunsToTheCoulombLimit) {
   const auto& f = m.law.friction;
   const double mu_ss = (f.kappa * 1.0 + f.xi) / (f.kappa * 1.0 / f.mu_k + f.xi / f.mu_s);
   EXPECT_NEAR(run.segment_ends[1].traction_ratio(), mu_ss, 1e-5);
+}
+
+// Rate-independent sliding from r_s = 0 along x with mu = mu_s (kappa = xi = 0): r = r_s
+// while sliding, so f_t = alpha_t (u - s) = r_s(s) mu_s f_n, with r_s(s) = (2/pi)
+// arccos(exp(-pi u_tilde s / 2)) the integral of dr_s/ds = u_tilde cot(pi r_s / 2) (2.28). The
+// slip s at a displacement u is the root of that (bisection): an exact path. A step of any
+// length lands on it (the radial return of a proportional path is exact), so the path is met
+// to round-off at every tolerance, and the steps need no backward Euler estimate (no
+// transient: the traction is on the flow rule at every instant): a few tens, not thousands.
+TEST(AdaptiveContact, RateIndependentSlideIsExactAtItsStepsAndTakesFew) {
+  auto m = paper_model();
+  m.law.overstress.form = law::OverstressForm::rate_independent;
+  m.law.friction.kappa = 0.0;
+  m.law.friction.xi = 0.0;
+  const double mu = m.law.friction.mu_s, u_tilde = m.law.subloading.u_tilde;
+  const double compliance = mu * kFn / m.stiffness.alpha_t;  // mm per unit r
+  auto exact_ratio = [&](double u) {
+    auto r_of = [&](double s) {
+      return 2.0 / std::numbers::pi * std::acos(std::exp(-0.5 * std::numbers::pi * u_tilde * s));
+    };
+    double lo = 0.0, hi = u;  // s + compliance r(s) - u: negative at 0, positive at u
+    for (int i = 0; i < 200; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (mid + compliance * r_of(mid) < u ? lo : hi) = mid;
+    }
+    return mu * r_of(0.5 * (lo + hi));
+  };
+  using contact::Vec2;
+  const auto history = with_path_outputs({segment(Vec2(1, 0), 1.0)});
+  for (double tolerance : {1e-4, 1e-6, 1e-8}) {
+    const ContactRun run = run_contact(m, history, tolerance, 2);
+    ASSERT_EQ(run.path.size(), history[0].output_times.size());
+    double worst = 0.0;
+    for (size_t k = 0; k < run.path.size(); ++k)
+      worst = std::max(worst, std::abs(run.path[k] - exact_ratio(history[0].output_times[k])));
+    measured() << "tolerance " << tolerance << ": " << run.stats.substeps << " steps, "
+               << run.stats.rejected << " refused, error " << worst / mu << " of mu_s\n";
+    EXPECT_TRUE(run.all_admissible);
+    EXPECT_LE(worst / mu, 1e-12);  // round-off of 1e2 ... 1e4 steps' tractions
+    EXPECT_LT(run.stats.substeps, 200);
+  }
 }
 
 namespace {

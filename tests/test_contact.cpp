@@ -747,6 +747,31 @@ TEST(Contact2D, DirectionChangeRotatesTractionTowardNewSlip) {
               mu_ss * ratio_resolution(1e6, last_increment_slip(segs[1]), mu_ss) + 1e-12 * mu_ss);
 }
 
+// Rate-independent sliding at r_s = 1 (1 - r_s decays like e^{-u_tilde pi/2 u}: below an ulp
+// after 1 mm) turned by 90 degrees: consistency keeps |f_t| = r_s mu f_n, and r_s never falls
+// while sliding (dr_s = U(r_s) ds >= 0), so |f_t|/f_n stays mu_s (kappa = xi = 0: mu is mu_s)
+// exactly however the turn is stepped. 20000 steps of 5e-10 mm each: a step that left r_s a
+// residual below its flow-rule value on each of them would drift r_s down by their sum.
+TEST(Contact2D, RateIndependentTurnOfManyStepsStaysOnTheYieldSurface) {
+  auto p = paper_law(law::OverstressForm::rate_independent);
+  p.friction.kappa = 0.0;
+  p.friction.xi = 0.0;
+  const std::vector<Segment> segs = {slide(Vec2(1.0, 0.0), 1.0, 200, 1e4),
+                                     slide(Vec2(0.0, 1.0), 1e-5, 20000)};
+  const Trace t = run(make_model(p), segs);
+  ASSERT_EQ(t.states.size(), 1u + 200u + 20000u);
+  double lowest = 1.0;
+  for (size_t i = 0; i < t.states.size(); ++i) {
+    if (t.segment[i] != 1) continue;
+    const ContactState& s = t.states[i];
+    ASSERT_EQ(inadmissible(s, p), "") << i;
+    lowest = std::min(lowest, s.traction_ratio() / p.friction.mu_s);
+  }
+  EXPECT_EQ(t.states[200].law.r_s, 1.0);  // the turn starts from r_s = 1
+  // Rounding of |f_t| / f_n only (a few ulps).
+  EXPECT_LT(1.0 - lowest, 8 * kEps);
+}
+
 TEST(Contact2D, ReversalChangesSignAndPassesThroughZero) {
   for (auto form : {law::OverstressForm::exponential, law::OverstressForm::rate_independent}) {
     SCOPED_TRACE(std::string(law::to_string(form)));

@@ -165,7 +165,12 @@ double filtered_local_error(const point::ContactPoint& point, const ContactState
                             const ContactState& s1, const Vec2& du_t, double fn1, double dt) {
   const law::SubloadingFrictionLaw& law = point.law();
   const double e = local_error(point, s0, s1, du_t, fn1, dt);
-  if (!(e > 0.0) || law.is_rate_independent() || !(s1.vp_rate > 0.0)) return e;
+  if (!(e > 0.0) || !(s1.vp_rate > 0.0)) return e;
+  // Sliding under the rate-independent form holds r = r_s (consistency): the traction relaxes
+  // onto the flow rule at once (lambda infinite), and the filter leaves nothing. A step that
+  // ends sticking keeps the estimate (above), and so does a switch inside the step (the
+  // extrapolated step's own check).
+  if (law.is_rate_independent()) return 0.0;
   const double slip = s1.vp_slip - s0.vp_slip;
   const auto g = law.flow_residual(s1.r, s1.law.r_s, slip, dt);
   if (!g.admissible || !(g.d_slip < 0.0)) return e;
