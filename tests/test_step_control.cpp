@@ -164,6 +164,35 @@ TEST(StepControl, StepBelowTheTimesResolutionEndsTheSegment) {
   EXPECT_NE(why.find("fell below what the time 0.0514"), std::string::npos) << why;
 }
 
+// Where the time stops the step from shrinking, the shortest step tried is the least this run
+// reaches there: the stop names its estimate as the tolerance that runs past it (in three
+// digits, rounded up), as a noise-floor stop names its resolution, and a study's reference
+// reruns at it. A last attempt that failed outright has no estimate and names none.
+TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
+  AdaptiveSegment clock(1.0, 0.0514, 1e-9, 2);
+  clock.accept(1e-12);  // t = 0.0514 s into the segment
+  double last_estimate = 0.0;
+  for (int k = 0;; ++k) {
+    // Above the tolerance and far above the estimate's resolution (1e-12): no noise floor.
+    last_estimate = 2.2e-9 + 1e-12 * k;
+    if (!clock.refuse(false, last_estimate, {1e-12})) break;
+  }
+  ASSERT_TRUE(clock.below_time_resolution());
+  const double named = clock.time_resolution_tolerance();
+  EXPECT_GE(named, last_estimate);                 // the shortest step's estimate meets it
+  EXPECT_LE(named, last_estimate * (1.0 + 1e-2));  // three digits
+  const std::string why = clock.time_resolution_message();
+  EXPECT_NE(why.find("use a tolerance of at least"), std::string::npos) << why;
+
+  AdaptiveSegment failing(1.0, 0.0514, 1e-9, 2);
+  failing.accept(1e-12);
+  while (failing.refuse(true, 0.0, {1e-12})) {
+  }
+  ASSERT_TRUE(failing.below_time_resolution());
+  EXPECT_TRUE(std::isnan(failing.time_resolution_tolerance()));
+  EXPECT_EQ(failing.time_resolution_message().find("use a tolerance"), std::string::npos);
+}
+
 // The step factor of an estimate of order q: the step that would meet the tolerance exactly,
 // 0.9 (tol/err)^(1/q), within the limits.
 TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {

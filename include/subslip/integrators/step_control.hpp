@@ -244,6 +244,9 @@ class AdaptiveSegment {
     if (not_falling_) last_refused_ = {h, error};
     below_time_resolution_ =
         noise.backward_euler ? !(dt_ > 0.0 && t_ + dt_ != t_) : !resolvable(dt_);
+    // The attempt whose shorter successor the time no longer resolves: its estimate is the
+    // least this run reaches here (none where it failed outright).
+    if (below_time_resolution_) shortest_ = {h, failed ? 0.0 : error};
     return !noise_floor_ && !not_falling_ && refusals_ <= kMaxRefusedAttempts &&
            !below_time_resolution_;
   }
@@ -255,13 +258,31 @@ class AdaptiveSegment {
   bool below_time_resolution() const {
     return !noise_floor_ && !not_falling_ && below_time_resolution_;
   }
-  // Why a driver stops below the time's resolution, for its failure message.
+  // Why a driver stops below the time's resolution, for its failure message, with the
+  // tolerance that runs past it (time_resolution_tolerance) where the last attempt had an
+  // estimate.
   std::string time_resolution_message() const {
-    char buf[160];
-    std::snprintf(buf, sizeof buf,
-                  "the step (%.3g) fell below what the time %.17g into the segment resolves", dt_,
-                  t_);
+    char buf[320];
+    if (shortest_.error > 0.0) {
+      std::snprintf(buf, sizeof buf,
+                    "the step (%.3g) fell below what the time %.17g into the segment resolves; "
+                    "the shortest step tried there (%.3g) estimates %.3g: use a tolerance of at "
+                    "least %s",
+                    dt_, t_, shortest_.step, shortest_.error,
+                    three_digits_at_least(shortest_.error).c_str());
+    } else {
+      std::snprintf(buf, sizeof buf,
+                    "the step (%.3g) fell below what the time %.17g into the segment resolves", dt_,
+                    t_);
+    }
     return buf;
+  }
+  // The tolerance time_resolution_message names, as a number (NaN where it names none): at it
+  // the shortest step tried is accepted, as a study's reference needs (smallest_tolerance).
+  double time_resolution_tolerance() const {
+    return shortest_.error > 0.0
+               ? std::strtod(three_digits_at_least(shortest_.error).c_str(), nullptr)
+               : std::numeric_limits<double>::quiet_NaN();
   }
 
   // Why a driver stops at the noise floor, for its failure message: the smallest tolerance at
@@ -342,7 +363,8 @@ class AdaptiveSegment {
     double step = 0.0;
     double error = 0.0;
   };
-  Attempt floor_;  // the attempt refused at the noise floor, with the resolution as its error
+  Attempt floor_;     // the attempt refused at the noise floor, with the resolution as its error
+  Attempt shortest_;  // the last attempt before a step the time does not resolve
   // The first attempt rejected in a row, and the last one, where the estimate did not fall.
   Attempt first_refused_, last_refused_;
   bool noise_floor_ = false;
