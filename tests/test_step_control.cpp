@@ -178,7 +178,7 @@ TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
     if (!clock.refuse(false, last_estimate, {1e-12})) break;
   }
   ASSERT_TRUE(clock.below_time_resolution());
-  const double named = clock.time_resolution_tolerance();
+  const double named = clock.named_tolerance();
   EXPECT_GE(named, last_estimate);                 // the shortest step's estimate meets it
   EXPECT_LE(named, last_estimate * (1.0 + 1e-2));  // three digits
   const std::string why = clock.time_resolution_message();
@@ -189,7 +189,7 @@ TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
   while (failing.refuse(true, 0.0, {1e-12})) {
   }
   ASSERT_TRUE(failing.below_time_resolution());
-  EXPECT_TRUE(std::isnan(failing.time_resolution_tolerance()));
+  EXPECT_TRUE(std::isnan(failing.named_tolerance()));
   EXPECT_EQ(failing.time_resolution_message().find("use a tolerance"), std::string::npos);
 }
 

@@ -276,10 +276,7 @@ class TaylorAggregate final : public Aggregate {
           std::ostringstream msg;
           msg << "crystal step failed at time " << macro_.time << " after " << clock.refusals()
               << " refused attempts (dt = " << h << "): " << why;
-          throw CrystalStepFailure(msg.str(), clock.at_noise_floor() ? clock.smallest_tolerance()
-                                              : clock.below_time_resolution()
-                                                  ? clock.time_resolution_tolerance()
-                                                  : std::numeric_limits<double>::quiet_NaN());
+          throw CrystalStepFailure(msg.str(), clock.named_tolerance());
         }
         continue;
       }

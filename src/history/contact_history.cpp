@@ -396,12 +396,7 @@ void run_segment_adaptive(const point::ContactPoint& point, const IntegratorOpti
                               : "local error estimate stays above the tolerance";
         if (clock.below_time_resolution())
           why = clock.time_resolution_message() + " (last attempt: " + why + ")";
-        const bool floor = a.ok && clock.at_noise_floor();
-        throw StepFailure(failure_message(s, clock.refusals(), h, why),
-                          floor ? clock.smallest_tolerance()
-                          : clock.below_time_resolution()
-                              ? clock.time_resolution_tolerance()
-                              : std::numeric_limits<double>::quiet_NaN());
+        throw StepFailure(failure_message(s, clock.refusals(), h, why), clock.named_tolerance());
       }
       continue;
     }

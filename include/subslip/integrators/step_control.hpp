@@ -259,30 +259,21 @@ class AdaptiveSegment {
     return !noise_floor_ && !not_falling_ && below_time_resolution_;
   }
   // Why a driver stops below the time's resolution, for its failure message, with the
-  // tolerance that runs past it (time_resolution_tolerance) where the last attempt had an
-  // estimate.
+  // tolerance that runs past it (named_tolerance) where the last attempt had an estimate.
   std::string time_resolution_message() const {
     char buf[320];
-    if (shortest_.error > 0.0) {
-      std::snprintf(buf, sizeof buf,
-                    "the step (%.3g) fell below what the time %.17g into the segment resolves; "
-                    "the shortest step tried there (%.3g) estimates %.3g: use a tolerance of at "
-                    "least %s",
-                    dt_, t_, shortest_.step, shortest_.error,
+    int n = std::snprintf(buf, sizeof buf,
+                          "the step (%.3g) fell below what the time %.17g into the segment "
+                          "resolves",
+                          dt_, t_);
+    if (shortest_.error > 0.0 && n > 0 && static_cast<std::size_t>(n) < sizeof buf) {
+      std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n),
+                    "; the shortest step tried there (%.3g) estimates %.3g: use a tolerance of "
+                    "at least %s",
+                    shortest_.step, shortest_.error,
                     three_digits_at_least(shortest_.error).c_str());
-    } else {
-      std::snprintf(buf, sizeof buf,
-                    "the step (%.3g) fell below what the time %.17g into the segment resolves", dt_,
-                    t_);
     }
     return buf;
-  }
-  // The tolerance time_resolution_message names, as a number (NaN where it names none): at it
-  // the shortest step tried is accepted, as a study's reference needs (smallest_tolerance).
-  double time_resolution_tolerance() const {
-    return shortest_.error > 0.0
-               ? std::strtod(three_digits_at_least(shortest_.error).c_str(), nullptr)
-               : std::numeric_limits<double>::quiet_NaN();
   }
 
   // Why a driver stops at the noise floor, for its failure message: the smallest tolerance at
@@ -300,10 +291,16 @@ class AdaptiveSegment {
                   three_digits_at_least(floor_.error).c_str());
     return buf;
   }
-  // The tolerance noise_floor_message names, as a number: a failure carries it, so that a caller
-  // that can use any tolerance (a study's reference) runs at it.
-  double smallest_tolerance() const {
-    return std::strtod(three_digits_at_least(floor_.error).c_str(), nullptr);
+  // The tolerance the last give-up names, as a number, or NaN: the noise floor's
+  // (noise_floor_message), or below the time's resolution the shortest attempt's estimate
+  // (time_resolution_message), at which that attempt is accepted. A failure carries it, so that
+  // a caller that can use any tolerance (a study's reference) runs at it.
+  double named_tolerance() const {
+    const double named = noise_floor_                                       ? floor_.error
+                         : below_time_resolution() && shortest_.error > 0.0 ? shortest_.error
+                                                                            : 0.0;
+    return named > 0.0 ? std::strtod(three_digits_at_least(named).c_str(), nullptr)
+                       : std::numeric_limits<double>::quiet_NaN();
   }
   // Why a driver stops where backward Euler's estimate does not fall (kFloorShrink).
   std::string not_falling_message() const {
