@@ -128,8 +128,8 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // with the pseudo-inverse where A_SS is singular (rate-independent systems relax at once, D^-1
 // = 0; more systems than independent directions). Measured on the [-123] single crystal: the
 // refused steps fall from about half of the accepted ones to a tenth; on a soft pyramidal HCP
-// aggregate (tau0 0.163 MPa) the unfiltered and this estimate both keep the error at 0.6 ... 2
-// times the tolerance (docs/integrators.md, "Steps with a switch").
+// aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.8 times the tolerance (docs/integrators.md,
+// "Where the expansion does not hold: switches").
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
