@@ -314,10 +314,14 @@ class TaylorAggregate final : public Aggregate {
 
   // One step of the extrapolated integrator (AggregateOptions::order = k >= 2, see
   // integrators/extrapolation.hpp) over the clock's step: the aggregate is taken from its
-  // committed state with 1, 2, .., k backward Euler substeps (mixed control solved in each), and
+  // committed state with k, .., 2, 1 backward Euler substeps (mixed control solved in each), and
   // the k results are combined into the grains' trial states and the extrapolation's macro state;
   // the committed states and macro_ are left as they were. False (and why) when a substep fails
   // or the combination is inadmissible.
+  // The finest solution goes first, its grains starting from their rates at the step's start
+  // (the combination's; the last chord continued over a step up to ten times longer is a worse
+  // guess); each coarser substep then starts from the finest solution where it ends
+  // (Extrapolation::coarse_substep_start), within the coarse solution's own difference from it.
   // `u`: the free components of L, from the last substep of the finest solution.
   bool extrapolated_step(const LoadSegment& seg, const std::vector<FreeComponent>& fc,
                          const Mat3& stress_start, const integrators::AdaptiveSegment& clock,
@@ -326,30 +330,38 @@ class TaylorAggregate final : public Aggregate {
     extrapolation_.start() = grains_.committed();
     const MacroState macro_start = macro_;
     const Eigen::VectorXd u_start = u;
-    // Every solution starts from the step's free trend; its substeps carry their own on (the
-    // run loop records the accepted step's).
+    // The finest solution starts from the step's free trend and carries its own on over its
+    // substeps (the run loop records the accepted step's).
     const FreePath path_start = mixed_.path();
     auto restore_trend = [&] { mixed_.path() = path_start; };
     const double t0 = clock.time();
     const double t1 = clock.end_time();
     step_free_stress_error_ = 0.0;
     bool ok = true;
-    for (int j = 1; j <= order && ok; ++j) {
+    for (int j = order; j >= 1 && ok; --j) {
       u = u_start;
       restore_trend();
-      // Each solution starts from the step's start, not where the last one's substeps ended:
-      // its grains continue their rates along the last chord only (continued_rates).
-      grains_.set_trend_step(0.0);
+      grains_.set_trend_step(0.0);  // (the history is another solution's: no trend change from it)
       double t = t0;
       for (int i = 1; i <= j && ok; ++i) {
         const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
         const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
+        if (j < order) {
+          extrapolation_.coarse_substep_start(order, j, i, substep_rates_, u);
+          mixed_.path().from_step = false;  // u is the start itself
+          grains_.set_cold_starts(&substep_rates_);
+        } else if (i == 1) {
+          extrapolation_.start_rates(substep_rates_);
+          grains_.set_cold_starts(&substep_rates_);
+        }
         ok = mixed_.try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u,
                              opt, why);
+        grains_.set_cold_starts(nullptr);
         if (ok) {
           step_free_stress_error_ = std::max(step_free_stress_error_, mixed_.free_stress_error());
           mixed_.record_free_step(u, mixed_.step_correction(), end - t);
           commit(seg, fc, u, end - t);
+          if (j == order) extrapolation_.note_finest_substep(i, grains_.committed(), u);
         }
         t = end;
       }
@@ -365,6 +377,7 @@ class TaylorAggregate final : public Aggregate {
       macro_ = macro_start;
       return false;
     }
+    u = extrapolation_.finest_free(order);
     // The loading at the step's start: the last step's L, or the segment's own at its start.
     const std::optional<Mat3> start_l =
         t0 > 0.0 ? std::optional<Mat3>(macro_start.velocity_gradient) : std::nullopt;
@@ -445,6 +458,8 @@ class TaylorAggregate final : public Aggregate {
   std::chrono::steady_clock::time_point session_start_ = std::chrono::steady_clock::now();
   // The largest free-stress error of the substeps of the extrapolated step last tried.
   double step_free_stress_error_ = 0.0;
+  // Where the grains of an extrapolated step's substep start (extrapolated_step).
+  std::vector<typename SlipTypes<N>::VecN> substep_rates_;
   double wall_before_ = 0.0;  // wall_seconds of the sessions before a restore
 };
 

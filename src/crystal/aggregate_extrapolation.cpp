@@ -82,6 +82,49 @@ void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
   combine_macro(order, l_at_end, grains);
 }
 
+template <int N>
+void Extrapolation<N>::note_finest_substep(int m, const std::vector<GrainState<N>>& grains,
+                                           const Eigen::VectorXd& free) {
+  std::vector<VecN>& rates = finest_rates_[static_cast<size_t>(m - 1)];
+  rates.resize(grains.size());
+  for (size_t g = 0; g < grains.size(); ++g) rates[g] = grains[g].rate;
+  finest_free_[static_cast<size_t>(m - 1)] = free;
+}
+
+template <int N>
+void Extrapolation<N>::start_rates(std::vector<VecN>& rates) const {
+  rates.resize(step_start_.size());
+  for (size_t g = 0; g < step_start_.size(); ++g) rates[g] = step_start_[g].rate;
+}
+
+template <int N>
+void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector<VecN>& rates,
+                                            Eigen::VectorXd& free) const {
+  // The substep spans [i - 1, i] / j of the step, the finest's substep m [m - 1, m] / order.
+  const double begin = static_cast<double>(i - 1) / j, end = static_cast<double>(i) / j;
+  free.setZero(finest_free_[0].size());
+  for (int m = 1; m <= order; ++m) {
+    const double overlap = std::min(end, static_cast<double>(m) / order) -
+                           std::max(begin, static_cast<double>(m - 1) / order);
+    if (overlap > 0.0) free += (overlap / (end - begin)) * finest_free_[static_cast<size_t>(m - 1)];
+  }
+  // The substep's end lies in the finest's substep `within`, at w of it (w = 1: its end).
+  const double position = end * order;
+  const int within = std::clamp(static_cast<int>(std::ceil(position)), 1, order);
+  const double w = position - (within - 1);
+  const std::vector<VecN>& to = finest_rates_[static_cast<size_t>(within - 1)];
+  rates.resize(to.size());
+  for (size_t g = 0; g < to.size(); ++g) {
+    if (w >= 1.0) {
+      rates[g] = to[g];
+      continue;
+    }
+    const VecN& from =
+        within == 1 ? step_start_[g].rate : finest_rates_[static_cast<size_t>(within - 2)][g];
+    rates[g] = (1.0 - w) * from + w * to[g];
+  }
+}
+
 // The error estimate of grain g on a step in which a system switched between elastic and
 // slipping (switches_phase). The solution has a kink there and no error expansion in powers of
 // the step, so the step is judged as a backward Euler step: by the one-substep solution against

@@ -32,6 +32,24 @@ class Extrapolation {
   // The combined macroscopic state (combine).
   const MacroState& macro() const { return extrapolated_macro_; }
 
+  // The finest solution's substep m (1 .. k) as solved: its grains' slip rates at the end and
+  // its free components of L. From them, where substep i of the solution with j < k substeps
+  // starts (coarse_substep_start): each grain from the finest's rates at that substep's end
+  // (linear in time between the ends of its substeps), the free components from the finest's
+  // averaged over the substep's interval (the same strain increment; the first of the finest's
+  // substeps carries the correction of the step's inherited free-stress error, which the
+  // average spreads over the coarse substep as it should).
+  void note_finest_substep(int m, const std::vector<GrainState<N>>& grains,
+                           const Eigen::VectorXd& free);
+  void coarse_substep_start(int order, int j, int i, std::vector<VecN>& rates,
+                            Eigen::VectorXd& free) const;
+  // The grains' slip rates at the step's start (start()).
+  void start_rates(std::vector<VecN>& rates) const;
+  // The free components of the finest solution's last substep.
+  const Eigen::VectorXd& finest_free(int order) const {
+    return finest_free_[static_cast<size_t>(order - 1)];
+  }
+
   // `dt`: the step's length (backward Euler's own estimate on steps with a switch).
   // `start_l`: the velocity gradient the grains were loaded by at the step's start (the last
   // step's), or none at a segment's start (the step's own).
@@ -74,6 +92,10 @@ class Extrapolation {
   std::array<MacroState, integrators::kMaxExtrapolationOrder> solution_macros_;
   MacroState extrapolated_macro_;
   std::vector<VecN> errors_;
+  // The finest solution's rates at the ends of its substeps 1 .. k, and its free components in
+  // each (note_finest_substep).
+  std::array<std::vector<VecN>, integrators::kMaxExtrapolationOrder> finest_rates_;
+  std::array<Eigen::VectorXd, integrators::kMaxExtrapolationOrder> finest_free_;
 };
 
 }  // namespace subslip::crystal::aggregate_parts

@@ -142,7 +142,11 @@ void GrainSweep<N>::solve_implicit_grain(
     const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>& direction_change) {
   GrainStepReport& rep = reports_[gi];
   SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
-  if (!warm) {
+  if (!warm && cold_starts_ != nullptr) {
+    const VecN& start = (*cold_starts_)[gi];
+    rep = implicit_step_from(phase_, committed_[gi], l, dt, grain_options, start,
+                             start != committed_[gi].rate, trial_[gi], t, st);
+  } else if (!warm) {
     rep = cold_implicit_step(phase_, committed_[gi], history_[gi], trend_step_, l, dt,
                              grain_options, trial_[gi], t, st);
   } else if (carried) {
