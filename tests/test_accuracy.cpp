@@ -643,8 +643,10 @@ TEST(AccuracyCrystal, SwitchStepsAreNotRefusedForTheRelaxationOfTheSlippingSyste
 // tau0 = 0.163 MPa, where near r_s = 0.003 the flow rule at a fixed r_s is 1e6 times stiffer
 // than with r_s carried by the slip (U(r_s) ~ 4e4). Measured on this scene at 1e-5 and 1e-6: the
 // filter with the flow rule at a fixed r_s, 6.6 and 39 times the tolerance; over every system
-// slipping at the end of the one-substep solution, 75 and 4342 times; as built 0.66 and 0.67.
-// (1e-5 alone tells them apart; each point costs two soft references.)
+// slipping at the end of the one-substep solution, 75 and 4342 times; as built 0.86 at 1e-5 (0.66
+// and 0.67 with the switch step held to the one-substep solution's estimate and each solution
+// started from the step's start). (1e-5 alone tells them apart; each point costs two soft
+// references.)
 TEST(AccuracyCrystal, SwitchStepsOfSoftPyramidalGrainsFollowTheTolerance) {
   const SingleThread one;
   const CrystalProblem problem = soft_magnesium_reversal("hcp_pyramidal_a", "0.05");

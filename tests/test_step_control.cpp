@@ -304,6 +304,46 @@ TEST(Extrapolation, StiffModesAreDampedAtAnyStep) {
   }
 }
 
+// The kink model of combination_kink_bound: over a step of length 1 the rate is s (t - t*)+ (a
+// start of slip) or s (t* - t)+ (a stop), and the solution with j substeps takes each substep's
+// rate at its end (backward Euler). Over every position t* of the kink, the combination's error
+// against the exact integral never exceeds the bound times backward Euler's one-step estimate
+// 1/2 |rate(1) - rate(0)|, and comes within 1 % of it (the bound is the largest error, not a
+// margin); the one-substep solution's own error is up to twice the estimate (at least the
+// estimate at a start of slip).
+TEST(Extrapolation, KinkBoundIsTheCombinationsLargestError) {
+  using subslip::integrators::combination_kink_bound;
+  using subslip::integrators::extrapolate_implicit_euler;
+  for (int k = 2; k <= 4; ++k) {
+    for (const bool onset : {true, false}) {
+      double largest = 0.0;
+      for (int p = 1; p < 1000; ++p) {
+        const double kink = p / 1000.0;
+        const auto rate = [&](double t) {
+          return onset ? std::max(t - kink, 0.0) : std::max(kink - t, 0.0);
+        };
+        const double exact = onset ? 0.5 * (1 - kink) * (1 - kink) : 0.5 * kink * kink;
+        std::array<Vec1, 4> y;
+        for (int j = 1; j <= 4; ++j) {
+          double slip = 0.0;
+          for (int i = 1; i <= j; ++i) slip += rate(static_cast<double>(i) / j) / j;
+          y[static_cast<size_t>(j - 1)](0) = slip;
+        }
+        const double estimate = 0.5 * std::abs(rate(1.0) - rate(0.0));
+        const double one = std::abs(y[0](0) - exact) / estimate;
+        if (onset) {
+          EXPECT_GE(one, 1.0 - 1e-12);  // (a stop: the one substep sees no rate at all)
+        }
+        EXPECT_LE(one, 2.0 + 1e-12);
+        const double combined = std::abs(extrapolate_implicit_euler(y, k).best(0) - exact);
+        largest = std::max(largest, combined / estimate);
+      }
+      EXPECT_LE(largest, combination_kink_bound(k) + 1e-12) << "order " << k << " onset " << onset;
+      EXPECT_GT(largest, 0.99 * combination_kink_bound(k)) << "order " << k << " onset " << onset;
+    }
+  }
+}
+
 // A stop an ulp short of the segment end (an output time computed from another run's times) is
 // the end: the step to it is the last and ends exactly on the end, leaving no step of an ulp.
 TEST(StepControl, StopWithinRoundOffOfTheEndIsTheEnd) {

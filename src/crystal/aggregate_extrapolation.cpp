@@ -130,7 +130,10 @@ void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector
 // the step, so the step is judged as a backward Euler step: by the one-substep solution against
 // the two-substep one, and by backward Euler's own estimate of the resolved shears, dt/2 A
 // (rates at the one-substep solution's end - at the step's start), filtered through the
-// relaxation of the systems that slip throughout the step (relaxed), over the CRSS. The second
+// relaxation of the systems that slip throughout the step (relaxed), over the CRSS; the larger,
+// times the bound on the combination's error at a kink in those units
+// (integrators::combination_kink_bound: a half for orders 2 and 3), since the combination is
+// what the step accepts. The second
 // sees a switch every solution steps over: a system slipping at the start of a reversal whose
 // solutions all end elastic (each evaluates the flow rule only where the stress has already
 // unloaded) agree with each other exactly, while the true path slips on until the system's r
@@ -155,8 +158,11 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
   }
   const VecN shear_error = (0.5 * dt) * (phase.interaction * (one.rate - start.rate));
   const VecN crss = start.mu.cwiseProduct(phase.tau0);
-  return system_errors(phase, one.stress - two.stress, combined.mu)
-      .cwiseMax(relaxed(phase, start, one, steady, dt, shear_error).cwiseAbs().cwiseQuotient(crss));
+  return integrators::combination_kink_bound(order) *
+         system_errors(phase, one.stress - two.stress, combined.mu)
+             .cwiseMax(relaxed(phase, start, one, steady, dt, shear_error)
+                           .cwiseAbs()
+                           .cwiseQuotient(crss));
 }
 
 // Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
@@ -171,7 +177,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // with the pseudo-inverse where A_SS is singular (rate-independent systems relax at once, D^-1
 // = 0; more systems than independent directions). Measured on the [-123] single crystal: the
 // refused steps fall from about half of the accepted ones to a tenth; on a soft pyramidal HCP
-// aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.8 times the tolerance (docs/integrators.md,
+// aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance (docs/integrators.md,
 // "Where the expansion does not hold: switches").
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(

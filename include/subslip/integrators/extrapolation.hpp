@@ -37,6 +37,18 @@ struct Extrapolated {
   Vector second;  // T[k][k-2], order k - 1: best - second estimates second's local error
 };
 
+// The combination's error on a step whose rate has a kink (starts or stops inside the step, as
+// a crystal's slip system does where it switches between elastic and slipping) over backward
+// Euler's one-step estimate dt/2 |rate(end) - rate(start)|, at most: for a rate that is zero on
+// one side of the kink and linear on the other, wherever the kink falls in the step, the
+// one-substep solution errs by up to twice that estimate, while the combination's weights
+// cancel the kink's error to at most half of it for orders 2 and 3 (the largest with the kink
+// at the step's middle) and to at most the estimate itself for order 4 (its weights are larger:
+// -1/6, 4, -27/2, 32/3). Derived in Extrapolation.KinkBoundIsTheCombinationsLargestError.
+constexpr double combination_kink_bound(int order) {
+  return order >= 4 ? 1.0 : 0.5;
+}
+
 // `solutions[j]` is the result of j + 1 substeps, j = 0 .. order - 1 (order >= 2; the entries
 // beyond are copied, not used: fill them with any value). Vector is any type with +, - and
 // scalar *, / (an Eigen vector).
