@@ -346,22 +346,22 @@ class TaylorAggregate final : public Aggregate {
       for (int i = 1; i <= j && ok; ++i) {
         const double end = i == j ? t1 : t0 + (t1 - t0) * i / j;
         const double progress = i == j && clock.last() ? 1.0 : std::min(1.0, end / seg.duration);
+        using ColdStart = typename aggregate_parts::GrainSweep<N>::ColdStart;
         if (j < order) {
           extrapolation_.coarse_substep_start(order, j, i, substep_rates_, u);
           mixed_.path().from_step = false;  // u is the start itself
-          grains_.set_cold_starts(&substep_rates_);
+          grains_.set_cold_starts(ColdStart::given, &substep_rates_);
         } else if (i == 1) {
-          extrapolation_.start_rates(substep_rates_);
-          grains_.set_cold_starts(&substep_rates_);
+          grains_.set_cold_starts(ColdStart::committed);
         }
         ok = mixed_.try_step(seg, fc, stress_target_at(seg, stress_start, progress), end - t, u,
                              opt, why);
-        grains_.set_cold_starts(nullptr);
+        grains_.set_cold_starts(ColdStart::continued);
         if (ok) {
           step_free_stress_error_ = std::max(step_free_stress_error_, mixed_.free_stress_error());
           mixed_.record_free_step(u, mixed_.step_correction(), end - t);
           commit(seg, fc, u, end - t);
-          if (j == order) extrapolation_.note_finest_substep(i, grains_.committed(), u);
+          if (j == order) extrapolation_.note_finest_substep(i, order, grains_.committed(), u);
         }
         t = end;
       }

@@ -83,18 +83,14 @@ void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
 }
 
 template <int N>
-void Extrapolation<N>::note_finest_substep(int m, const std::vector<GrainState<N>>& grains,
+void Extrapolation<N>::note_finest_substep(int m, int order,
+                                           const std::vector<GrainState<N>>& grains,
                                            const Eigen::VectorXd& free) {
+  finest_free_[static_cast<size_t>(m - 1)] = free;
+  if (m == order) return;  // (its rates are the finest solution's, solution(order))
   std::vector<VecN>& rates = finest_rates_[static_cast<size_t>(m - 1)];
   rates.resize(grains.size());
   for (size_t g = 0; g < grains.size(); ++g) rates[g] = grains[g].rate;
-  finest_free_[static_cast<size_t>(m - 1)] = free;
-}
-
-template <int N>
-void Extrapolation<N>::start_rates(std::vector<VecN>& rates) const {
-  rates.resize(step_start_.size());
-  for (size_t g = 0; g < step_start_.size(); ++g) rates[g] = step_start_[g].rate;
 }
 
 template <int N>
@@ -108,20 +104,20 @@ void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector
                            std::max(begin, static_cast<double>(m - 1) / order);
     if (overlap > 0.0) free += (overlap / (end - begin)) * finest_free_[static_cast<size_t>(m - 1)];
   }
+  // The finest's rates at the end of its substep m (0: the step's start).
+  const auto finest_rate = [&](int m, size_t g) -> const VecN& {
+    if (m == 0) return step_start_[g].rate;
+    if (m == order) return solutions_[static_cast<size_t>(order - 1)][g].rate;
+    return finest_rates_[static_cast<size_t>(m - 1)][g];
+  };
   // The substep's end lies in the finest's substep `within`, at w of it (w = 1: its end).
   const double position = end * order;
   const int within = std::clamp(static_cast<int>(std::ceil(position)), 1, order);
   const double w = position - (within - 1);
-  const std::vector<VecN>& to = finest_rates_[static_cast<size_t>(within - 1)];
-  rates.resize(to.size());
-  for (size_t g = 0; g < to.size(); ++g) {
-    if (w >= 1.0) {
-      rates[g] = to[g];
-      continue;
-    }
-    const VecN& from =
-        within == 1 ? step_start_[g].rate : finest_rates_[static_cast<size_t>(within - 2)][g];
-    rates[g] = (1.0 - w) * from + w * to[g];
+  rates.resize(step_start_.size());
+  for (size_t g = 0; g < rates.size(); ++g) {
+    rates[g] = w >= 1.0 ? finest_rate(within, g)
+                        : VecN((1.0 - w) * finest_rate(within - 1, g) + w * finest_rate(within, g));
   }
 }
 

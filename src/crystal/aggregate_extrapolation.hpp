@@ -39,12 +39,10 @@ class Extrapolation {
   // averaged over the substep's interval (the same strain increment; the first of the finest's
   // substeps carries the correction of the step's inherited free-stress error, which the
   // average spreads over the coarse substep as it should).
-  void note_finest_substep(int m, const std::vector<GrainState<N>>& grains,
+  void note_finest_substep(int m, int order, const std::vector<GrainState<N>>& grains,
                            const Eigen::VectorXd& free);
   void coarse_substep_start(int order, int j, int i, std::vector<VecN>& rates,
                             Eigen::VectorXd& free) const;
-  // The grains' slip rates at the step's start (start()).
-  void start_rates(std::vector<VecN>& rates) const;
   // The free components of the finest solution's last substep.
   const Eigen::VectorXd& finest_free(int order) const {
     return finest_free_[static_cast<size_t>(order - 1)];
@@ -92,9 +90,9 @@ class Extrapolation {
   std::array<MacroState, integrators::kMaxExtrapolationOrder> solution_macros_;
   MacroState extrapolated_macro_;
   std::vector<VecN> errors_;
-  // The finest solution's rates at the ends of its substeps 1 .. k, and its free components in
-  // each (note_finest_substep).
-  std::array<std::vector<VecN>, integrators::kMaxExtrapolationOrder> finest_rates_;
+  // The finest solution's rates at the ends of its substeps 1 .. k - 1 (the last one's end is
+  // the solution itself), and its free components in each (note_finest_substep).
+  std::array<std::vector<VecN>, integrators::kMaxExtrapolationOrder - 1> finest_rates_;
   std::array<Eigen::VectorXd, integrators::kMaxExtrapolationOrder> finest_free_;
 };
 

@@ -142,8 +142,8 @@ void GrainSweep<N>::solve_implicit_grain(
     const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>& direction_change) {
   GrainStepReport& rep = reports_[gi];
   SlipTangent<N>* st = slip_tangent ? &slip_tangents_[gi] : nullptr;
-  if (!warm && cold_starts_ != nullptr) {
-    const VecN& start = (*cold_starts_)[gi];
+  if (!warm && cold_start_ != ColdStart::continued) {
+    const VecN& start = cold_start_ == ColdStart::given ? (*cold_starts_)[gi] : committed_[gi].rate;
     rep = implicit_step_from(phase_, committed_[gi], l, dt, grain_options, start,
                              start != committed_[gi].rate, trial_[gi], t, st);
   } else if (!warm) {

@@ -45,9 +45,14 @@ class GrainSweep final : public GrainFields {
   std::vector<GrainStepReport>& reports() { return reports_; }
   double trend_step() const { return trend_step_; }
   void set_trend_step(double dt) { trend_step_ = dt; }
-  // Where the next cold solves start their grains' Newton iterations: these rates (one per
-  // grain), or (nullptr) the committed rates continued (continued_rates).
-  void set_cold_starts(const std::vector<VecN>* rates) { cold_starts_ = rates; }
+  // Where the next cold solves start their grains' Newton iterations: the committed rates
+  // continued (continued_rates, the default), the committed rates themselves, or `given` rates
+  // (one per grain).
+  enum class ColdStart { continued, committed, given };
+  void set_cold_starts(ColdStart kind, const std::vector<VecN>* given = nullptr) {
+    cold_start_ = kind;
+    cold_starts_ = given;
+  }
   // The strain directions of the free components the tangents are taken along (set for each
   // mixed-control step).
   StrainDirections& tangent_directions() { return tangent_directions_; }
@@ -157,7 +162,8 @@ class GrainSweep final : public GrainFields {
     double dt = 0.0, trend_step = 0.0;
     bool valid = false;
   } solved_;
-  const std::vector<VecN>* cold_starts_ = nullptr;  // set_cold_starts
+  ColdStart cold_start_ = ColdStart::continued;     // set_cold_starts
+  const std::vector<VecN>* cold_starts_ = nullptr;  // (ColdStart::given)
   std::vector<VecN> warm_;      // slip rates of each grain's last successful solve (solve)
   Mat3 warm_l_ = Mat3::Zero();  // the L of that solve
   StrainDirections tangent_directions_ = Mat6::Identity();
