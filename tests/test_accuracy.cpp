@@ -578,6 +578,17 @@ CrystalProblem soft_magnesium_reversal(std::string_view families, std::string_vi
                         CrystalProblem::TimeAxis::segment);
 }
 
+// An order-2 study at `tolerances` against order-2 references at `reference_tolerance`, ending
+// their steps on the runs' times.
+StudyOptions order_2_study(double reference_tolerance, std::vector<double> tolerances) {
+  StudyOptions o;
+  o.reference = {Integrator::extrapolated_2, reference_tolerance};
+  o.reference_at_run_times = true;
+  o.repeat = 1;
+  o.ladders = {{Integrator::extrapolated_2, std::move(tolerances), false}};
+  return o;
+}
+
 // Every order-2 point of the study within 10 times its tolerance, its reference resolving it.
 void expect_within_ten_times_the_tolerance(const StudyResult& s, std::string_view label) {
   for (const auto& p : s.points) {
@@ -605,12 +616,8 @@ void expect_within_ten_times_the_tolerance(const StudyResult& s, std::string_vie
 TEST(AccuracyCrystal, SwitchesBetweenTheSolutionsSamplesAreSeen) {
   const SingleThread one;
   const CrystalProblem problem = soft_magnesium_reversal("hcp_prismatic_a", "0.03");
-  StudyOptions o;
-  o.reference = {Integrator::extrapolated_2, 1e-10};
-  o.reference_at_run_times = true;
-  o.repeat = 1;
-  o.ladders = {{Integrator::extrapolated_2, {1e-6, 1e-7}, false}};
-  expect_within_ten_times_the_tolerance(run_study(problem, o), "prismatic <a> at tau0 0.163 MPa");
+  expect_within_ten_times_the_tolerance(run_study(problem, order_2_study(1e-10, {1e-6, 1e-7})),
+                                        "prismatic <a> at tau0 0.163 MPa");
 }
 
 // A step with a switch is judged by backward Euler's estimate of the resolved shears, filtered
@@ -650,12 +657,8 @@ TEST(AccuracyCrystal, SwitchStepsAreNotRefusedForTheRelaxationOfTheSlippingSyste
 TEST(AccuracyCrystal, SwitchStepsOfSoftPyramidalGrainsFollowTheTolerance) {
   const SingleThread one;
   const CrystalProblem problem = soft_magnesium_reversal("hcp_pyramidal_a", "0.05");
-  StudyOptions o;
-  o.reference = {Integrator::extrapolated_2, 1e-9};
-  o.reference_at_run_times = true;
+  StudyOptions o = order_2_study(1e-9, {1e-5});
   o.cvode_check_seconds = 1.0;  // (the references' own companions judge them here)
-  o.repeat = 1;
-  o.ladders = {{Integrator::extrapolated_2, {1e-5}, false}};
   expect_within_ten_times_the_tolerance(run_study(problem, o), "pyramidal <a> at tau0 0.163 MPa");
 }
 
