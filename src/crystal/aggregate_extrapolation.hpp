@@ -62,7 +62,8 @@ class Extrapolation {
 
  private:
   VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;
-  // d|tau|/dt of every system at a state, and the rounding of its terms (loading()).
+  // d|tau|/dt of every system at a state (pressure-sensitive: f_n d(|tau| / f_n)/dt), and the
+  // rounding of its terms (loading()).
   struct Loading {
     VecN growth, rounding;
     bool loading(int a) const { return growth(a) > rounding(a); }
@@ -70,6 +71,8 @@ class Extrapolation {
   };
   static Loading loading(const Phase<N>& phase, const GrainState<N>& s,
                          const Mat3& velocity_gradient);
+  static void add_strength_change(const Phase<N>& phase, const GrainState<N>& s,
+                                  const Vec6& strain_rate, const VecN& tau, Loading& out);
   bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
                       const GrainState<N>& combined) const;
   VecN switch_step_errors(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
