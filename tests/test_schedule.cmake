@@ -9,6 +9,7 @@ endforeach()
 # timings of its own: one of these started late runs on alone while the other core idles. The
 # costs are their seconds in the sanitizer build (CI, 2 cores); only their order matters.
 set(slow_tests
+    "AccuracyCrystal.PressureSensitiveSwitchStepsFollowTheTolerance\;224"
     "CrystalFit.RecoversTheCrssAndTheHardeningFromThreeOrientations\;160"
     "AdaptiveContact.ExtrapolatedErrorFollowsTheTolerance\;72"
     "Calibration.RecoversThePaperConstantsFromFiveSpeedsWithNoise\;66"
