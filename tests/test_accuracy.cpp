@@ -647,6 +647,30 @@ TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
                                         "rate-independent pressure-sensitive reversal");
 }
 
+// A rate-independent system does not relax in the switch step's filter (Extrapolation::relaxed):
+// it has no rate to relax through, and with D^-1 = 0 the filter credited it with absorbing every
+// part of the error its slip could carry. Two FCC grains of crystal_law_edges.yaml (mu_k = 3,
+// kappa = 10, neg_log), pulled, compressed through zero and held: with the filter 80 times the
+// tolerance at 1e-6, its references at 1e-8 and 1e-7 2.2e-5 of the CRSS apart; without, within
+// 10 times and the reference resolving the error.
+TEST(AccuracyCrystal, RateIndependentSwitchStepsFollowTheTolerance) {
+  const SingleThread one;
+  const auto scene = io::parse_crystal_scene(io::YamlDocument::from_file(
+      std::string(SUBSLIP_SOURCE_DIR) + "/inputs/extreme/crystal_law_edges.yaml"));
+  const auto c = std::find_if(scene.cases.begin(), scene.cases.end(), [](const auto& k) {
+    return k.name.find("mu_k: 3.0, kappa: 10.0, xi: 0.0") != std::string::npos &&
+           k.name.find("rate_independent") != std::string::npos &&
+           k.name.find("neg_log") != std::string::npos;
+  });
+  ASSERT_NE(c, scene.cases.end());
+  const CrystalProblem problem(
+      c->phase, c->orientations, c->segments, c->options, driver::loading_component(c->segments),
+      CrystalProblem::Measure::resolved, CrystalProblem::TimeAxis::segment);
+  StudyOptions o = order_2_study(1e-8, {1e-6});
+  o.cvode_check_seconds = 1.0;  // (the reference's own companion judges it here)
+  expect_within_ten_times_the_tolerance(run_study(problem, o), "rate-independent reversal");
+}
+
 // A step with a switch is judged by backward Euler's estimate of the resolved shears, filtered
 // through the relaxation of the systems that slip throughout the step
 // (Extrapolation::switch_step_errors). Along [-123] a secondary system starts or stops in many

@@ -172,34 +172,37 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 }
 
 // Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
-// Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f =
-// e, where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the `steady` systems
+// Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f = e,
+// where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the `steady` systems
 // (those slipping in one sense throughout the step), from each one's flow rule at the end of the
-// one-substep solution with the subloading ratio and the CRSS carried along by its slip (their
-// rise with slip is what bounds the relaxation near r_s = 0: U(r_s) ~ 4e4 per unit slip at r_s =
-// 0.003, where the flow rule alone at fixed r_s is 1e6 times stiffer). Only the steady systems
-// relax: a system that starts, stops or reverses inside the step changes the Jacobian there,
-// and its part of the error stays. Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S (Woodbury),
-// with the pseudo-inverse where A_SS is singular (rate-independent systems relax at once, D^-1
-// = 0; more systems than independent directions). Measured on the [-123] single crystal: the
-// refused steps fall from about half of the accepted ones to a tenth; on a soft pyramidal HCP
-// aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance (docs/integrators.md,
-// "Where the expansion does not hold: switches").
+// one-substep solution with the subloading ratio and the CRSS carried along by its slip (their rise
+// with slip is what bounds the relaxation near r_s = 0: U(r_s) ~ 4e4 per unit slip at r_s = 0.003,
+// where the flow rule alone at fixed r_s is 1e6 times stiffer). Only the steady systems relax: a
+// system that starts, stops or reverses inside the step changes the Jacobian there, and its part of
+// the error stays. Nor does a rate-independent system relax: it has no flow rule with a rate to
+// relax through (its slip follows from consistency with the loading, and where several slip at a
+// vertex their split is not determined), and with D^-1 = 0 the filter credited it with absorbing
+// every part of the error its slip could carry: two FCC grains reversed (crystal_law_edges.yaml,
+// mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the tolerance at 1e-6 and 1e-7, their
+// references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS apart; unfiltered 0.58 and 0.45 times,
+// the references 3.3e-9 ... 4.9e-9 apart. Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S
+// (Woodbury), with the pseudo-inverse where that matrix is singular to working precision (nearly
+// rate-independent systems, D^-1 -> 0; more systems than independent directions). Measured on the
+// [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
+// a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
+// (docs/integrators.md, "Where the expansion does not hold: switches").
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
     const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt, const VecN& error) {
   using MatNN = typename SlipTypes<N>::MatNN;
   const int n = phase.slip_count;
-  // 1 / (dt d|rate|/d|tau|) of each relaxing system (0: rate-independent), -1 for the others.
+  // 1 / (dt d|rate|/d|tau|) of each relaxing system, -1 for the others.
   VecN inverse_relaxation = VecN::Constant(n, -1.0);
   for (int a = 0; a < n; ++a) {
     if (!steady[static_cast<size_t>(a)]) continue;
     const law::SubloadingFrictionLaw& law = phase.laws[static_cast<size_t>(a)];
-    if (law.is_rate_independent()) {
-      inverse_relaxation(a) = 0.0;
-      continue;
-    }
+    if (law.is_rate_independent()) continue;  // (no rate to relax through: its part stays)
     const double crss = one.mu(a) * phase.tau0(a);
     const double r = std::abs(phase.schmid.col(a).dot(one.stress)) / crss;
     const double slip = std::abs(one.slip(a) - start.slip(a));
