@@ -16,12 +16,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iomanip>
 #include <iostream>
 #include <limits>
 #include <numeric>
 #include <span>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -579,6 +581,23 @@ CrystalProblem soft_magnesium_reversal(std::string_view families, std::string_vi
                         CrystalProblem::TimeAxis::segment);
 }
 
+// The case of inputs/extreme/`file` whose name holds every one of `parts`, measured on every
+// grain's resolved shear over its CRSS at times into each segment.
+CrystalProblem extreme_crystal_case(const std::string& file,
+                                    std::initializer_list<std::string_view> parts) {
+  const auto scene = io::parse_crystal_scene(
+      io::YamlDocument::from_file(std::string(SUBSLIP_SOURCE_DIR) + "/inputs/extreme/" + file));
+  const auto c = std::find_if(scene.cases.begin(), scene.cases.end(), [&](const auto& k) {
+    return std::all_of(parts.begin(), parts.end(), [&](std::string_view part) {
+      return k.name.find(part) != std::string::npos;
+    });
+  });
+  if (c == scene.cases.end()) throw std::runtime_error(file + ": no such case");
+  return CrystalProblem(c->phase, c->orientations, c->segments, c->options,
+                        driver::loading_component(c->segments), CrystalProblem::Measure::resolved,
+                        CrystalProblem::TimeAxis::segment);
+}
+
 // An order-2 study at `tolerances` against order-2 references at `reference_tolerance`, ending
 // their steps on the runs' times.
 StudyOptions order_2_study(double reference_tolerance, std::vector<double> tolerances) {
@@ -631,16 +650,8 @@ TEST(AccuracyCrystal, SwitchesBetweenTheSolutionsSamplesAreSeen) {
 // while its |tau| falls (Extrapolation::add_strength_change): judged on |tau| alone, 18 times.
 TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
   const SingleThread one;
-  const auto scene = io::parse_crystal_scene(io::YamlDocument::from_file(
-      std::string(SUBSLIP_SOURCE_DIR) + "/inputs/extreme/crystal_pressure_sensitive.yaml"));
-  const auto c = std::find_if(scene.cases.begin(), scene.cases.end(), [](const auto& k) {
-    return k.name.find("mu_k: 0.2,") != std::string::npos &&
-           k.name.find("rate_independent") != std::string::npos;
-  });
-  ASSERT_NE(c, scene.cases.end());
-  const CrystalProblem problem(
-      c->phase, c->orientations, c->segments, c->options, driver::loading_component(c->segments),
-      CrystalProblem::Measure::resolved, CrystalProblem::TimeAxis::segment);
+  const CrystalProblem problem =
+      extreme_crystal_case("crystal_pressure_sensitive.yaml", {"mu_k: 0.2,", "rate_independent"});
   StudyOptions o = order_2_study(1e-9, {1e-5, 1e-7});
   o.cvode_check_seconds = 1.0;  // (the references' own companions judge them here)
   expect_within_ten_times_the_tolerance(run_study(problem, o),
@@ -655,17 +666,8 @@ TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
 // 10 times and the reference resolving the error.
 TEST(AccuracyCrystal, RateIndependentSwitchStepsFollowTheTolerance) {
   const SingleThread one;
-  const auto scene = io::parse_crystal_scene(io::YamlDocument::from_file(
-      std::string(SUBSLIP_SOURCE_DIR) + "/inputs/extreme/crystal_law_edges.yaml"));
-  const auto c = std::find_if(scene.cases.begin(), scene.cases.end(), [](const auto& k) {
-    return k.name.find("mu_k: 3.0, kappa: 10.0, xi: 0.0") != std::string::npos &&
-           k.name.find("rate_independent") != std::string::npos &&
-           k.name.find("neg_log") != std::string::npos;
-  });
-  ASSERT_NE(c, scene.cases.end());
-  const CrystalProblem problem(
-      c->phase, c->orientations, c->segments, c->options, driver::loading_component(c->segments),
-      CrystalProblem::Measure::resolved, CrystalProblem::TimeAxis::segment);
+  const CrystalProblem problem = extreme_crystal_case(
+      "crystal_law_edges.yaml", {"mu_k: 3.0, kappa: 10.0, xi: 0.0", "rate_independent", "neg_log"});
   StudyOptions o = order_2_study(1e-8, {1e-6});
   o.cvode_check_seconds = 1.0;  // (the reference's own companion judges it here)
   expect_within_ten_times_the_tolerance(run_study(problem, o), "rate-independent reversal");
