@@ -659,7 +659,7 @@ TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
 }
 
 // A rate-independent system does not relax in the switch step's filter (Extrapolation::relaxed):
-// it has no rate to relax through, and with D^-1 = 0 the filter credited it with absorbing every
+// it has no rate to relax through, and with D^-1 = 0 the filter credits it with absorbing every
 // part of the error its slip could carry. Two FCC grains of crystal_law_edges.yaml (mu_k = 3,
 // kappa = 10, neg_log), pulled, compressed through zero and held: with the filter 80 times the
 // tolerance at 1e-6, its references at 1e-8 and 1e-7 2.2e-5 of the CRSS apart; without, within

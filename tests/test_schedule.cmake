@@ -10,7 +10,6 @@ endforeach()
 # costs are their seconds in the sanitizer build (CI, 2 cores); only their order matters.
 set(slow_tests
     "AccuracyCrystal.PressureSensitiveSwitchStepsFollowTheTolerance\;224"
-    "AccuracyCrystal.RateIndependentSwitchStepsFollowTheTolerance\;150"
     "CrystalFit.RecoversTheCrssAndTheHardeningFromThreeOrientations\;160"
     "AdaptiveContact.ExtrapolatedErrorFollowsTheTolerance\;72"
     "Calibration.RecoversThePaperConstantsFromFiveSpeedsWithNoise\;66"

@@ -181,7 +181,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // system that starts, stops or reverses inside the step changes the Jacobian there, and its part of
 // the error stays. Nor does a rate-independent system relax: it has no flow rule with a rate to
 // relax through (its slip follows from consistency with the loading, and where several slip at a
-// vertex their split is not determined), and with D^-1 = 0 the filter credited it with absorbing
+// vertex their split is not determined), and with D^-1 = 0 the filter credits it with absorbing
 // every part of the error its slip could carry: two FCC grains reversed (crystal_law_edges.yaml,
 // mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the tolerance at 1e-6 and 1e-7, their
 // references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS apart; unfiltered 0.58 and 0.45 times,
