@@ -641,7 +641,7 @@ TEST(AccuracyCrystal, SwitchesBetweenTheSolutionsSamplesAreSeen) {
 }
 
 // A pressure-sensitive phase's switch steps are judged by backward Euler's estimate unfiltered
-// (Extrapolation::switch_step_errors): the filter relaxes a steady system's error through its
+// (Extrapolation::relaxed): the filter relaxes a steady system's error through its
 // flow rule at a strength the stress does not move, and the strength mu f_n of a pressure-sensitive
 // plane moves with its normal stress. Two FCC grains under 300 MPa confinement, compressed and
 // reversed, rate-independent with softening (mu_k = 0.2): filtered, 106 times the tolerance at

@@ -134,14 +134,6 @@ void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector
 // solutions all end elastic (each evaluates the flow rule only where the stress has already
 // unloaded) agree with each other exactly, while the true path slips on until the system's r
 // falls to r_s. Such a step is shortened until both meet the tolerance.
-// A pressure-sensitive phase's estimate is not filtered: the filter's model, each steady system
-// relaxing through its own flow rule at a strength the stress does not move, does not hold where
-// the strength mu f_n moves with the normal stress on the plane, which the slip changes too.
-// Filtered, two FCC grains under 300 MPa confinement, reversed (rate-independent), ran 11 ... 106
-// times the tolerance at 1e-5, and the references at 1e-8 and 1e-7 stayed 8.7e-6 of the CRSS
-// apart (the same with A + tau/f_n M:C:P in the filter: 11 times at 1e-3); unfiltered, and with
-// the turns of the strength seen (add_strength_change), the worst of them 0.076 ... 0.48 times at
-// 1e-3 ... 1e-7, its references 4e-9 apart.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase<N>& phase,
                                                                      size_t g, int order,
@@ -164,9 +156,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
   const VecN crss = start.mu.cwiseProduct(phase.tau0);
   return integrators::combination_kink_bound(order) *
          system_errors(phase, one.stress - two.stress, combined.mu)
-             .cwiseMax((phase.pressure_sensitive
-                            ? shear_error  // (unfiltered: the filter's model does not hold there)
-                            : relaxed(phase, start, one, steady, dt, shear_error))
+             .cwiseMax(relaxed(phase, start, one, steady, dt, shear_error)
                            .cwiseAbs()
                            .cwiseQuotient(crss));
 }
@@ -185,9 +175,17 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // every part of the error its slip could carry: two FCC grains reversed (crystal_law_edges.yaml,
 // mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the tolerance at 1e-6 and 1e-7, their
 // references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS apart; unfiltered 0.58 and 0.45 times,
-// the references 3.3e-9 ... 4.9e-9 apart. Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S
-// (Woodbury), with the pseudo-inverse where that matrix is singular to working precision (nearly
-// rate-independent systems, D^-1 -> 0; more systems than independent directions). Measured on the
+// the references 3.3e-9 ... 4.9e-9 apart. Nor does any system of a pressure-sensitive phase: the
+// filter's model, a system relaxing through its own flow rule at a strength the stress does not
+// move, does not hold where the strength mu f_n moves with the normal stress on the plane, which
+// the slip changes too. Filtered, two FCC grains under 300 MPa confinement, reversed
+// (rate-independent), ran 11 ... 106 times the tolerance at 1e-5, and the references at 1e-8 and
+// 1e-7 stayed 8.7e-6 of the CRSS apart (the same with A + tau/f_n M:C:P in the filter: 11 times at
+// 1e-3); unfiltered, and with the turns of the strength seen (add_strength_change), the worst of
+// them 0.076 ... 0.48 times at 1e-3 ... 1e-7, its references 4e-9 apart. Solved as e - A_S y,
+// (D_S^-1 / dt + A_SS) y = e_S (Woodbury), with the pseudo-inverse where that matrix is singular to
+// working precision (nearly rate-independent systems, D^-1 -> 0; more systems than independent
+// directions). Measured on the
 // [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
 // a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
 // (docs/integrators.md, "Where the expansion does not hold: switches").
@@ -196,6 +194,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
     const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt, const VecN& error) {
   using MatNN = typename SlipTypes<N>::MatNN;
+  if (phase.pressure_sensitive) return error;  // (no system relaxes at a fixed strength)
   const int n = phase.slip_count;
   // 1 / (dt d|rate|/d|tau|) of each relaxing system, -1 for the others.
   VecN inverse_relaxation = VecN::Constant(n, -1.0);
