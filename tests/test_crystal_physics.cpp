@@ -584,6 +584,47 @@ TEST(CrystalVertex, SaturatedVertexSlipsAreTheLeastNormSplit) {
   EXPECT_GE(degenerate, 1);  // the check met a vertex whose split the stress leaves open
 }
 
+// A saturated rate-independent system carries r = 1 in every solution of an extrapolated step,
+// and their combination rounds about it: a combination a few ulp above r = 1 is admitted as far
+// as the grain steps admit their own end states (admitted_flow_residual), and one beyond that
+// is not. Refusing the rounding refused the step at every length (a reference run at 1e-9
+// through given times stopped "r > 1 (rate-independent)" with the step at 1e-13).
+TEST(CrystalExtrapolation, SaturatedRateIndependentCombinationIsAdmittedToTheFlowResidual) {
+  law::LawParameters p = crystal_law(1.0, 1.0, 0.0, 0.0, 300.0, 0.05);
+  p.overstress.form = law::OverstressForm::rate_independent;
+  const Phase<12> ph = fcc_phase(p, 20.0, Kinematics::finite_rotation);
+  Mat3 L;
+  L << 1.0, 0.3, -0.2, 0.1, -0.45, 0.25, 0.15, -0.05, -0.55;
+  L *= 1e-3;
+  GrainState<12> s = fresh_grain(random_orientations(1, 77)[0].g, 1.0);
+  for (int i = 0; i < 400; ++i) {
+    GrainState<12> next = s;
+    ASSERT_TRUE(implicit_grain_step(ph, s, L, 0.5, GrainStepOptions{}, next, nullptr).ok);
+    s = next;
+  }
+  const SlipTypes<12>::VecN r = loading_ratio(ph, s);
+  int saturated = -1;
+  r.maxCoeff(&saturated);
+  ASSERT_GT(s.r_s(saturated), 1.0 - 1e-12);  // the path reached saturation
+  const double admitted = admitted_flow_residual(GrainStepOptions{});
+  // The stress scaled so that the saturated system's r is just above 1: by 4 ulp, then by ten
+  // times the admitted residual.
+  auto combination_at = [&](double excess) {
+    GrainState<12> c = s;
+    c.stress *= (1.0 + excess) / r(saturated);
+    return c;
+  };
+  GrainState<12> rounded = combination_at(4.0 * std::numeric_limits<double>::epsilon());
+  ASSERT_GT(loading_ratio(ph, rounded)(saturated), 1.0);
+  EXPECT_TRUE(restore_extrapolated_state(ph, s, rounded, admitted).ok);
+  GrainState<12> beyond = combination_at(10.0 * admitted);
+  const GrainStepReport report = restore_extrapolated_state(ph, s, beyond, admitted);
+  EXPECT_FALSE(report.ok);
+  EXPECT_STREQ(report.why, "r > 1 (rate-independent)");
+  ASSERT_GE(report.system, 0);  // a saturated system of the vertex, at r = 1 + 10 x admitted
+  EXPECT_GT(loading_ratio(ph, beyond)(report.system), 1.0 + admitted);
+}
+
 // The least |v| over the nonnegative solutions of N v = t, by enumerating supports: the optimum
 // is the least-norm solution of N_S v_S = t on its own support S (a complete orthogonal
 // decomposition here, independent of the step's own method). Infinity where no support fits.

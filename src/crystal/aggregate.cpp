@@ -381,7 +381,7 @@ class TaylorAggregate final : public Aggregate {
     // The loading at the step's start: the last step's L, or the segment's own at its start.
     const std::optional<Mat3> start_l =
         t0 > 0.0 ? std::optional<Mat3>(macro_start.velocity_gradient) : std::nullopt;
-    extrapolation_.combine(order, t1 - t0, grains_, start_l);
+    extrapolation_.combine(order, t1 - t0, admitted_flow_residual(opt.grain), grains_, start_l);
     return grains_.every_grain_ok(stats_, why);
   }
 

@@ -20,7 +20,7 @@ Mat3 log_strain(const Mat3& f) {
 // trial_ and extrapolated_macro_ from solutions_ (extrapolated_step); the per-grain error
 // estimates in errors_, the restoring reports in reports_.
 template <int N>
-void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
+void Extrapolation<N>::combine(int order, double dt, double flow_residual, GrainSweep<N>& grains,
                                const std::optional<Mat3>& start_l) {
   grains.forget_solve();  // its trial states are no longer the last solve's
   const Phase<N>& phase = grains.phase();
@@ -62,7 +62,7 @@ void Extrapolation<N>::combine(int order, double dt, GrainSweep<N>& grains,
     out.rate = extrapolate_implicit_euler(rate, order).best;
     out.orientation =
         rotation_exp(extrapolate_implicit_euler(turn, order).best) * finest.orientation;
-    reports[gi] = restore_extrapolated_state(phase, finest, out);
+    reports[gi] = restore_extrapolated_state(phase, finest, out, flow_residual);
     errors_[gi] = system_errors(phase, e_stress.best - e_stress.second, out.mu);
     if (order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
       const auto earlier = integrators::earlier_column_estimates(stress);

@@ -49,9 +49,11 @@ class Extrapolation {
   }
 
   // `dt`: the step's length (backward Euler's own estimate on steps with a switch).
+  // `flow_residual`: what the solutions' grain steps admitted (admitted_flow_residual).
   // `start_l`: the velocity gradient the grains were loaded by at the step's start (the last
   // step's), or none at a segment's start (the step's own).
-  void combine(int order, double dt, GrainSweep<N>& grains, const std::optional<Mat3>& start_l);
+  void combine(int order, double dt, double flow_residual, GrainSweep<N>& grains,
+               const std::optional<Mat3>& start_l);
   ErrorEstimate error(const GrainSweep<N>& grains) const {
     return grains.worst_error([&](size_t g) { return errors_[g]; });
   }

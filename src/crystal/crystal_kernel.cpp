@@ -184,7 +184,7 @@ typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState
 
 template <int N>
 GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
-                                           GrainState<N>& s) {
+                                           GrainState<N>& s, double flow_residual) {
   const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
   const typename SlipTypes<N>::VecN r = loading_ratio_of(ph, s.stress, s.mu, fn);
   for (int a = 0; a < ph.slip_count; ++a) {
@@ -192,7 +192,9 @@ GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<
     s.r_s(a) = std::clamp(s.r_s(a), 0.0, r(a));
   }
   GrainStepReport rep;
-  rep.ok = admissible_state(ph, s, r, fn, rep, OpenPlanes::resolved);
+  // A saturated rate-independent system is at r = 1 in every solution, and their combination
+  // rounds about it: admitted as far as the solutions' own steps admit it.
+  rep.ok = admissible_state(ph, s, r, fn, rep, OpenPlanes::resolved, flow_residual);
   return rep;
 }
 
@@ -287,7 +289,7 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
   template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);           \
   template SlipTypes<N>::VecN normal_traction<N>(const Phase<N>&, const GrainState<N>&);         \
   template GrainStepReport restore_extrapolated_state<N>(const Phase<N>&, const GrainState<N>&,  \
-                                                         GrainState<N>&);                        \
+                                                         GrainState<N>&, double);                \
   template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);             \
   template void grain_rates<N>(const Phase<N>&, const GrainState<N>&, const SlipRates<N>&,       \
                                const Mat3&, GrainRates<N>&);

@@ -239,9 +239,8 @@ bool flow_rule_step(const Phase<N>& ph, const GrainState<N>& s0, const Mat3& L, 
   s1.r_s = point.r_s.cwiseMin(r1);
   s1.orientation = orientation_after_plastic_spin(ph, kin.spun_orientation, dgamma);
   // A flow rule converged to its tolerance, or to its rounding (StressSolver::within_floor).
-  const double flow_tolerance =
-      std::max(opt.tolerance, 16.0 * std::numeric_limits<double>::epsilon());
-  if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return true;
+  if (!admissible_state(ph, s1, r1, fn1, rep, OpenPlanes::resolved, admitted_flow_residual(opt)))
+    return true;
 
   if (tangent) {
     Tangent d_sigma;

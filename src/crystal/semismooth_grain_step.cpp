@@ -727,9 +727,8 @@ GrainStepReport semismooth_grain_step(const Phase<N>& ph, const GrainState<N>& s
   const VecN r_abs = loading_ratio_of(ph, s1.stress, it.mu, fn1);
   s1.r_s = it.rs.cwiseMin(r_abs);  // (3.12): r_s follows r down where no slip occurs
   s1.orientation = orientation_after_plastic_spin(ph, kin.spun_orientation, dgamma);
-  const double flow_tolerance =
-      std::max(opt.tolerance, 16.0 * std::numeric_limits<double>::epsilon());
-  if (!admissible_state(ph, s1, r_abs, fn1, rep, OpenPlanes::resolved, flow_tolerance)) return rep;
+  if (!admissible_state(ph, s1, r_abs, fn1, rep, OpenPlanes::resolved, admitted_flow_residual(opt)))
+    return rep;
 
   if (tangent) {
     const typename T::MatNN j = solver.jacobian(it);

@@ -706,7 +706,7 @@ GrainStepReport vertex_grain_step(const Phase<N>& ph, const GrainState<N>& s0, c
   const int n = ph.slip_count;
   const StepKinematics kin = step_kinematics(s0.orientation, L, dt, ph.kinematics);
   const Vec6 trial = s0.stress + ph.stiffness * kin.strain_increment;
-  const double tolerance = std::max(opt.tolerance, 16.0 * kEps);
+  const double tolerance = admitted_flow_residual(opt);
   VertexSolver<N> solver(ph, s0, trial, dt, tolerance);
   Vec6 sigma;
   typename VertexSolver<N>::Qp qp;

@@ -24,7 +24,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -143,6 +145,13 @@ struct GrainStepOptions {
   bool continuation = true;
 };
 
+// The flow-rule residual a grain step's end state is admitted with: the step's tolerance, but
+// not below what double precision resolves of r (a few ulp of 1). A rate-independent system
+// carries r = 1 to this residual where it is saturated (r_s = 1).
+inline double admitted_flow_residual(const GrainStepOptions& opt) {
+  return std::max(opt.tolerance, 16.0 * std::numeric_limits<double>::epsilon());
+}
+
 struct GrainStepReport {
   bool ok = false;
   int iterations = 0;
@@ -215,10 +224,12 @@ void grain_rates(const Phase<N>& ph, const GrainState<N>& s, const SlipRates<N>&
 // r_s restored to [0, r] (and taken from `finest`, the best single solution, where it reached 1
 // and the finest did not). The combination leaves the admissible set only by the order of its
 // error. The report is not ok (naming the system) where the state is still inadmissible
-// (r >= r_hat, mu <= 0, non-finite): the step is then redone shorter.
+// (r >= r_hat, mu <= 0, non-finite; a rate-independent system's r above 1 by more than
+// `flow_residual`, what the solutions' own steps admit: admitted_flow_residual): the step is
+// then redone shorter.
 template <int N>
 GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
-                                           GrainState<N>& s);
+                                           GrainState<N>& s, double flow_residual);
 
 // Dynamic loading ratio r_a = |tau_a| / (mu_a f_n,a) of a state, per system.
 template <int N>
