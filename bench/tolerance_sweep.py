@@ -4,7 +4,7 @@ with the default order (a tolerance and no `order`): whether it runs to the end,
 error on the path against a tight reference, as a multiple of the tolerance.
 
     bench/tolerance_sweep.py SUBSLIP SCENE.yaml ... [--tolerances 1e-3 ... 1e-8]
-        [--reference-tolerance 1e-11] [--order K] [--compare-order-1] [--workdir DIR]
+        [--reference-tolerance 1e-11] [--order K] [--compare-order-1] [--coarsest] [--workdir DIR]
         [--max-cases N] [--crystal-measure state|stress|resolved]
 
 SUBSLIP is the built CLI (build/src/subslip). Contact scenes: each case (one per element of the
@@ -25,6 +25,11 @@ With --compare-order-1 each contact case also runs backward Euler's own estimate
 the same tolerances, and the summary gives, for each of its points, the run time of the cheapest
 default-order point at least as accurate (work-precision at equal error; wall time of one run,
 so compare only large ratios on a shared machine).
+
+With --coarsest each case also runs at a tolerance of 1, its coarsest path (the fewest steps its
+step control takes; a contact scene's tolerance must be below 1, so 0.999 there), and a run below 0.1 times its tolerance counts as "coarsest path as
+accurate" where that path's error is itself below a tenth of the run's tolerance (no tolerance
+can make the run less accurate than asked), else as "more accurate than asked".
 
 Prints one row per case, a cell per tolerance ("error/tolerance (steps)", or the failure), then a
 summary: runs that reached the end, and how many ended within 0.1 ... 10 times the tolerance,
@@ -207,7 +212,7 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
 def crystal_rows(subslip, path, args, workdir):
     out = os.path.join(workdir, os.path.splitext(os.path.basename(path))[0])
     cmd = [subslip, "accuracy", path, "-o", out, "-f", "-q", "--no-plot",
-           "--integrators", "extrapolated_2", "--extrapolated", *args.tolerances,
+           "--integrators", "extrapolated_2", "--extrapolated", *studied_tolerances(args, "crystal"),
            "--reference-tolerance", args.reference_tolerance, "--reference-order", "2",
            "--reference-at-run-times", "--repeat", "1", "--measure", args.crystal_measure,
            "--max-run-seconds", str(args.max_run_seconds)]
@@ -219,9 +224,25 @@ def crystal_rows(subslip, path, args, workdir):
         return list(csv.DictReader(f)), None
 
 
-def band(ratio):
+# The tolerance of a case's coarsest path (--coarsest): the loosest a scene takes.
+COARSEST = {"crystal": "1", "contact": "0.999"}
+
+
+def studied_tolerances(args, kind):
+    """The tolerances each case runs at: the table's, and with --coarsest the coarsest path's."""
+    extra = [COARSEST[kind]] if args.coarsest and COARSEST[kind] not in args.tolerances else []
+    return list(args.tolerances) + extra
+
+
+def band(ratio, tolerance, coarsest_error):
+    """Where a run's max error over its tolerance falls; below 0.1 split by the coarsest path's
+    error where it was run (None: not run)."""
     if ratio < 0.1:
-        return "below 0.1"
+        if coarsest_error is None:
+            return "below 0.1"
+        if coarsest_error < 0.1 * tolerance:
+            return "below 0.1, coarsest path as accurate"
+        return "below 0.1, more accurate than asked"
     if ratio <= 10.0:
         return "0.1 ... 10"
     return "above 10"
@@ -236,6 +257,8 @@ def main():
     p.add_argument("--reference-tolerance", default="1e-11")
     p.add_argument("--order", type=int, default=0, help="0: the scene default (none given)")
     p.add_argument("--compare-order-1", action="store_true")
+    p.add_argument("--coarsest", action="store_true",
+                   help="also run each case at a tolerance of 1 (its coarsest path)")
     p.add_argument("--workdir", default=None)
     p.add_argument("--max-cases", type=int, default=0, help="per scene, 0: all")
     p.add_argument("--crystal-measure", choices=["state", "stress", "resolved"], default="resolved")
@@ -251,7 +274,14 @@ def main():
     print("| scene | case | " + " | ".join(args.tolerances) + " |")
     print("|---|---|" + "---|" * len(args.tolerances), flush=True)
     runs = ended = 0
-    bands, failures, equal_error = {}, [], []
+    bands, failures, equal_error, below = {}, [], [], []
+
+    def count(name, case, tol, ratio, coarsest_error):
+        kind = band(ratio, float(tol), coarsest_error)
+        bands[kind] = bands.get(kind, 0) + 1
+        if kind == "below 0.1, more accurate than asked":
+            below.append(f"{name} {case} at {tol}: {ratio:.2g} (coarsest path {coarsest_error:.2g})")
+
     for path in args.scenes:
         name = os.path.basename(path)
         scene = load_scene(path)
@@ -262,6 +292,9 @@ def main():
                 continue
             for case in dict.fromkeys(r["case"] for r in rows):
                 cells = []
+                coarse = next((x for x in rows if x["case"] == case and x["status"] == "ok" and
+                               float(x["setting"]) == float(COARSEST["crystal"])), None) if args.coarsest else None
+                coarsest_error = float(coarse["max_error"]) if coarse else None
                 for tol in args.tolerances:
                     r = next((x for x in rows if x["case"] == case and
                               float(x["setting"]) == float(tol)), None)
@@ -273,7 +306,7 @@ def main():
                         continue
                     ended += 1
                     ratio = float(r["error_to_tolerance"])
-                    bands[band(ratio)] = bands.get(band(ratio), 0) + 1
+                    count(name, case, tol, ratio, coarsest_error)
                     cells.append(f"{ratio:.2g} ({r['steps']})")
                 print(f"| {name} | {case} | " + " | ".join(cells) + " |", flush=True)
             continue
@@ -281,12 +314,14 @@ def main():
         if args.max_cases:
             cases = cases[:args.max_cases]
         for k, (case, single) in enumerate(cases):
-            wanted = [(tol, args.order) for tol in args.tolerances]
+            wanted = [(tol, args.order) for tol in studied_tolerances(args, "contact")]
             if args.compare_order_1:
                 wanted += [(tol, 1) for tol in args.tolerances]
             results = contact_points(args.subslip, single, wanted, args.reference_tolerance,
                                      workdir, f"{os.path.splitext(name)[0]}_{k}")
             cells, points = [], {}
+            coarse = results.get((COARSEST["contact"], args.order)) if args.coarsest else None
+            coarsest_error = coarse[3] if coarse is not None and not isinstance(coarse, str) else None
             for tol in args.tolerances:
                 runs += 1
                 got = results[(tol, args.order)]
@@ -297,7 +332,7 @@ def main():
                 ended += 1
                 ratio, steps, seconds, error, unresolved = got
                 points[tol] = (error, seconds)
-                bands[band(ratio)] = bands.get(band(ratio), 0) + 1
+                count(name, case, tol, ratio, coarsest_error)
                 cells.append(f"{ratio:.2g} ({steps}{f', {unresolved} unresolved' if unresolved else ''})")
             print(f"| {name} | {case} | " + " | ".join(cells) + " |", flush=True)
             if args.compare_order_1:
@@ -314,6 +349,8 @@ def main():
           ", ".join(f"{k}: {v}" for k, v in sorted(bands.items())))
     for f in failures:
         print(f"  not ended: {f}")
+    for b in below:
+        print(f"  more accurate than asked: {b}")
     if equal_error:
         print("\nwork-precision: each order-1 point against the cheapest default-order point at "
               "least as accurate (wall seconds of one run, with the process start)")
