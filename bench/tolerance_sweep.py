@@ -78,10 +78,18 @@ def cases_of(scene):
     for values in itertools.product(*(sweep[k] for k in keys)):
         s = copy.deepcopy(base)
         s["sweep"] = {k: [v] for k, v in zip(keys, values)}
-        name = ",".join(f"{k.split('.')[-1]}={v}" for k, v in zip(keys, values)
-                        if not isinstance(v, (dict, list)))
-        out.append((name or str(values), s))
+        name = ",".join(f"{k.split('.')[-1]}={flow(v)}" for k, v in zip(keys, values))
+        out.append((name, s))
     return out
+
+
+def flow(value):
+    """A swept value as YAML flow text (a mapping or a list inline), as case names show it."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {flow(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(flow(v) for v in value) + "]"
+    return str(value)
 
 
 def with_integrator(scene, tolerance, order, fields, at_times=None):
