@@ -587,8 +587,8 @@ TEST(CrystalVertex, SaturatedVertexSlipsAreTheLeastNormSplit) {
 // A saturated rate-independent system carries r = 1 in every solution of an extrapolated step,
 // and their combination rounds about it: a combination a few ulp above r = 1 is admitted as far
 // as the grain steps admit their own end states (admitted_flow_residual), and one beyond that
-// is not. Refusing the rounding refused the step at every length (a reference run at 1e-9
-// through given times stopped "r > 1 (rate-independent)" with the step at 1e-13).
+// is not. Refusing the rounding would refuse such a step at every length (a reference at 1e-9
+// through given times would stop "r > 1 (rate-independent)" with the step at 1e-13).
 TEST(CrystalExtrapolation, SaturatedRateIndependentCombinationIsAdmittedToTheFlowResidual) {
   law::LawParameters p = crystal_law(1.0, 1.0, 0.0, 0.0, 300.0, 0.05);
   p.overstress.form = law::OverstressForm::rate_independent;
