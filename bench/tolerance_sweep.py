@@ -5,7 +5,8 @@ error on the path against a tight reference, as a multiple of the tolerance.
 
     bench/tolerance_sweep.py SUBSLIP SCENE.yaml ... [--tolerances 1e-3 ... 1e-8]
         [--reference-tolerance 1e-11] [--order K] [--compare-order-1] [--coarsest] [--workdir DIR]
-        [--max-cases N] [--crystal-measure state|stress|resolved]
+        [--max-cases N] [--crystal-measure state|stress|resolved] [--per-case]
+        [--case-seconds S] [--max-run-seconds S]
 
 SUBSLIP is the built CLI (build/src/subslip). Contact scenes: each case (one per element of the
 scene's sweep) runs with `integrator: {method: implicit, tolerance: T}` (plus `order: K` with
@@ -25,6 +26,11 @@ With --compare-order-1 each contact case also runs backward Euler's own estimate
 the same tolerances, and the summary gives, for each of its points, the run time of the cheapest
 default-order point at least as accurate (work-precision at equal error; wall time of one run,
 so compare only large ratios on a shared machine).
+
+A crystal scene is one study of all its cases; with --per-case each case is its own study (its
+own scene file in the work directory, the orientation file's path made absolute), so that a case
+whose references take long stops alone (--case-seconds) and the others are still compared.
+--max-cases then applies to crystal scenes too.
 
 With --coarsest each case also runs at a tolerance of 1, its coarsest path (the fewest steps its
 step control takes; a contact scene's tolerance must be below 1, so 0.999 there), and a run below 0.1 times its tolerance counts as "coarsest path as
@@ -217,19 +223,52 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
     return out
 
 
-def crystal_rows(subslip, path, args, workdir):
-    out = os.path.join(workdir, os.path.splitext(os.path.basename(path))[0])
+def crystal_study(subslip, path, out, args):
+    """One `subslip accuracy` study of the crystal scene at `path` into `out`: its rows, or None
+    and why."""
     cmd = [subslip, "accuracy", path, "-o", out, "-f", "-q", "--no-plot",
            "--integrators", "extrapolated_2", "--extrapolated", *studied_tolerances(args, "crystal"),
            "--reference-tolerance", args.reference_tolerance, "--reference-order", "2",
            "--reference-at-run-times", "--repeat", "1", "--measure", args.crystal_measure,
            "--max-run-seconds", str(args.max_run_seconds)]
-    done = subprocess.run(cmd, capture_output=True, text=True)
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True,
+                              timeout=args.case_seconds or None)
+    except subprocess.TimeoutExpired:
+        return None, f"study stopped after {args.case_seconds:g} s"
     csv_path = os.path.join(out, "accuracy.csv")
     if not os.path.exists(csv_path):
         return None, (done.stderr.strip().splitlines() or ["no output"])[-1]
     with open(csv_path, newline="") as f:
         return list(csv.DictReader(f)), None
+
+
+def crystal_rows(subslip, path, args, workdir):
+    """The study's rows of every case of a crystal scene (one study, or with --per-case one per
+    case: a case whose references take long then stops alone), and the cases that gave none."""
+    stem = os.path.splitext(os.path.basename(path))[0]
+    if not args.per_case:
+        rows, why = crystal_study(subslip, path, os.path.join(workdir, stem), args)
+        return (rows or []), ([] if rows is not None else [(None, why)])
+    scene = load_scene(path)
+    here = os.path.dirname(os.path.abspath(path))
+    rows, missing = [], []
+    cases = cases_of(scene)
+    if args.max_cases:
+        cases = cases[:args.max_cases]
+    for k, (case, single) in enumerate(cases):
+        orientations = single.get("orientations") or {}
+        if "file" in orientations:  # (the single-case scene is written elsewhere)
+            orientations["file"] = os.path.join(here, orientations["file"])
+        single_path = os.path.join(workdir, f"{stem}_{k}.yaml")
+        with open(single_path, "w") as f:
+            yaml.safe_dump(single, f, sort_keys=False)
+        got, why = crystal_study(subslip, single_path, os.path.join(workdir, f"{stem}_{k}"), args)
+        if got is None:
+            missing.append((case, why))
+        else:
+            rows += got
+    return rows, missing
 
 
 # The tolerance of a case's coarsest path (--coarsest): the loosest a scene takes.
@@ -271,6 +310,10 @@ def main():
     p.add_argument("--max-cases", type=int, default=0, help="per scene, 0: all")
     p.add_argument("--crystal-measure", choices=["state", "stress", "resolved"], default="resolved")
     p.add_argument("--max-run-seconds", type=float, default=120.0)
+    p.add_argument("--per-case", action="store_true",
+                   help="crystal scenes: one study per case (each with its own references)")
+    p.add_argument("--case-seconds", type=float, default=0.0,
+                   help="crystal: stop a study after this long, 0: no limit")
     args = p.parse_args()
     global RUN_SECONDS
     RUN_SECONDS = args.max_run_seconds
@@ -294,10 +337,13 @@ def main():
         name = os.path.basename(path)
         scene = load_scene(path)
         if scene.get("scene") == "crystal":
-            rows, why = crystal_rows(args.subslip, path, args, workdir)
-            if rows is None:
-                failures.append(f"{name}: {why}")
-                continue
+            rows, missing = crystal_rows(args.subslip, path, args, workdir)
+            for case, why in missing:
+                if case is None:  # (the whole scene's study)
+                    failures.append(f"{name}: {why}")
+                    continue
+                runs += len(args.tolerances)
+                failures.append(f"{name} {case}: {why}")
             for case in dict.fromkeys(r["case"] for r in rows):
                 cells = []
                 coarse = next((x for x in rows if x["case"] == case and x["status"] == "ok" and
