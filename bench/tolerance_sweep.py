@@ -89,6 +89,12 @@ def cases_of(scene):
     return out
 
 
+def studied_cases(scene, args):
+    """The scene's cases a sweep studies: all, or the first --max-cases."""
+    cases = cases_of(scene)
+    return cases[:args.max_cases] if args.max_cases else cases
+
+
 def flow(value):
     """A swept value as YAML flow text (a mapping or a list inline), as case names show it."""
     if isinstance(value, dict):
@@ -253,10 +259,7 @@ def crystal_rows(subslip, path, args, workdir):
     scene = load_scene(path)
     here = os.path.dirname(os.path.abspath(path))
     rows, missing = [], []
-    cases = cases_of(scene)
-    if args.max_cases:
-        cases = cases[:args.max_cases]
-    for k, (case, single) in enumerate(cases):
+    for k, (case, single) in enumerate(studied_cases(scene, args)):
         orientations = single.get("orientations") or {}
         if "file" in orientations:  # (the single-case scene is written elsewhere)
             orientations["file"] = os.path.join(here, orientations["file"])
@@ -364,10 +367,7 @@ def main():
                     cells.append(f"{ratio:.2g} ({r['steps']})")
                 print(f"| {name} | {case} | " + " | ".join(cells) + " |", flush=True)
             continue
-        cases = cases_of(scene)
-        if args.max_cases:
-            cases = cases[:args.max_cases]
-        for k, (case, single) in enumerate(cases):
+        for k, (case, single) in enumerate(studied_cases(scene, args)):
             wanted = [(tol, args.order) for tol in studied_tolerances(args, "contact")]
             if args.compare_order_1:
                 wanted += [(tol, 1) for tol in args.tolerances]
