@@ -511,6 +511,32 @@ TEST(AdaptiveContact, SlidingUntilTheContactOpensFollowsTheTolerance) {
   }
 }
 
+// Steady sliding while the normal traction is ramped from 5560 MPa through zero (the contact
+// opens 0.0099982 min into the ramp), with an almost elastic, nearly saturated law (eta_v = 1e9
+// min/mm, n = 0.5, r_hat = 100, u_tilde = 1e6 /mm): the tangential traction follows f_n down at a
+// constant r, so the path is smooth up to the opening. At 1e-9 every step up to the opening
+// meets the tolerance; with the normal traction's round-off growing relative to it as it falls
+// (f_n written as fn_start + rate t) the short steps just before the opening estimated errors
+// above 1e-9 at every length, and the run stopped there below the time's resolution.
+TEST(AdaptiveContact, SteadySlidingRunsIntoAnOpeningAtATightTolerance) {
+  contact::ContactModel m = paper_model();
+  m.law.subloading.u_tilde = 1e6;
+  m.law.overstress = {law::OverstressForm::exponential, 1e9, 0.5, 100.0};
+  m.initial_normal_traction = 5560.0;
+  using contact::Vec2;
+  contact::Segment slide = segment(Vec2(1.0, 0), 0.01);
+  slide.normal_traction = m.initial_normal_traction;
+  contact::Segment opening = segment(Vec2(1.0, 0), 0.01);
+  opening.normal_traction = -1.0;
+  ContactRun run;
+  ASSERT_NO_THROW(run = run_contact(m, {slide, opening}, 1e-9, 2));
+  measured() << "steady sliding into an opening at 1e-9: " << run.steps_per_segment[1]
+             << " steps in the ramp\n";
+  EXPECT_TRUE(run.all_admissible);
+  EXPECT_EQ(run.segment_ends[1].traction_n, -1.0);
+  EXPECT_EQ(run.segment_ends[1].traction_t.norm(), 0.0);
+}
+
 // ---- crystal ------------------------------------------------------------------------------
 
 namespace {

@@ -225,6 +225,37 @@ TEST(ContactSegments, IncrementLengthsAreGeometricAndSumToDuration) {
   }
 }
 
+// The prescribed normal traction is affine in time to its own precision near its zero, where a
+// contact opens or closes: at three close times there, the middle value lies on the chord of the
+// outer two to a few ulps of itself (not of the segment's start traction, whose ulps are 1e8 times
+// f_n there). A traction that jitters by more than its own ulps is a rate a short step sees.
+TEST(ContactSegments, NormalTractionIsAffineToItsOwnPrecisionNearItsZero) {
+  const ContactStiffness stiffness{1e6, 1e6};
+  Segment unload;  // 5.56 MPa to -1 MPa over 0.5 min: opens at 0.5 x 5.56 / 6.56 min
+  unload.duration = 0.5;
+  unload.normal_traction = -1.0;
+  Segment close;  // from -1 MPa at a normal velocity: closes at 1 / 6.56 min
+  close.duration = 1.0;
+  close.normal_control = NormalControl::velocity;
+  close.normal_velocity = 6.56e-6;
+  for (const auto& [seg, fn_start] : {std::pair{unload, 5.56}, std::pair{close, -1.0}}) {
+    const double zero = seg.normal_control == NormalControl::velocity
+                            ? -fn_start / (stiffness.alpha_n * seg.normal_velocity)
+                            : seg.duration * fn_start / (fn_start - seg.normal_traction);
+    for (double before : {1e-9, 1e-12, 1e-14}) {
+      const double t0 = zero * (1.0 - 2.0 * before), t2 = zero * (1.0 - before);
+      const double t1 = 0.5 * (t0 + t2);
+      const double f0 = normal_traction_at(seg, stiffness, fn_start, t0);
+      const double f1 = normal_traction_at(seg, stiffness, fn_start, t1);
+      const double f2 = normal_traction_at(seg, stiffness, fn_start, t2);
+      const double chord = f0 + (f2 - f0) * ((t1 - t0) / (t2 - t0));
+      EXPECT_NE(f1, 0.0);
+      EXPECT_LE(std::abs(f1 - chord), 8.0 * kEps * std::abs(f1))
+          << "f_n " << f1 << " at " << before << " of the zero's time before it";
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // 3. Steady sliding reaches the analytical steady state.
 // ---------------------------------------------------------------------------------------------

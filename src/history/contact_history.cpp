@@ -256,21 +256,17 @@ double estimate_resolution(const law::SubloadingFrictionLaw& law, const Integrat
 // steps end on it (a stop of the clock), where the traction is exactly zero.
 struct NormalLoad {
   const Segment& seg;
-  contact::ContactStiffness stiffness;
-  double fn_start;
+  contact::NormalRamp ramp;
   double crossing = -1.0;  // time into the segment, or < 0 where it does not cross zero
 
-  NormalLoad(const Segment& s, const contact::ContactStiffness& c, double f0)
-      : seg(s), stiffness(c), fn_start(f0) {
-    const double f_end = contact::normal_traction_at(seg, stiffness, fn_start, seg.duration);
-    if (seg.duration > 0.0 && (fn_start > 0.0) != (f_end > 0.0)) {
-      const double t = seg.duration * (fn_start / (fn_start - f_end));
-      if (t > 0.0 && t < seg.duration) crossing = t;
-    }
+  NormalLoad(const Segment& s, const contact::ContactStiffness& c, double fn_start)
+      : seg(s), ramp(contact::normal_ramp(s, c, fn_start)) {
+    const double f_end = ramp.at(seg.duration);
+    if (seg.duration > 0.0 && (fn_start > 0.0) != (f_end > 0.0) && ramp.zero > 0.0 &&
+        ramp.zero < seg.duration)
+      crossing = ramp.zero;  // (where the ramp is exactly zero)
   }
-  double at(double t) const {
-    return t == crossing ? 0.0 : contact::normal_traction_at(seg, stiffness, fn_start, t);
-  }
+  double at(double t) const { return ramp.at(t); }
 };
 
 // One step of the extrapolated integrator from s0 at time t0 into the segment to t1: backward

@@ -143,6 +143,22 @@ std::string admissibility_violation(const law::SubloadingFrictionLaw& law, const
 // The normal traction at time t into a segment that started with fn_start.
 double normal_traction_at(const Segment& seg, const ContactStiffness& c, double fn_start, double t);
 
+// A segment's prescribed normal traction, rate (t - zero) at time t into it (`constant` where
+// the rate is zero); `zero` is where it crosses zero (which may lie outside the segment). A ramp
+// to a traction ends on it exactly (`target` at `end`, the segment's duration).
+struct NormalRamp {
+  double rate = 0.0;
+  double zero = 0.0;
+  double constant = 0.0;
+  double end = -1.0;  // < 0: no target (a normal velocity)
+  double target = 0.0;
+  double at(double t) const {
+    if (t == end) return target;
+    return rate == 0.0 ? constant : rate * (t - zero);
+  }
+};
+NormalRamp normal_ramp(const Segment& seg, const ContactStiffness& c, double fn_start);
+
 struct ContactModel {
   law::LawParameters law;
   law::LawState initial_law_state;
