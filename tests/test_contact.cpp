@@ -227,7 +227,7 @@ TEST(ContactSegments, IncrementLengthsAreGeometricAndSumToDuration) {
 
 // The prescribed normal traction is affine in time to its own precision near its zero, where a
 // contact opens or closes: at three close times there, the middle value lies on the chord of the
-// outer two to a few ulps of itself (not of the segment's start traction, whose ulps are 1e8 times
+// outer two to a few ulps of itself (not of the segment's start traction, 1e9 times and more
 // f_n there). A traction that jitters by more than its own ulps is a rate a short step sees.
 TEST(ContactSegments, NormalTractionIsAffineToItsOwnPrecisionNearItsZero) {
   const ContactStiffness stiffness{1e6, 1e6};
