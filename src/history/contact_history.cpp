@@ -259,12 +259,10 @@ struct NormalLoad {
   contact::NormalRamp ramp;
   double crossing = -1.0;  // time into the segment, or < 0 where it does not cross zero
 
+  // An affine f_n whose zero lies inside the segment changes sign there.
   NormalLoad(const Segment& s, const contact::ContactStiffness& c, double fn_start)
       : seg(s), ramp(contact::normal_ramp(s, c, fn_start)) {
-    const double f_end = ramp.at(seg.duration);
-    if (seg.duration > 0.0 && (fn_start > 0.0) != (f_end > 0.0) && ramp.zero > 0.0 &&
-        ramp.zero < seg.duration)
-      crossing = ramp.zero;  // (where the ramp is exactly zero)
+    if (ramp.rate != 0.0 && ramp.zero > 0.0 && ramp.zero < seg.duration) crossing = ramp.zero;
   }
   double at(double t) const { return ramp.at(t); }
 };
