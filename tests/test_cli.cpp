@@ -522,3 +522,31 @@ TEST(Cli, AccuracyLinesFitEightyColumns) {
   EXPECT_TRUE(contains(r.out, "  implicit              steps  max error")) << r.out;
   fs::remove_all(dir);
 }
+
+// A crystal study against references at its runs' own times measures time into each segment:
+// its table gives where the max error is as "segment:time" (a bare time read as an absolute one),
+// the segment the csv names.
+TEST(Cli, AccuracyTableNamesTheSegmentOfTimesIntoSegments) {
+  const fs::path dir = scratch_dir();
+  std::string scene = kCrystalScene;
+  scene += R"(  - L: [[x, 0, 0], [0, x, 0], [0, 0, -1.0e-3]]
+    stress: [[0, x, x], [x, 0, x], [x, x, x]]
+    duration: 1
+    increments: 5
+)";
+  write(dir / "crystal.yaml", scene);
+  write(dir / "orientations.txt", "# subslip-orientations convention=bunge-euler-deg\n10 20 30\n");
+  const Outcome r = run(dir,
+                        "accuracy crystal.yaml -o acc --no-plot --repeat 1 --integrators "
+                        "extrapolated_2 --extrapolated 1e-3 --reference-tolerance 1e-6 "
+                        "--reference-order 2 --reference-at-run-times --cvode-check-seconds 1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  expect_lines_fit_80(r.out);
+  EXPECT_TRUE(contains(r.out, "  extrapolated_2        steps  max error      seg:t")) << r.out;
+  const std::string csv = slurp(dir / "acc" / "accuracy.csv");
+  const auto at = csv.find(" in segment ");
+  ASSERT_NE(at, std::string::npos) << csv;
+  const char segment = csv[at + std::string(" in segment ").size()];
+  EXPECT_TRUE(contains(r.out, std::string(" ") + segment + ":")) << r.out;
+  fs::remove_all(dir);
+}

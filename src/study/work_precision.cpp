@@ -55,22 +55,29 @@ std::string format_setting(const Setting& s) {
 
 // The rows of a ladder (describe_point) come under a header naming the integrator, so that a row
 // needs only the setting and fits 80 columns with the two spaces the command line puts before.
-// The header's column widths are the row's.
-std::string ladder_header(Integrator integrator) {
+// The header's column widths are the row's. Where a problem's times are times into each
+// segment (`into_segments`), the max error's time is given as "segment:time", since the time
+// alone reads as an absolute one.
+std::string ladder_header(Integrator integrator, bool into_segments) {
   char buf[128];
   std::snprintf(buf, sizeof buf, "%-17s  %8s  %9s  %9s  %9s  %9s  %4s",
-                std::string(to_string(integrator)).c_str(), "steps", "max error", "at t",
-                "end error", "time[s]", "runs");
+                std::string(to_string(integrator)).c_str(), "steps", "max error",
+                into_segments ? "seg:t" : "at t", "end error", "time[s]", "runs");
   return buf;
 }
 
-std::string describe_point(const PointResult& p) {
+std::string describe_point(const PointResult& p, bool into_segments) {
   const std::string setting = format_setting(p.setting);
   if (!p.ok) return setting + ": failed: " + p.failure;
+  char at[48];
+  if (into_segments && p.error.max_error_segment >= 0)
+    std::snprintf(at, sizeof at, "%d:%.3g", p.error.max_error_segment, p.error.max_error_time);
+  else
+    std::snprintf(at, sizeof at, "%.3g", p.error.max_error_time);
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%-17s  %8ld  %9.3e  %9.3g  %9.3e  %9.4g  %4d", setting.c_str(),
-                p.counters.steps, p.error.max_error, p.error.max_error_time, p.error.end_error,
-                p.median_seconds, p.repeats);
+  std::snprintf(buf, sizeof buf, "%-17s  %8ld  %9.3e  %9s  %9.3e  %9.4g  %4d", setting.c_str(),
+                p.counters.steps, p.error.max_error, at, p.error.end_error, p.median_seconds,
+                p.repeats);
   return buf;
 }
 
@@ -445,7 +452,7 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
       say(options, out.notes.back());
       continue;
     }
-    say(options, ladder_header(ladder.integrator));
+    say(options, ladder_header(ladder.integrator, problem.times_into_segments()));
     std::vector<double> values = ladder.values;
     std::optional<std::size_t> previous;  // index into out.points
     for (std::size_t k = 0;; ++k) {
@@ -483,7 +490,7 @@ StudyResult run_study(const Problem& problem, const StudyOptions& options) {
                                               ? " in segment " + std::to_string(e.max_error_segment)
                                               : "");
       }
-      say(options, describe_point(out.points.back()));
+      say(options, describe_point(out.points.back(), problem.times_into_segments()));
       previous = out.points.size() - 1;
       if (out.points.back().over_budget) break;  // finer points only take longer
     }
