@@ -20,7 +20,8 @@ their time (counted in the cell as "unresolved"), and a difference up to the rat
 times what the absolute time resolves there (the two times' distance plus 2 ulp) is not counted:
 it is the same state compared at times the output cannot tell apart. Crystal scenes: `subslip accuracy` with
 `--reference-at-run-times` (docs/accuracy.md), integrator `extrapolated_2`, measured by default on
-every grain's resolved shear over its CRSS (`--crystal-measure resolved`: the tolerance's own unit).
+every grain's resolved shear over its yield scale (`--crystal-measure resolved`: the tolerance's own
+unit, the CRSS or a compressed pressure-sensitive plane's yield traction mu f_n).
 
 With --compare-order-1 each contact case also runs backward Euler's own estimate (`order: 1`) at
 the same tolerances, and the summary gives, for each of its points, the run time of the cheapest

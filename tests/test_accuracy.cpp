@@ -652,7 +652,7 @@ TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
   const SingleThread one;
   const CrystalProblem problem =
       extreme_crystal_case("crystal_pressure_sensitive.yaml", {"mu_k: 0.2,", "rate_independent"});
-  StudyOptions o = order_2_study(1e-9, {1e-5, 1e-7});
+  StudyOptions o = order_2_study(1e-10, {1e-5, 1e-7});
   o.cvode_check_seconds = 1.0;  // (the references' own companions judge them here)
   expect_within_ten_times_the_tolerance(run_study(problem, o),
                                         "rate-independent pressure-sensitive reversal");

@@ -57,7 +57,7 @@ loading:
 )";
 
 const std::string kAllGrains =
-    "output:\n  grains: [stress, orientation, slip, slip_rate, crss, r, r_s, tau]\n";
+    "output:\n  grains: [stress, orientation, slip, slip_rate, crss, strength, r, r_s, tau]\n";
 
 fs::path scratch_dir() {
   return subslip::testing::scratch_dir("crystal");
@@ -66,7 +66,7 @@ fs::path scratch_dir() {
 // What the aggregate handed to the observer at one output step.
 struct Reported {
   crystal::MacroState macro;
-  std::vector<double> stress, orientation, slip, slip_rate, crss, r, r_s, tau;
+  std::vector<double> stress, orientation, slip, slip_rate, crss, strength, r, r_s, tau;
 };
 
 Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
@@ -80,12 +80,14 @@ Reported copy_of(const crystal::MacroState& m, const crystal::GrainFields& g) {
              std::vector<double>(n * k),
              std::vector<double>(n * k),
              std::vector<double>(n * k),
+             std::vector<double>(n * k),
              std::vector<double>(n * k)};
   g.values(crystal::GrainField::stress, r.stress.data());
   g.values(crystal::GrainField::orientation, r.orientation.data());
   g.values(crystal::GrainField::slip, r.slip.data());
   g.values(crystal::GrainField::slip_rate, r.slip_rate.data());
   g.values(crystal::GrainField::crss, r.crss.data());
+  g.values(crystal::GrainField::strength, r.strength.data());
   g.values(crystal::GrainField::r, r.r.data());
   g.values(crystal::GrainField::r_s, r.r_s.data());
   g.values(crystal::GrainField::tau, r.tau.data());
@@ -204,6 +206,7 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
   const Expect expect[] = {{"slip", systems, &Reported::slip, "1"},
                            {"slip_rate", systems, &Reported::slip_rate, "1/s"},
                            {"crss", systems, &Reported::crss, "MPa"},
+                           {"strength", systems, &Reported::strength, "MPa"},
                            {"r", systems, &Reported::r, "1"},
                            {"r_s", systems, &Reported::r_s, "1"},
                            {"tau", systems, &Reported::tau, "MPa"}};
@@ -225,6 +228,8 @@ TEST(CrystalOutput, TinyRunHasTheDocumentedLayoutAndTheObservedValues) {
     }
   }
   EXPECT_NE(seen.back().tau[0], 0.0);
+  // Without the pressure-sensitive reading the yield traction is the CRSS.
+  for (std::size_t k = 0; k < n; ++k) EXPECT_EQ(seen[k].strength, seen[k].crss) << k;
   // The grain stress as full 3x3 tensors [n, G, 3, 3]: the kernel's 11 22 33 23 13 12 at (i, j)
   // and (j, i).
   const auto grain_stress = g.open_dataset("stress");

@@ -275,8 +275,9 @@ void add_accuracy_command(CLI::App& app, AccuracyArgs& a) {
   cmd->add_option("--measure", a.measure,
                   "Crystal: what the error is measured on besides the loading component: "
                   "'state', every grain's r, ln(CRSS) and r_s of each system; 'resolved', "
-                  "every grain's resolved shear of each system over its CRSS (what the "
-                  "extrapolated estimate bounds); 'stress', every grain's stress (where the "
+                  "every grain's resolved shear of each system over its yield scale, the CRSS "
+                  "or a compressed pressure-sensitive plane's mu f_n (what the extrapolated "
+                  "estimate bounds); 'stress', every grain's stress (where the "
                   "split of slip among systems, and so each CRSS, is not determined)")
       ->check(CLI::IsMember({"state", "stress", "resolved"}))
       ->capture_default_str();

@@ -264,7 +264,7 @@ class TaylorAggregate final : public Aggregate {
         if (!solved) mixed_.forget_free_trend();
         if (solved) why = describe_error(error);
         const integrators::EstimateNoise noise{
-            extrapolation_.resolution(grains_.phase(), opt, step_free_stress_error_, error.crss),
+            extrapolation_.resolution(grains_.phase(), opt, step_free_stress_error_, error.scale),
             true, !extrapolated};
         if (!clock.refuse(!solved, error.value, noise)) {
           if (clock.at_noise_floor())

@@ -63,11 +63,12 @@ void Extrapolation<N>::combine(int order, double dt, double flow_residual, Grain
     out.orientation =
         rotation_exp(extrapolate_implicit_euler(turn, order).best) * finest.orientation;
     reports[gi] = restore_extrapolated_state(phase, finest, out, flow_residual);
-    errors_[gi] = system_errors(phase, e_stress.best - e_stress.second, out.mu);
+    const VecN scale = yield_scale(phase, out);
+    errors_[gi] = system_errors(phase, e_stress.best - e_stress.second, scale);
     if (order >= 4) {  // the guard against a cancelling last column (guarded_estimate)
       const auto earlier = integrators::earlier_column_estimates(stress);
-      const VecN previous = system_errors(phase, earlier[0], out.mu);
-      const VecN before = system_errors(phase, earlier[1], out.mu);
+      const VecN previous = system_errors(phase, earlier[0], scale);
+      const VecN before = system_errors(phase, earlier[1], scale);
       VecN& error = errors_[gi];
       for (int a = 0; a < phase.slip_count; ++a)
         error(a) = integrators::guarded_estimate(error(a), previous(a), before(a));
@@ -153,12 +154,11 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
     steady[static_cast<size_t>(a)] = throughout;
   }
   const VecN shear_error = (0.5 * dt) * (phase.interaction * (one.rate - start.rate));
-  const VecN crss = start.mu.cwiseProduct(phase.tau0);
   return integrators::combination_kink_bound(order) *
-         system_errors(phase, one.stress - two.stress, combined.mu)
+         system_errors(phase, one.stress - two.stress, yield_scale(phase, combined))
              .cwiseMax(relaxed(phase, start, one, steady, dt, shear_error)
                            .cwiseAbs()
-                           .cwiseQuotient(crss));
+                           .cwiseQuotient(yield_scale(phase, start)));
 }
 
 // Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
@@ -238,9 +238,8 @@ typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::system_errors(const Phase<N>& phase,
                                                                 const Vec6& stress,
-                                                                const VecN& mu_now) const {
-  const VecN crss = mu_now.cwiseProduct(phase.tau0);
-  return (phase.schmid.transpose() * stress).cwiseAbs().cwiseQuotient(crss);
+                                                                const VecN& scale) const {
+  return (phase.schmid.transpose() * stress).cwiseAbs().cwiseQuotient(scale);
 }
 
 // Whether |tau| of each system grows or falls at a state under L: d|tau|/dt = sign(tau) P : C :
@@ -340,9 +339,9 @@ typename Extrapolation<N>::VecN Extrapolation<N>::turn_errors(const Phase<N>& ph
   for (int a = 0; a < n; ++a) {
     if (combined.rate(a) != 0.0 || !at_start.unloading(a) || !at_end.loading(a)) continue;
     const double g0 = at_start.growth(a), g1 = at_end.growth(a);
-    error(a) = g1 * g1 * dt / (2.0 * (g1 - g0)) / (start.mu(a) * phase.tau0(a));
+    error(a) = g1 * g1 * dt / (2.0 * (g1 - g0));
   }
-  return error;
+  return error.cwiseQuotient(yield_scale(phase, start));
 }
 
 // The solutions' L combined like the grains' states (with mixed control they differ between
@@ -381,8 +380,8 @@ void Extrapolation<N>::combine_macro(int order, const Mat3& velocity_gradient,
 // are exact to a few ulps of r (at most r_hat), to their flow-rule tolerance and, under mixed
 // control, to the free-stress error the step's solves were accepted with (at most the free
 // stresses' tolerance, often far below it); that is an error of the stress, and the estimate
-// divides the stress by the CRSS of the system that decides it (`deciding_crss`, at the step's
-// start), so it enters over that CRSS. The estimate's weights amplify the sum
+// divides the stress by the yield scale of the system that decides it (`deciding_scale`, at the
+// step's start), so it enters over that scale. The estimate's weights amplify the sum
 // (estimate_noise_gain). (A bound from the tolerance and the laws' mu_s and mu_k instead is
 // 100 times too fine where the CRSS starts at 0.01 mu_s tau0, and too coarse where the free
 // stresses are met far within their tolerance: there an estimate flat at the stresses'
@@ -390,12 +389,12 @@ void Extrapolation<N>::combine_macro(int order, const Mat3& velocity_gradient,
 // was stopped.)
 template <int N>
 double Extrapolation<N>::resolution(const Phase<N>& phase, const AggregateOptions& opt,
-                                    double free_stress_error, double deciding_crss) {
+                                    double free_stress_error, double deciding_scale) {
   constexpr double kEps = std::numeric_limits<double>::epsilon();
   double largest_ratio = 1.0;
   for (const auto& law : phase.laws)
     largest_ratio = std::max(largest_ratio, law.parameters().overstress.r_hat);
-  const double mixed = deciding_crss > 0.0 ? free_stress_error / deciding_crss : 0.0;
+  const double mixed = deciding_scale > 0.0 ? free_stress_error / deciding_scale : 0.0;
   return integrators::estimate_noise_gain(opt.order) *
          (opt.grain.tolerance + mixed + 4.0 * kEps * (1.0 + largest_ratio));
 }

@@ -57,13 +57,13 @@ class Extrapolation {
   ErrorEstimate error(const GrainSweep<N>& grains) const {
     return grains.worst_error([&](size_t g) { return errors_[g]; });
   }
-  // The round-off level of an estimate decided by a system of CRSS `deciding_crss`, of a step
-  // whose substeps met their free stresses' targets within `free_stress_error`.
+  // The round-off level of an estimate decided by a system of yield scale `deciding_scale`, of a
+  // step whose substeps met their free stresses' targets within `free_stress_error`.
   static double resolution(const Phase<N>& phase, const AggregateOptions& opt,
-                           double free_stress_error, double deciding_crss);
+                           double free_stress_error, double deciding_scale);
 
  private:
-  VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& mu_now) const;
+  VecN system_errors(const Phase<N>& phase, const Vec6& stress, const VecN& scale) const;
   // d|tau|/dt of every system at a state (pressure-sensitive: f_n d(|tau| / f_n)/dt), and the
   // rounding of its terms (loading()).
   struct Loading {

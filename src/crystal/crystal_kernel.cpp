@@ -183,6 +183,12 @@ typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState
 }
 
 template <int N>
+typename SlipTypes<N>::VecN yield_scale(const Phase<N>& ph, const GrainState<N>& s) {
+  if (!ph.pressure_sensitive) return s.mu.cwiseProduct(ph.tau0);
+  return s.mu.cwiseProduct(ph.tau0.cwiseMax(detail::normal_traction(ph, s.stress)));
+}
+
+template <int N>
 GrainStepReport restore_extrapolated_state(const Phase<N>& ph, const GrainState<N>& finest,
                                            GrainState<N>& s, double flow_residual) {
   const typename SlipTypes<N>::VecN fn = normal_traction(ph, s.stress);
@@ -288,6 +294,7 @@ GrainStepReport explicit_grain_step(const Phase<N>& ph, const GrainState<N>& s0,
                                                   integrators::ExplicitStability);               \
   template SlipTypes<N>::VecN loading_ratio<N>(const Phase<N>&, const GrainState<N>&);           \
   template SlipTypes<N>::VecN normal_traction<N>(const Phase<N>&, const GrainState<N>&);         \
+  template SlipTypes<N>::VecN yield_scale<N>(const Phase<N>&, const GrainState<N>&);             \
   template GrainStepReport restore_extrapolated_state<N>(const Phase<N>&, const GrainState<N>&,  \
                                                          GrainState<N>&, double);                \
   template void slip_rates<N>(const Phase<N>&, const GrainState<N>&, SlipRates<N>&);             \

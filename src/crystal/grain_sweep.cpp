@@ -50,7 +50,7 @@ Mat6 GrainSweep<N>::average_stiffness() const {
 }
 
 // The local error estimate of the step just solved (trial_ from committed_): per grain and
-// slip system, dt/2 |A (gdot_end - gdot_start)| over the CRSS mu tau0, the largest of all.
+// slip system, dt/2 |A (gdot_end - gdot_start)| over its yield scale, the largest of all.
 // The start rates are the committed end rates of the previous (backward Euler) step. A NaN
 // wins, so that a broken step is never accepted: the first NaN, else the first of the
 // largest, in grain order, per rank and then over the ranks in rank order (the same estimate
@@ -59,8 +59,8 @@ template <int N>
 ErrorEstimate GrainSweep<N>::local_error(double dt) const {
   return worst_error([&](size_t g) {
     const VecN rate_change = trial_[g].rate - committed_[g].rate;
-    const VecN crss = committed_[g].mu.cwiseProduct(phase_.tau0);
-    return VecN((0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(crss));
+    const VecN scale = yield_scale(phase_, committed_[g]);
+    return VecN((0.5 * dt) * (phase_.interaction * rate_change).cwiseAbs().cwiseQuotient(scale));
   });
 }
 
@@ -365,6 +365,15 @@ void GrainSweep<N>::crss(double* out) const {
 }
 
 template <int N>
+void GrainSweep<N>::strength(double* out) const {
+  const int n = phase_.slip_count;
+  per_grain(out, n, [&](const GrainState<N>& s, double* row) {
+    const VecN fn = normal_traction(phase_, s);
+    for (int a = 0; a < n; ++a) row[a] = s.mu(a) * fn(a);
+  });
+}
+
+template <int N>
 void GrainSweep<N>::ratio(double* out) const {
   const int n = phase_.slip_count;
   per_grain(out, n, [&](const GrainState<N>& s, double* row) {
@@ -400,6 +409,8 @@ void GrainSweep<N>::values(GrainField f, double* out) const {
       return slip_rate(out);
     case GrainField::crss:
       return crss(out);
+    case GrainField::strength:
+      return strength(out);
     case GrainField::r:
       return ratio(out);
     case GrainField::r_s:

@@ -24,7 +24,7 @@ struct ErrorEstimate {
   double value = 0.0;
   size_t grain = 0;
   int system = -1;
-  double crss = 0.0;  // of that system at the step's start (the scale of its estimate)
+  double scale = 0.0;  // that system's yield scale at the step's start (its estimate's unit)
 };
 
 template <int N>
@@ -89,18 +89,18 @@ class GrainSweep final : public GrainFields {
   template <class PerGrain>
   ErrorEstimate worst_error(PerGrain&& error_of) const {
     ErrorEstimate worst;
-    const auto keep_worse = [&worst](double value, size_t grain, int system, double crss) {
+    const auto keep_worse = [&worst](double value, size_t grain, int system, double scale) {
       if (!std::isnan(worst.value) && (std::isnan(value) || value > worst.value))
-        worst = {value, grain, system, crss};
+        worst = {value, grain, system, scale};
     };
     for (size_t g = 0; g < committed_.size(); ++g) {
       const VecN error = error_of(g);
-      for (int a = 0; a < phase_.slip_count; ++a)
-        keep_worse(error(a), offset_ + g, a, committed_[g].mu(a) * phase_.tau0(a));
+      const VecN scale = yield_scale(phase_, committed_[g]);
+      for (int a = 0; a < phase_.slip_count; ++a) keep_worse(error(a), offset_ + g, a, scale(a));
     }
     if (team_.size() == 1) return worst;
     const double mine[4] = {worst.value, static_cast<double>(worst.grain),
-                            static_cast<double>(worst.system), worst.crss};
+                            static_cast<double>(worst.system), worst.scale};
     const std::vector<double> all = team_.all_gather(mine);
     worst = {};
     for (size_t r = 0; r < all.size(); r += 4)
@@ -124,6 +124,7 @@ class GrainSweep final : public GrainFields {
   void slip(double* out) const;
   void slip_rate(double* out) const;
   void crss(double* out) const;
+  void strength(double* out) const;
   void ratio(double* out) const;
   void subloading_ratio(double* out) const;
   void resolved_shear(double* out) const;

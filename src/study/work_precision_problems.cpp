@@ -188,7 +188,7 @@ ErrorScales CrystalProblem::error_scales(const Trajectory& reference) const {
                      ErrorScale(measure_ == Measure::stress ? largest : 1.0));
   scales[0] = ErrorScale(largest);
   if (measure_ == Measure::resolved) {
-    // (tau, CRSS) pairs: tau over the CRSS beside it; the CRSS itself is not measured.
+    // (tau, yield scale) pairs: tau over the scale beside it; the scale itself is not measured.
     for (std::size_t c = 1; c + 1 < scales.size(); c += 2) {
       scales[c] = ErrorScale::of_channel(static_cast<int>(c + 1));
       scales[c + 1] = ErrorScale(std::numeric_limits<double>::infinity());
@@ -203,14 +203,15 @@ std::string CrystalProblem::error_scale_description() const {
   if (measure_ == Measure::stress) return flow + ", for every grain's stress as well";
   if (measure_ == Measure::resolved)
     return flow +
-           "; every grain's resolved shear of each slip system: the reference's CRSS of "
-           "that system at the same point";
+           "; every grain's resolved shear of each slip system: the reference's yield scale of "
+           "that system at the same point (its CRSS, or its yield traction mu f_n where a "
+           "pressure-sensitive plane's compression raises it above that)";
   return flow + "; every grain's r, ln(CRSS) and r_s of each slip system: 1";
 }
 
 namespace {
 constexpr int kPerSystem = 3;          // r, ln(mu tau0), r_s
-constexpr int kPerSystemResolved = 2;  // tau, mu tau0 (its scale)
+constexpr int kPerSystemResolved = 2;  // tau, its yield scale
 constexpr const char* kStressNames[6] = {"sigma_11", "sigma_22", "sigma_33",
                                          "sigma_23", "sigma_13", "sigma_12"};
 }  // namespace
@@ -220,7 +221,7 @@ std::string CrystalProblem::measured() const {
     case Measure::stress:
       return quantity() + " and every grain's stress";
     case Measure::resolved:
-      return quantity() + " and every grain's resolved shear over its CRSS";
+      return quantity() + " and every grain's resolved shear over its yield scale";
     case Measure::state:
       break;
   }
@@ -237,7 +238,7 @@ std::string CrystalProblem::channel_name(int channel) const {
     const int system = (k / kPerSystemResolved) % slips;
     const int grain = k / kPerSystemResolved / slips;
     return "grain " + std::to_string(grain) + " system " + std::to_string(system) +
-           (k % kPerSystemResolved == 0 ? " tau" : " CRSS");
+           (k % kPerSystemResolved == 0 ? " tau" : " yield scale");
   }
   const int system = (k / kPerSystem) % slips;
   const int grain = k / kPerSystem / slips;
@@ -293,7 +294,7 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
   LastTime seen{observe};
   const auto [i, j] = component_;
   // Reused from point to point (the observer runs between steps, never concurrently).
-  std::vector<double> ratio, crss, r_s, tau, channels;
+  std::vector<double> ratio, crss, strength, r_s, tau, channels;
   const auto record = [&](const crystal::MacroState& m, const crystal::GrainFields& grains) {
     // (The initial state, segment -1, is at time 0 on either clock.)
     const double time = clock_ == TimeAxis::segment && m.segment >= 0 ? m.segment_time : m.time;
@@ -312,13 +313,15 @@ RunResult CrystalProblem::run(const Setting& setting, Report report, const Point
     const auto n = static_cast<std::size_t>(grains.grain_count()) *
                    static_cast<std::size_t>(grains.slip_count());
     if (measure_ == Measure::resolved) {
-      tau.resize(n), crss.resize(n), channels.resize(1 + kPerSystemResolved * n);
+      tau.resize(n), crss.resize(n), strength.resize(n),
+          channels.resize(1 + kPerSystemResolved * n);
       grains.values(crystal::GrainField::tau, tau.data());
       grains.values(crystal::GrainField::crss, crss.data());
+      grains.values(crystal::GrainField::strength, strength.data());
       channels[0] = m.stress(i, j);
-      for (std::size_t k = 0; k < n; ++k) {
+      for (std::size_t k = 0; k < n; ++k) {  // (the yield scale: crystal::yield_scale)
         channels[1 + kPerSystemResolved * k] = tau[k];
-        channels[2 + kPerSystemResolved * k] = crss[k];
+        channels[2 + kPerSystemResolved * k] = std::max(crss[k], strength[k]);
       }
       seen(time, channels, m.segment);
       return;

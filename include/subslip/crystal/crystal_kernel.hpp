@@ -240,4 +240,12 @@ typename SlipTypes<N>::VecN loading_ratio(const Phase<N>& ph, const GrainState<N
 template <int N>
 typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState<N>& s);
 
+// The yield scale of each system of a state, the unit of the error estimates of the adaptive
+// integrators: the CRSS mu_a tau0_a, or with the pressure-sensitive reading the plane's yield
+// traction mu_a f_n,a where its compression raises it above that (as a contact's estimate is in
+// units of its yield traction f_n mu); never below the CRSS, which is the yield of the plane
+// without normal stress, so that an estimate keeps a finite unit as a plane opens.
+template <int N>
+typename SlipTypes<N>::VecN yield_scale(const Phase<N>& ph, const GrainState<N>& s);
+
 }  // namespace subslip::crystal

@@ -13,7 +13,7 @@
 namespace subslip::crystal {
 
 // In output order.
-enum class GrainField { stress, orientation, slip, slip_rate, crss, r, r_s, tau };
+enum class GrainField { stress, orientation, slip, slip_rate, crss, strength, r, r_s, tau };
 
 // How the file stores a grain's value of a field.
 enum class GrainFieldShape {
@@ -39,7 +39,7 @@ struct GrainFieldInfo {
 inline constexpr std::string_view kPerSystemComponents =
     "one value per slip system, in the order of slip_systems";
 
-inline constexpr std::array<GrainFieldInfo, 8> kGrainFieldTable = {{
+inline constexpr std::array<GrainFieldInfo, 9> kGrainFieldTable = {{
     {GrainField::stress, "stress", 6, GrainFieldShape::tensor, GrainFieldUnit::stress,
      "Cauchy stress of each grain, sample frame", ""},
     {GrainField::orientation, "orientation", 9, GrainFieldShape::quaternion, GrainFieldUnit::none,
@@ -51,6 +51,10 @@ inline constexpr std::array<GrainFieldInfo, 8> kGrainFieldTable = {{
      "signed slip rate over the last increment", kPerSystemComponents},
     {GrainField::crss, "crss", 0, GrainFieldShape::per_system, GrainFieldUnit::stress,
      "critical resolved shear stress mu tau0", kPerSystemComponents},
+    {GrainField::strength, "strength", 0, GrainFieldShape::per_system, GrainFieldUnit::stress,
+     "yield traction mu f_n (the CRSS mu tau0 without the pressure-sensitive reading; at most 0 "
+     "where the plane is open)",
+     kPerSystemComponents},
     {GrainField::r, "r", 0, GrainFieldShape::per_system, GrainFieldUnit::none,
      "dynamic loading ratio r = |tau| / (mu f_n)", kPerSystemComponents},
     {GrainField::r_s, "r_s", 0, GrainFieldShape::per_system, GrainFieldUnit::none,

@@ -443,6 +443,8 @@ class TaylorOde final : private crystal::GrainFields {
         return slip_rate(out);
       case crystal::GrainField::crss:
         return crss(out);
+      case crystal::GrainField::strength:
+        return strength(out);
       case crystal::GrainField::r:
         return ratio(out);
       case crystal::GrainField::r_s:
@@ -479,6 +481,15 @@ class TaylorOde final : private crystal::GrainFields {
   void crss(double* out) const {
     per_system(out,
                [&](int g, int a) { return view_[g * grain_size_ + mu_at(a)] * phase_.tau0(a); });
+  }
+  void strength(double* out) const {  // mu f_n, f_n = tau0 - M : sigma (lattice frame)
+    for (int g = 0; g < grains_; ++g) {
+      const double* yg = view_ + g * grain_size_;
+      VecN fn = phase_.tau0;
+      if (phase_.pressure_sensitive)
+        fn -= phase_.plane_normal_dyad.transpose() * Eigen::Map<const Vec6>(yg);
+      for (int a = 0; a < n_; ++a) out[g * n_ + a] = yg[mu_at(a)] * fn(a);
+    }
   }
   void ratio(double* out) const {
     per_system(out, [&](int g, int a) { return slips_[static_cast<size_t>(g)].r(a); });
