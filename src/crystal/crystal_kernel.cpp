@@ -184,7 +184,7 @@ typename SlipTypes<N>::VecN normal_traction(const Phase<N>& ph, const GrainState
 
 template <int N>
 typename SlipTypes<N>::VecN yield_scale(const Phase<N>& ph, const GrainState<N>& s) {
-  if (!ph.pressure_sensitive) return s.mu.cwiseProduct(ph.tau0);
+  // (Without the pressure-sensitive reading f_n = tau0: the CRSS.)
   return s.mu.cwiseProduct(ph.tau0.cwiseMax(detail::normal_traction(ph, s.stress)));
 }
 
