@@ -117,6 +117,54 @@ TEST(MaterialPoint, ContactTangentIsTheDerivativeOfTheUpdate) {
   }
 }
 
+// A step from a sliding contact that ends where f_n reaches zero (its opening) is the closed
+// step's limit as f_n(end) -> 0+: the flow rule keeps the traction below r_hat mu f_n, so the
+// trial traction is slid off and mu softens over that slip. At f_n(end) = eps f_n the closed step
+// slides at most r_hat mu eps f_n / alpha_t less; its state and its sensitivities to the law's
+// constants approach the opening step's as eps falls. (Taken as open, the step slid nothing.)
+TEST(MaterialPoint, AStepEndingOnTheOpeningIsTheClosedStepsLimit) {
+  const pt::ContactParameters p = contact_parameters();
+  const pt::ContactPoint point(p);
+  pt::ContactState s = point.initial_state(kNormalTraction, {});
+  ct::ContactSensitivity d = ct::initial_sensitivity(false);
+  const double dt = 0.05;                    // [s]
+  const Eigen::Vector2d du(1e-3 * dt, 0.0);  // [mm], 1e-3 mm/s
+  for (int k = 0; k < 40; ++k) {             // sliding (r ~ 1 after the peak)
+    const pt::ContactUpdate u = point.update(s, {du, kNormalTraction, dt}, d);
+    ASSERT_TRUE(u.report.ok) << u.report.why;
+    s = u.state;
+  }
+  ASSERT_GT(s.vp_rate, 0.0);
+  ct::ContactSensitivity d_open = d;
+  const pt::ContactUpdate open = point.update(s, {du, 0.0, dt}, d_open);
+  ASSERT_TRUE(open.report.ok) << open.report.why;
+  EXPECT_EQ(open.state.traction_t.norm(), 0.0);
+  EXPECT_EQ(open.state.r, 0.0);
+  EXPECT_EQ(open.state.law.r_s, 0.0);
+  const double slid = open.state.vp_slip - s.vp_slip;
+  EXPECT_NEAR(slid, (s.traction_t + p.stiffness.alpha_t * du).norm() / p.stiffness.alpha_t,
+              1e-12 * slid);
+  EXPECT_LT(open.state.law.mu, s.law.mu);  // softened over the slip (mu_k < mu_s)
+  const double scale = d_open.mu.cwiseAbs().maxCoeff();
+  std::vector<double> gaps;  // of the sensitivities of mu
+  for (double eps : {1e-4, 1e-10}) {
+    SCOPED_TRACE(eps);
+    ct::ContactSensitivity d_closed = d;
+    const pt::ContactUpdate closed = point.update(s, {du, eps * kNormalTraction, dt}, d_closed);
+    ASSERT_TRUE(closed.report.ok) << closed.report.why;
+    const double bound =
+        p.law.overstress.r_hat * s.law.mu * eps * kNormalTraction / p.stiffness.alpha_t;
+    const double slip_gap = open.state.vp_slip - closed.state.vp_slip;
+    EXPECT_GE(slip_gap, -1e-15 * slid);
+    EXPECT_LE(slip_gap, bound * (1.0 + 1e-9));
+    EXPECT_LE(std::abs(closed.state.law.mu - open.state.law.mu), p.law.friction.kappa * bound);
+    gaps.push_back((d_closed.mu - d_open.mu).cwiseAbs().maxCoeff());
+  }
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LT(gaps[1], gaps[0]);
+  EXPECT_LE(gaps[1], 1e-9 * scale);
+}
+
 TEST(MaterialPoint, ContactBatchGivesEachPointsUpdate) {
   const pt::ContactPoint point(contact_parameters());
   std::vector<pt::ContactState> states;

@@ -70,6 +70,24 @@ ContactSensitivity open_step_sensitivity(const law::SubloadingFrictionLaw& law,
   return d;
 }
 
+ContactSensitivity opening_step_sensitivity(const law::SubloadingFrictionLaw& law,
+                                            const ContactStiffness& c, const ContactState& s0,
+                                            const ContactSensitivity& d0, const Vec2& du_t,
+                                            double dt) {
+  // As slide_into_opening: no traction, r = r_s = 0, the trial traction's length slid.
+  const law::SubloadingFrictionJet jet_law(law);
+  const JetState start = jets(s0, d0);
+  const JetVec2 trial = start.traction_t + (c.alpha_t * du_t).cast<ParameterJet>();
+  // (|trial| is not differentiable at zero, where nothing slides: ds = 0 with no gradient.)
+  const ParameterJet ds =
+      trial.x().a == 0.0 && trial.y().a == 0.0 ? ParameterJet(0.0) : trial.norm() / c.alpha_t;
+  ContactSensitivity d;
+  d.mu = law::gradient(jet_law.friction_coefficient_after(start.mu, ds, ParameterJet(dt)));
+  d.vp_slip = law::gradient(start.vp_slip + ds);
+  d.vp_rate = law::gradient(ds / dt);
+  return d;
+}
+
 ContactSensitivity step_sensitivity(const law::SubloadingFrictionLaw& law,
                                     const ContactStiffness& c, const ContactState& s0,
                                     const ContactSensitivity& d0, const Vec2& du_t, double fn1,

@@ -20,6 +20,13 @@ ContactSensitivity open_step_sensitivity(const law::SubloadingFrictionLaw& law,
                                          const ContactState& s0, const ContactSensitivity& d0,
                                          double dt);
 
+// The sensitivities after a step from a closed s0 that ends on the opening (f_n(end) = 0): the
+// trial traction slid off, mu softened over that slip (contact_point.cpp, slide_into_opening).
+ContactSensitivity opening_step_sensitivity(const law::SubloadingFrictionLaw& law,
+                                            const ContactStiffness& c, const ContactState& s0,
+                                            const ContactSensitivity& d0, const Vec2& du_t,
+                                            double dt);
+
 // The sensitivities after an implicit step from s0 (sensitivities d0) over dt with du_t and
 // f_n(end) = fn1 > 0: elastic without a root, sliding by root.slip otherwise.
 ContactSensitivity step_sensitivity(const law::SubloadingFrictionLaw& law,
