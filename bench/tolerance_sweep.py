@@ -11,12 +11,14 @@ error on the path against a tight reference, as a multiple of the tolerance.
 SUBSLIP is the built CLI (build/src/subslip). Contact scenes: each case (one per element of the
 scene's sweep) runs with `integrator: {method: implicit, tolerance: T}` (plus `order: K` with
 --order), and the reference (order 2 at --reference-tolerance) runs with its steps ending on
-exactly that run's output times (`output.at`): the error is |f_t/f_n - reference| / mu_s at
-every step the run takes, compared at the same times without interpolation (a reference
+exactly that run's output times (`output.at`): the error is |f_t/f_n - reference| / mu_s, on
+the tangential traction vector (what the estimate controls: a 2-D turn or a reversal errs in the
+traction's direction, which its magnitude |f_t|/f_n hides), at every step the run takes,
+compared at the same times without interpolation (a reference
 interpolated between its own steps is wrong by more than the runs where both take long steps
 towards a steady state). Steps whose time repeats the one before (a step below the absolute
 time's resolution) are left out of the comparison, and so are steps shorter than 64 ulp of
-their time (counted in the cell as "unresolved"), and a difference up to the ratio's slope
+their time (counted in the cell as "unresolved"), and a difference up to the traction ratio's slope
 times what the absolute time resolves there (the two times' distance plus 2 ulp) is not counted:
 it is the same state compared at times the output cannot tell apart. Crystal scenes: `subslip accuracy` with
 `--reference-at-run-times` (docs/accuracy.md), integrator `extrapolated_2`, measured by default on
@@ -137,18 +139,29 @@ def run(subslip, scene, workdir, tag):
     if done.returncode != 0:
         return None, seconds, (done.stderr.strip().splitlines() or ["failed"])[-1]
     out = os.path.join(workdir, tag + "_csv")
-    subprocess.run([subslip, "post", h5, "--csv", out, "-f", "-q", "--dataset", "ratio"],
+    subprocess.run([subslip, "post", h5, "--csv", out, "-f", "-q", "--dataset", "traction"],
                    check=True, capture_output=True)
-    ratio_csv = next(f for f in os.listdir(out) if f.endswith("_ratio.csv"))  # one case
-    with open(os.path.join(out, ratio_csv), newline="") as f:
-        rows = list(csv.reader(f))[1:]
+    traction_csv = next(f for f in os.listdir(out) if f.endswith("_traction.csv"))  # one case
+    with open(os.path.join(out, traction_csv), newline="") as f:
+        rows = list(csv.reader(f))[1:]  # step, time, f_x, f_y, f_n
     summary = subprocess.run([subslip, "post", h5], capture_output=True, text=True).stdout
     steps = re.search(r"^\s*increments\s*=\s*(\d+)", summary, re.M)
     mu_s = re.search(r"^\s*mu_s\s*=\s*([0-9.eE+-]+)", summary, re.M)
     os.remove(h5)
-    return {"time": [float(r[1]) for r in rows], "ratio": [float(r[2]) for r in rows],
+    return {"time": [float(r[1]) for r in rows], "ratio": [traction_ratio(r) for r in rows],
             "steps": int(steps.group(1)) if steps else -1,
             "mu_s": float(mu_s.group(1)) if mu_s else math.nan}, seconds, None
+
+
+def traction_ratio(row):
+    """The tangential traction over f_n, (f_x, f_y) / f_n, of a traction CSV row; zero where the
+    contact is open (f_n <= 0: no traction)."""
+    fx, fy, fn = float(row[2]), float(row[3]), float(row[4])
+    return (fx / fn, fy / fn) if fn > 0.0 else (0.0, 0.0)
+
+
+def distance(a, b):
+    return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
 def own_times(got):
@@ -168,7 +181,7 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
     out, got_all = {}, {}
     for tolerance, order in runs:
         got, seconds, why = run(subslip, with_integrator(scene, tolerance, order,
-                                                         ["time", "ratio"]),
+                                                         ["time", "ratio", "traction"]),
                                 workdir, f"{tag}_{tolerance}_{order}")
         if got is None:
             out[(tolerance, order)] = why
@@ -183,8 +196,9 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
     for t in sorted(set(t for got, _ in got_all.values() for t in own_times(got)[0])):
         if not union or t > union[-1] * (1.0 + 16 * sys.float_info.epsilon):
             union.append(t)
-    ref, _, why = run(subslip, with_integrator(scene, reference_tolerance, 2, ["time", "ratio"],
-                                               union), workdir, tag + "_ref")
+    ref, _, why = run(subslip, with_integrator(scene, reference_tolerance, 2,
+                                               ["time", "ratio", "traction"], union),
+                      workdir, tag + "_ref")
     for key, (got, seconds) in got_all.items():
         if ref is None:
             out[key] = "reference: " + why
@@ -216,9 +230,10 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
                 slope = 0.0
                 for a, b in ((k - 1, k), (k, k + 1)):
                     if 0 <= a and b < len(times) and times[b] > times[a]:
-                        slope = max(slope, abs(ratios[b] - ratios[a]) / (times[b] - times[a]))
+                        chord = distance(ratios[b], ratios[a]) / (times[b] - times[a])
+                        slope = max(slope, chord)
                 apart = abs(ref["time"][nearest] - t) + 2 * sys.float_info.epsilon * abs(t)
-                raw = abs(r - ref["ratio"][nearest])
+                raw = distance(r, ref["ratio"][nearest])
                 errors.append(max(0.0, raw - slope * apart))
         # A few times the reference cannot end a step on (round-off of a segment's start time,
         # or two stops within round-off merged into one that ends elsewhere) are left out.
