@@ -148,7 +148,7 @@ def run(subslip, scene, workdir, tag):
     steps = re.search(r"^\s*increments\s*=\s*(\d+)", summary, re.M)
     mu_s = re.search(r"^\s*mu_s\s*=\s*([0-9.eE+-]+)", summary, re.M)
     os.remove(h5)
-    return {"time": [float(r[1]) for r in rows], "ratio": [traction_ratio(r) for r in rows],
+    return {"time": [float(r[1]) for r in rows], "traction": [traction_ratio(r) for r in rows],
             "steps": int(steps.group(1)) if steps else -1,
             "mu_s": float(mu_s.group(1)) if mu_s else math.nan}, seconds, None
 
@@ -165,9 +165,10 @@ def distance(a, b):
 
 
 def own_times(got):
-    """The run's output times after the initial state, without repeats, and the ratio at each."""
+    """The run's output times after the initial state, without repeats, and the tangential
+    traction over f_n (a 2-vector) at each."""
     times, ratios, previous = [], [], -math.inf
-    for t, r in zip(got["time"][1:], got["ratio"][1:]):
+    for t, r in zip(got["time"][1:], got["traction"][1:]):
         if t > previous:
             times.append(t)
             ratios.append(r)
@@ -175,13 +176,16 @@ def own_times(got):
     return times, ratios
 
 
+# A contact scene's output must include `ratio`; the comparison reads `traction`.
+CONTACT_FIELDS = ["time", "ratio", "traction"]
+
+
 def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
     """For each (tolerance, order) of `runs`: (max error / tolerance, steps, wall seconds, max
     error) or a failure message. One reference run ends a step on every time of every run."""
     out, got_all = {}, {}
     for tolerance, order in runs:
-        got, seconds, why = run(subslip, with_integrator(scene, tolerance, order,
-                                                         ["time", "ratio", "traction"]),
+        got, seconds, why = run(subslip, with_integrator(scene, tolerance, order, CONTACT_FIELDS),
                                 workdir, f"{tag}_{tolerance}_{order}")
         if got is None:
             out[(tolerance, order)] = why
@@ -196,9 +200,8 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
     for t in sorted(set(t for got, _ in got_all.values() for t in own_times(got)[0])):
         if not union or t > union[-1] * (1.0 + 16 * sys.float_info.epsilon):
             union.append(t)
-    ref, _, why = run(subslip, with_integrator(scene, reference_tolerance, 2,
-                                               ["time", "ratio", "traction"], union),
-                      workdir, tag + "_ref")
+    reference = with_integrator(scene, reference_tolerance, 2, CONTACT_FIELDS, union)
+    ref, _, why = run(subslip, reference, workdir, tag + "_ref")
     for key, (got, seconds) in got_all.items():
         if ref is None:
             out[key] = "reference: " + why
@@ -233,7 +236,7 @@ def contact_points(subslip, scene, runs, reference_tolerance, workdir, tag):
                         chord = distance(ratios[b], ratios[a]) / (times[b] - times[a])
                         slope = max(slope, chord)
                 apart = abs(ref["time"][nearest] - t) + 2 * sys.float_info.epsilon * abs(t)
-                raw = distance(r, ref["ratio"][nearest])
+                raw = distance(r, ref["traction"][nearest])
                 errors.append(max(0.0, raw - slope * apart))
         # A few times the reference cannot end a step on (round-off of a segment's start time,
         # or two stops within round-off merged into one that ends elsewhere) are left out.
