@@ -258,15 +258,20 @@ class Threads(unittest.TestCase):
         self.assertEqual(failures, [])
         return results
 
-    def assert_releases_the_gil(self, work):
+    def assert_releases_the_gil(self, work, repeats=100):
         """`work` lets another thread run while it computes: with a switch interval longer than
-        any run, the main thread gets the interpreter back before `work` ends only if the core
-        releases it."""
-        started, state = threading.Event(), {"done": False}
+        any run, the main thread gets the interpreter back before the worker ends only if the
+        core releases it. The worker repeats `work` until the main thread has run (or `repeats`
+        times), so that a main thread the system schedules late on a loaded machine still finds
+        a call in progress; between two calls the worker keeps the interpreter."""
+        started, state = threading.Event(), {"done": False, "seen": False}
 
         def worker():
             started.set()  # (wakes the main thread, which then waits for the interpreter)
-            work()
+            for _ in range(repeats):
+                work()
+                if state["seen"]:
+                    break
             state["done"] = True
 
         interval = sys.getswitchinterval()
@@ -276,6 +281,7 @@ class Threads(unittest.TestCase):
             thread.start()
             started.wait()
             ran_meanwhile = not state["done"]
+            state["seen"] = True
             thread.join()
         finally:
             sys.setswitchinterval(interval)
