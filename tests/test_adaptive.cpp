@@ -516,6 +516,51 @@ TEST(AdaptiveContact, SlidingUntilTheContactOpensFollowsTheTolerance) {
   }
 }
 
+// A turn by 45 degrees after a hold, under an almost elastic law (eta_v = 1e9 min/mm, n = 0.5,
+// r_hat = 1 + 1e-6, u_tilde = 0.01 /mm): the contact starts the turn's first step at r = 0.92,
+// sliding at 6.7e-9 mm/min, and yields inside it at r_hat, where it relaxes at once. Both
+// extrapolated solutions of a short first step return the same trial traction onto r_hat (the
+// two-substep one's first half is elastic), so only backward Euler's estimate sees the onset, and
+// filtered at the relaxation rate of the step's end alone it vanished: the runs at 1e-6 and 1e-8
+// took that step alike and the traction's direction was 1.1e-4 of mu_s off in both (filtered at
+// the smaller of the rates at its start and end: 5.7e-7 and 5.8e-9). Outputs at 1e-9 ... 1 of
+// the turn's duration, the traction vector over f_n compared at each.
+TEST(AdaptiveContact, YieldInsideTheFirstStepOfATurnFollowsTheTolerance) {
+  contact::ContactModel m = paper_model();
+  m.law.subloading.u_tilde = 0.01;
+  m.law.overstress = {law::OverstressForm::exponential, 1e9, 0.5, 1.0 + 1e-6};
+  m.initial_law_state = {0.2, 0.0};
+  using contact::Vec2;
+  contact::Segment turn = segment(Vec2(1.0, 1.0).normalized(), 0.5);
+  turn.output_at_times = true;
+  for (double decade = 1e-9; decade < 1.0; decade *= 10.0)
+    for (double f : {1.0, 2.0, 5.0}) turn.output_times.push_back(f * decade * turn.duration);
+  turn.output_times.push_back(turn.duration);
+  const std::vector<contact::Segment> history = {segment(Vec2(1.0, 0), 0.5),
+                                                 segment(Vec2(0, 0), 10.0), turn};
+  const auto turn_path = [&](double tol) {
+    history::IntegratorOptions opt;
+    opt.tolerance = tol;
+    opt.order = 2;           // (a scene's default with a tolerance alone)
+    std::vector<Vec2> path;  // (f_x, f_y) / f_n at the turn's outputs
+    history::run_history(m, history, opt, [&](const contact::ContactState& s, int k) {
+      if (k == 2) path.push_back(s.traction_t / s.traction_n);
+    });
+    return path;
+  };
+  const std::vector<Vec2> reference = turn_path(1e-11);
+  for (double tol : {1e-6, 1e-8}) {
+    const std::vector<Vec2> run = turn_path(tol);
+    ASSERT_EQ(run.size(), reference.size());
+    double error = 0.0;
+    for (size_t i = 0; i < run.size(); ++i)
+      error = std::max(error, (run[i] - reference[i]).norm() / m.law.friction.mu_s);
+    measured() << "yield inside a turn's first step, tolerance " << tol << ": error / mu_s "
+               << error << "\n";
+    EXPECT_LT(error, 10.0 * tol) << "tolerance " << tol;
+  }
+}
+
 // Steady sliding while the normal traction is ramped from 5560 MPa through zero (the contact
 // opens 0.0099982 min into the ramp), with an almost elastic, nearly saturated law (eta_v = 1e9
 // min/mm, n = 0.5, r_hat = 100, u_tilde = 1e6 /mm): the tangential traction follows f_n down at a
