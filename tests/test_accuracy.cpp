@@ -427,6 +427,30 @@ TEST(AccuracyContact, ExtrapolatedReferenceIsFarMoreAccurate) {
   EXPECT_LT(extrapolated_bound, 0.05 * plain_error);
 }
 
+// A turn by 90 degrees after 0.1 mm of sliding (the paper's law): the traction turns towards the
+// new direction and errs in its direction, which the components f_x/f_n and f_y/f_n see and the
+// magnitude f_t/f_n only partly (on f_t/f_n alone this run reads 1.7e-4 of mu_s at a tolerance of
+// 1e-3, on the components 4.1e-4, in the turn's first step). The error is what the extrapolated
+// integrator's estimate controls, the traction vector: within a tenth of the tolerance and ten
+// times it.
+TEST(AccuracyContact, ErrorsSeeTheTractionsDirectionInATurn) {
+  const ct::ContactModel m = contact_model(1e6);
+  ct::Segment turn = slide(1.0, 0.1, 10, 1.0);
+  turn.velocity = ct::Vec2(0.0, 1.0);
+  const ContactProblem problem(m, {slide(1.0, 0.1, 10, 1.0), turn}, hs::IntegratorOptions{});
+  StudyOptions o = quiet_options(1.0);
+  o.reference = {Integrator::extrapolated_2, 1e-10};
+  o.ladders = {{Integrator::extrapolated_2, {1e-3}, false}};
+  const StudyResult s = run_study(problem, o);
+  const PointResult& p = point(s, Integrator::extrapolated_2, 1e-3);
+  measured() << "90-degree turn, order 2 at 1e-3: " << p.error.max_error << " of mu_s on "
+             << p.max_error_on << "\n";
+  ASSERT_TRUE(p.ok);
+  EXPECT_NE(p.max_error_on.rfind("f_t/f_n", 0), 0u) << p.max_error_on;
+  EXPECT_GT(p.error.max_error, 0.1 * 1e-3);
+  EXPECT_LT(p.error.max_error, 10.0 * 1e-3);
+}
+
 // CVODE is an independent integration of the same ODE: at a tight rtol its difference from a
 // plain fixed-step reference is the reference's own error, which the self-convergence
 // estimates. The paper's stiff contact over its onset of sliding (graded to 1.7e-9 mm).

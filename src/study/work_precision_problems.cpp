@@ -3,6 +3,7 @@
 #include "work_precision_detail.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -87,6 +88,12 @@ long ContactProblem::base_increments() const {
   return total_increments(segments_);
 }
 
+std::string ContactProblem::channel_name(int channel) const {
+  if (channel == 1) return "f_x/f_n";
+  if (channel == 2) return "f_y/f_n";
+  return quantity();
+}
+
 std::string ContactProblem::error_scale_description() const {
   return "mu_s (the static friction coefficient: the yield ratio f_t/f_n of a fresh contact)";
 }
@@ -97,8 +104,10 @@ RunResult ContactProblem::run(const Setting& setting, Report report, const Point
   const auto start = Clock::now();
   LastTime seen{observe};
   const auto record = [&seen](const contact::ContactState& s, int segment) {
-    const double ratio = s.traction_ratio();
-    seen(s.time, std::span<const double>(&ratio, 1), segment);
+    const contact::Vec2 over_fn =
+        s.traction_n > 0.0 ? contact::Vec2(s.traction_t / s.traction_n) : contact::Vec2::Zero();
+    const std::array<double, 3> channels{s.traction_ratio(), over_fn.x(), over_fn.y()};
+    seen(s.time, channels, segment);
   };
   history::IntegratorOptions opt = options_;
   opt.tolerance = 0.0;

@@ -9,16 +9,17 @@
 //
 // Errors. A run reports, at every step it takes, a vector of measured values (channels). Channel 0
 // is the headline quantity: f_t/f_n (contact) or the stress component along the loading
-// direction (crystal). A crystal adds, for every grain and slip system, the loading ratio r
-// (resolved shear over the CRSS: what the extrapolated integrator's error estimate bounds),
-// ln of the CRSS (its relative error) and r_s, which follow r where the split of slip among
-// the systems is determined.
-// At each step the reference is interpolated (PathInterpolant) and the error is the largest over
-// the channels of |value - reference| / scale, each channel with its own scale (channel 0: the
-// yield scale of the problem, mu_s or the largest |stress| of the reference along the path; the
-// dimensionless crystal channels: 1). Reported: the maximum over the run's steps, where and on
-// which channel it is, and the error at the end. Timing runs are separate and report only the
-// scene's output points.
+// direction (crystal). A contact adds its tangential traction's components over f_n, f_x/f_n
+// and f_y/f_n, which see the traction's direction (a turn or a reversal errs there, where the
+// magnitude does not show it) as the extrapolated integrators' estimate does. A crystal adds, for
+// every grain and slip system, the loading ratio r (resolved shear over the CRSS: what the
+// extrapolated integrator's error estimate bounds), ln of the CRSS (its relative error) and r_s,
+// which follow r where the split of slip among the systems is determined. At each step the
+// reference is interpolated (PathInterpolant) and the error is the largest over the channels of
+// |value - reference| / scale, each channel with its own scale (channel 0: the yield scale of the
+// problem, mu_s or the largest |stress| of the reference along the path; the dimensionless crystal
+// channels: 1). Reported: the maximum over the run's steps, where and on which channel it is, and
+// the error at the end. Timing runs are separate and report only the scene's output points.
 #pragma once
 
 #include <cmath>
@@ -199,11 +200,13 @@ class ContactProblem final : public Problem {
   bool supports(Integrator integrator) const override;
   long base_increments() const override;
   std::string quantity() const override { return "f_t/f_n"; }
+  // f_t/f_n, f_x/f_n and f_y/f_n (the channels), each over mu_s.
   ErrorScales error_scales(const Trajectory&) const override {
-    return {ErrorScale(model_.law.friction.mu_s)};
+    return ErrorScales(3, ErrorScale(model_.law.friction.mu_s));
   }
   std::string error_scale_description() const override;
-  std::string channel_name(int) const override { return quantity(); }
+  std::string measured() const override { return quantity() + " and f_x/f_n, f_y/f_n"; }
+  std::string channel_name(int channel) const override;
 
  private:
   contact::ContactModel model_;
