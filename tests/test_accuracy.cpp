@@ -430,7 +430,7 @@ TEST(AccuracyContact, ExtrapolatedReferenceIsFarMoreAccurate) {
 // A turn by 90 degrees after 0.1 mm of sliding (the paper's law): the traction turns towards the
 // new direction and errs in its direction, which the components f_x/f_n and f_y/f_n see and the
 // magnitude f_t/f_n only partly (on f_t/f_n alone this run reads 1.7e-4 of mu_s at a tolerance of
-// 1e-3, on the components 4.1e-4, in the turn's first step). The error is what the extrapolated
+// 1e-3, on the components 2.1e-4, in the turn). The error is what the extrapolated
 // integrator's estimate controls, the traction vector: within a tenth of the tolerance and ten
 // times it.
 TEST(AccuracyContact, ErrorsSeeTheTractionsDirectionInATurn) {

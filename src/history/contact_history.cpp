@@ -153,15 +153,16 @@ double local_error(const point::ContactPoint& point, const ContactState& s0, con
   return 0.5 * dt * c.alpha_t * change.norm() / yield;
 }
 
-// Backward Euler's own estimate (local_error) filtered through the step's Jacobian, as Shampine
-// filters it for stiff problems: e / (1 + dt lambda), lambda = -d(df_t/dt)/df_t (the relaxation
-// rate of the traction through the flow rule), the smaller of its values at the step's start and
-// end (below). Where the traction relaxes onto a state the step resolves (a hold: the end is the
-// same for any long step) lambda dt is large and the estimate vanishes; where the sliding rate at
-// the start is lost in a transient much shorter than the step while the loading moves the
-// traction on (the first step of a reversal from steady sliding), lambda at the end is small and
-// the estimate stays: the extrapolated solutions, all longer than the transient, agree there and
-// see nothing.
+// Backward Euler's own estimate (local_error) filtered through the traction's Jacobian at the
+// step's end, as Shampine filters it for stiff problems: (I + dt J)^-1 e. The Jacobian relaxes
+// the traction's magnitude through the flow rule (lambda = -d(df_t/dt)/df_t) and its direction at
+// alpha_t v_p / |f_t|, so the estimate has a radial part, filtered at lambda, and a part of the
+// direction, filtered at the direction's rate (below). Where the traction relaxes onto a state the
+// step resolves (a hold: the end is the same for any long step) lambda dt is large and the radial
+// part vanishes; where the sliding rate at the start is lost in a transient much shorter than the
+// step while the loading moves the traction on (the first step of a reversal from steady
+// sliding), lambda at the end is small and the estimate stays: the extrapolated solutions, all
+// longer than the transient, agree there and see nothing.
 double filtered_local_error(const point::ContactPoint& point, const ContactState& s0,
                             const ContactState& s1, const Vec2& du_t, double fn1, double dt) {
   const law::SubloadingFrictionLaw& law = point.law();
@@ -177,19 +178,28 @@ double filtered_local_error(const point::ContactPoint& point, const ContactState
   if (!g.admissible || !(g.d_slip < 0.0)) return e;
   // G(r, slip) = 0 at the end: d(slip rate)/dr = -G_r / (G_slip dt), and f_t = f_n mu r.
   const double rate_per_r = -g.d_r / (g.d_slip * dt);
-  const double lambda_end = point.parameters().stiffness.alpha_t * rate_per_r / (fn1 * s1.law.mu);
-  // The filter holds where the step relaxes throughout: at the smaller of the rates at its start
-  // and its end. A contact that starts the step almost elastic and yields inside it relaxes only
-  // after the yield, and in 2-D its traction's direction not at that rate at all (the parser
-  // edges with eta_v = 1e9 min/mm, r_hat = 1 + 1e-6: filtered at the end's rate the first step of
-  // a 45-degree turn estimated 2.1e-9 and was 1.4e-4 of mu_s off in the direction).
-  const double lambda_start =
-      s0.traction_n > 0.0 ? law.traction_relaxation_rate(point.parameters().stiffness.alpha_t, s0.r,
-                                                         s0.law.r_s, s0.law.mu, s0.traction_n)
-                          : 0.0;
-  const double lambda =
-      std::isfinite(lambda_start) ? std::min(lambda_end, lambda_start) : lambda_end;
-  return lambda > 0.0 ? e / (1.0 + dt * lambda) : e;
+  const contact::ContactStiffness& c = point.parameters().stiffness;
+  const double lambda_radial = c.alpha_t * rate_per_r / (fn1 * s1.law.mu);
+  // The Jacobian -alpha_t [v_p' n n^T + v_p / |f_t| (I - n n^T)]: its radial and direction rates.
+  const double ft1 = s1.traction_t.norm();
+  if (!(ft1 > 0.0)) return e;
+  const Vec2 n1 = s1.traction_t / ft1;
+  const double lambda_direction = c.alpha_t * s1.vp_rate / ft1;
+  const Vec2 v0 = sliding_velocity(s0, s0.vp_rate);
+  const Vec2 v1 = sliding_velocity(s1, s1.vp_rate);
+  const double yield = s1.traction_n * s1.law.mu;
+  // (local_error's arithmetic: in 1-D, where the turn is zero, this is its estimate filtered.)
+  const double radial = 0.5 * dt * c.alpha_t * std::abs((v1 - v0).dot(n1)) / yield;
+  // The direction's error: the traction turns from n0 to n1 while it slides, at up to the larger
+  // of the two rates (a contact that starts almost elastic and yields inside the step slides at
+  // the end's rate through the rest of the turn, which the ends' velocities alone, then along n1,
+  // do not show).
+  const double ft0 = s0.traction_t.norm();
+  const double turn =
+      ft0 > 0.0 ? std::abs(s0.traction_t.x() * n1.y() - s0.traction_t.y() * n1.x()) / ft0 : 0.0;
+  const double direction = 0.5 * dt * c.alpha_t * std::max(v0.norm(), v1.norm()) * turn / yield;
+  const double radial_filtered = lambda_radial > 0.0 ? radial / (1.0 + dt * lambda_radial) : radial;
+  return std::hypot(radial_filtered, direction / (1.0 + dt * lambda_direction));
 }
 
 // The state variables an extrapolated step combines; the rest (time, slip, f_n) is kinematics,
