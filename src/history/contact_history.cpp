@@ -128,10 +128,11 @@ ContactState advance(const point::ContactPoint& point, const IntegratorOptions& 
 
 namespace {
 
-// Local error of one implicit (backward Euler) step from s0 to s1: dt/2 |df_t/dt(end) -
-// df_t/dt(start)|, in units of the yield traction f_n mu (so in units of the loading ratio r).
-// The elastic part alpha_t v of the traction rate is constant within a segment, so only the
-// viscoplastic sliding velocity contributes.
+// The sliding velocities at the ends of one implicit (backward Euler) step from s0 to s1, and
+// the unit of its error: dt/2 alpha_t / (f_n mu), so that error(|change of velocity|) is dt/2
+// |change of df_t/dt| in units of the yield traction (of the loading ratio r). The elastic part
+// alpha_t v of the traction rate is constant within a segment, so only the viscoplastic sliding
+// velocity contributes.
 //
 // Where the start velocity comes from matters. For the rate-dependent forms it is the end
 // velocity ds/dt of the previous implicit step: the law's rate at s0 is the same quantity in
@@ -139,34 +140,55 @@ namespace {
 // (1e-12 in r) moves it by more than the change being measured, and steady sliding at impact
 // speed would crawl. For the rate-independent form the sliding velocity is set by this step's
 // loading (consistency), and the forward-Euler multiplier at s0 gives it.
-double local_error(const point::ContactPoint& point, const ContactState& s0, const ContactState& s1,
-                   const Vec2& du_t, double fn1, double dt) {
+struct StepSliding {
+  Vec2 start = Vec2::Zero(), end = Vec2::Zero();
+  double half_dt_alpha = 0.0, yield = 0.0;  // yield 0: an open contact, nothing to resolve
+  // (speed times factor, in local_error's order of operations: factor 1 is exact)
+  double error(double speed, double factor = 1.0) const {
+    return yield > 0.0 ? half_dt_alpha * speed * factor / yield : 0.0;
+  }
+};
+
+StepSliding step_sliding(const point::ContactPoint& point, const ContactState& s0,
+                         const ContactState& s1, const Vec2& du_t, double fn1, double dt) {
   const law::SubloadingFrictionLaw& law = point.law();
   const contact::ContactStiffness& c = point.parameters().stiffness;
-  const double yield = s1.traction_n * s1.law.mu;
-  if (!(yield > 0.0)) return 0.0;  // open contact: no traction, nothing to resolve
+  StepSliding out;
+  out.yield = s1.traction_n * s1.law.mu;
+  if (!(out.yield > 0.0)) return out;
   // (f_n(end) = s1.traction_n = fn1 > 0 here: an open step has no yield traction.)
   const double start_speed = law.is_rate_independent()
                                  ? contact::rate_independent_slip(law, c, s0, du_t, fn1, dt) / dt
                                  : s0.vp_rate;
-  const Vec2 change = sliding_velocity(s1, s1.vp_rate) - sliding_velocity(s0, start_speed);
-  return 0.5 * dt * c.alpha_t * change.norm() / yield;
+  out.start = sliding_velocity(s0, start_speed);
+  out.end = sliding_velocity(s1, s1.vp_rate);
+  out.half_dt_alpha = 0.5 * dt * c.alpha_t;
+  return out;
+}
+
+// Backward Euler's own local error: dt/2 |df_t/dt(end) - df_t/dt(start)| (step_sliding).
+double local_error(const point::ContactPoint& point, const ContactState& s0, const ContactState& s1,
+                   const Vec2& du_t, double fn1, double dt) {
+  const StepSliding v = step_sliding(point, s0, s1, du_t, fn1, dt);
+  return v.error((v.end - v.start).norm());
 }
 
 // Backward Euler's own estimate (local_error) filtered through the traction's Jacobian at the
-// step's end, as Shampine filters it for stiff problems: (I + dt J)^-1 e. The Jacobian relaxes
-// the traction's magnitude through the flow rule (lambda = -d(df_t/dt)/df_t) and its direction at
-// alpha_t v_p / |f_t|, so the estimate has a radial part, filtered at lambda, and a part of the
-// direction, filtered at the direction's rate (below). Where the traction relaxes onto a state the
-// step resolves (a hold: the end is the same for any long step) lambda dt is large and the radial
-// part vanishes; where the sliding rate at the start is lost in a transient much shorter than the
-// step while the loading moves the traction on (the first step of a reversal from steady
-// sliding), lambda at the end is small and the estimate stays: the extrapolated solutions, all
-// longer than the transient, agree there and see nothing.
+// step's end, as Shampine filters it for stiff problems: (I + dt J)^-1 e. The Jacobian,
+// -alpha_t [v_p' n n^T + v_p / |f_t| (I - n n^T)], relaxes the traction's magnitude through the
+// flow rule (lambda = -d(df_t/dt)/df_t) and its direction at alpha_t v_p / |f_t|, so the estimate
+// has a radial part, filtered at lambda, and a part of the direction, filtered at the direction's
+// rate (below); in 1-D, where the direction's part is zero, it is local_error filtered at lambda.
+// Where the traction relaxes onto a state the step resolves (a hold: the end is the same for any
+// long step) lambda dt is large and the radial part vanishes; where the sliding rate at the start
+// is lost in a transient much shorter than the step while the loading moves the traction on (the
+// first step of a reversal from steady sliding), lambda at the end is small and the estimate
+// stays: the extrapolated solutions, all longer than the transient, agree there and see nothing.
 double filtered_local_error(const point::ContactPoint& point, const ContactState& s0,
                             const ContactState& s1, const Vec2& du_t, double fn1, double dt) {
   const law::SubloadingFrictionLaw& law = point.law();
-  const double e = local_error(point, s0, s1, du_t, fn1, dt);
+  const StepSliding v = step_sliding(point, s0, s1, du_t, fn1, dt);
+  const double e = v.error((v.end - v.start).norm());
   if (!(e > 0.0) || !(s1.vp_rate > 0.0)) return e;
   // Sliding under the rate-independent form holds r = r_s (consistency): the traction relaxes
   // onto the flow rule at once (lambda infinite), and the filter leaves nothing. A step that
@@ -178,27 +200,22 @@ double filtered_local_error(const point::ContactPoint& point, const ContactState
   if (!g.admissible || !(g.d_slip < 0.0)) return e;
   // G(r, slip) = 0 at the end: d(slip rate)/dr = -G_r / (G_slip dt), and f_t = f_n mu r.
   const double rate_per_r = -g.d_r / (g.d_slip * dt);
-  const contact::ContactStiffness& c = point.parameters().stiffness;
-  const double lambda_radial = c.alpha_t * rate_per_r / (fn1 * s1.law.mu);
-  // The Jacobian -alpha_t [v_p' n n^T + v_p / |f_t| (I - n n^T)]: its radial and direction rates.
+  const double alpha_t = point.parameters().stiffness.alpha_t;
+  const double lambda = alpha_t * rate_per_r / (fn1 * s1.law.mu);
   const double ft1 = s1.traction_t.norm();
-  if (!(ft1 > 0.0)) return e;
+  if (!(ft1 > 0.0)) return e;  // (no direction to filter along)
   const Vec2 n1 = s1.traction_t / ft1;
-  const double lambda_direction = c.alpha_t * s1.vp_rate / ft1;
-  const Vec2 v0 = sliding_velocity(s0, s0.vp_rate);
-  const Vec2 v1 = sliding_velocity(s1, s1.vp_rate);
-  const double yield = s1.traction_n * s1.law.mu;
-  // (local_error's arithmetic: in 1-D, where the turn is zero, this is its estimate filtered.)
-  const double radial = 0.5 * dt * c.alpha_t * std::abs((v1 - v0).dot(n1)) / yield;
+  const double lambda_direction = alpha_t * s1.vp_rate / ft1;
+  const double radial = v.error(std::abs((v.end - v.start).dot(n1)));
   // The direction's error: the traction turns from n0 to n1 while it slides, at up to the larger
   // of the two rates (a contact that starts almost elastic and yields inside the step slides at
   // the end's rate through the rest of the turn, which the ends' velocities alone, then along n1,
-  // do not show).
+  // do not show). |n0 x n1| is zero from rest and in 1-D.
   const double ft0 = s0.traction_t.norm();
   const double turn =
       ft0 > 0.0 ? std::abs(s0.traction_t.x() * n1.y() - s0.traction_t.y() * n1.x()) / ft0 : 0.0;
-  const double direction = 0.5 * dt * c.alpha_t * std::max(v0.norm(), v1.norm()) * turn / yield;
-  const double radial_filtered = lambda_radial > 0.0 ? radial / (1.0 + dt * lambda_radial) : radial;
+  const double direction = v.error(std::max(v.start.norm(), v.end.norm()), turn);
+  const double radial_filtered = lambda > 0.0 ? radial / (1.0 + dt * lambda) : radial;
   return std::hypot(radial_filtered, direction / (1.0 + dt * lambda_direction));
 }
 
