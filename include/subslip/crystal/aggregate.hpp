@@ -94,8 +94,9 @@ struct AggregateOptions {
   // resolves (round-off, or the grains' Newton tolerance) is met as well as it can be.
   double stress_tolerance = 1e-10;
   // With a tolerance, the free stresses are brought to tolerance / 100 of the smallest CRSS
-  // where that is tighter than stress_tolerance (src/crystal/mixed_control.cpp,
-  // free_stress_tolerance); false: stress_tolerance as given (a scene that names it).
+  // instead, and with order 1 (whose estimate reads the rates) to the tighter of the two
+  // (src/crystal/mixed_control.cpp, free_stress_tolerance); false: stress_tolerance as given
+  // (a scene that names it).
   bool stress_tolerance_follows_tolerance = true;
   int max_mixed_iterations = 25;
   MixedPredictor predictor = MixedPredictor::last;
