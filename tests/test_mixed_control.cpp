@@ -249,7 +249,7 @@ TEST(MixedControl, TrendAtALooseToleranceFollowsTheTightPathInOneSweepPerStep) {
 // With a run tolerance T the free stresses are brought to T/100 of the smallest strength, looser
 // or tighter than the default 1e-10 of their scale: at a loose tolerance that default resolves
 // them far below anything the step's estimate sees and costs the mixed control a sweep a solve,
-// while the free-stress error a step accepts is corrected by the next. 50 random copper grains in
+// and the run's error does not follow the free-stress error it accepts. 50 random copper grains in
 // tension at T = 1e-2 with order 2, against the same at 1e-6, in every grain's r of every system
 // (the estimate's unit): with the tolerance tied the run is within T and no worse than twice the
 // run with stress_tolerance named (the default; the two take different steps, so their errors

@@ -507,8 +507,8 @@ Eigen::VectorXd MixedControl<N>::continued_free(const Eigen::VectorXd& u, double
 // relative tolerance was a floor under every run tolerance where a CRSS lies far below the
 // stresses (0.163 MPa against the GPa of an HCP crystal's elastic directions: refused below
 // about 3e-6), and at a loose run tolerance it only costs sweeps (a solve of the 1000-grain
-// Taylor aggregate at 1e-2 or 1e-3 took three where two meet the tied tolerance; the free-stress
-// error a step accepts is corrected by the next, so it does not build up); tied, the floor is
+// Taylor aggregate at 1e-2 or 1e-3 took three where two meet the tied tolerance, and the run's
+// error moved by less than 10 %: docs/accuracy.md); tied, the floor is
 // what the grains' solves resolve the free stresses to (`grain_noise`: below it the iteration
 // could not converge) and the stresses' round-off.
 // Backward Euler's own estimate (order 1) reads the slip rates, not the stresses, and a stress
