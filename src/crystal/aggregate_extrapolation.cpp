@@ -126,15 +126,15 @@ void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector
 // slipping (switches_phase). The solution has a kink there and no error expansion in powers of
 // the step, so the step is judged as a backward Euler step: by the one-substep solution against
 // the two-substep one, and by backward Euler's own estimate of the resolved shears, dt/2 A
-// (rates at the one-substep solution's end - at the step's start), filtered through the
-// relaxation of the systems that slip throughout the step (relaxed), over the CRSS; the larger,
-// times the bound on the combination's error at a kink in those units
+// (rates at the one-substep solution's end - at the step's start) taken over the rates that jump
+// (the switching systems', and those of slipping systems whose rate no flow rule sets), filtered
+// through the relaxation of the systems that slip throughout the step (relaxed), over the CRSS;
+// the larger, times the bound on the combination's error at a kink in those units
 // (integrators::combination_kink_bound: a half for orders 2 and 3), since the combination is
-// what the step accepts. The second
-// sees a switch every solution steps over: a system slipping at the start of a reversal whose
-// solutions all end elastic (each evaluates the flow rule only where the stress has already
-// unloaded) agree with each other exactly, while the true path slips on until the system's r
-// falls to r_s. Such a step is shortened until both meet the tolerance.
+// what the step accepts. The second sees a switch every solution steps over: a system slipping at
+// the start of a reversal whose solutions all end elastic (each evaluates the flow rule only where
+// the stress has already unloaded) agree with each other exactly, while the true path slips on
+// until the system's r falls to r_s. Such a step is shortened until both meet the tolerance.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase<N>& phase,
                                                                      size_t g, int order,
@@ -153,55 +153,42 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
       throughout = throughout && solutions_[static_cast<size_t>(j)][g].rate(a) * sense > 0.0;
     steady[static_cast<size_t>(a)] = throughout;
   }
-  const VecN shear_error = (0.5 * dt) * (phase.interaction * (one.rate - start.rate));
+  // Only the rates that jump carry a kink. A system that slips throughout the step at a rate its
+  // flow rule sets from tau, r_s and mu has a continuous rate (only its slope jumps where another
+  // system switches), and the extrapolation's own estimate measures its smooth change at the
+  // step's order; the filter below carries its response to the others' jumps. What stays: the
+  // switching systems' rate changes, and those of slipping systems whose rate no flow rule sets
+  // (rate-independent ones, set by consistency, and any whose flow rule gives no finite positive
+  // relaxation at the step's end, as one at r = r_hat whose CRSS softens with its slip).
+  const VecN inverse_relaxation = inverse_relaxations(phase, start, one, steady, dt);
+  VecN rate_jump = one.rate - start.rate;
+  for (int a = 0; a < phase.slip_count; ++a)
+    if (inverse_relaxation(a) >= 0.0) rate_jump(a) = 0.0;
+  const VecN shear_error = (0.5 * dt) * (phase.interaction * rate_jump);
   return integrators::combination_kink_bound(order) *
          system_errors(phase, one.stress - two.stress, yield_scale(phase, combined))
-             .cwiseMax(relaxed(phase, start, one, steady, dt, shear_error)
+             .cwiseMax(relaxed(phase, inverse_relaxation, shear_error)
                            .cwiseAbs()
                            .cwiseQuotient(yield_scale(phase, start)));
 }
 
-// Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
-// Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f = e,
-// where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the `steady` systems
-// (those slipping in one sense throughout the step), from each one's flow rule at the end of the
-// one-substep solution with the subloading ratio and the CRSS carried along by its slip (their rise
-// with slip is what bounds the relaxation near r_s = 0: U(r_s) ~ 4e4 per unit slip at r_s = 0.003,
-// where the flow rule alone at fixed r_s is 1e6 times stiffer). Only the steady systems relax: a
-// system that starts, stops or reverses inside the step changes the Jacobian there, and its part of
-// the error stays. Nor does a rate-independent system relax: it has no flow rule with a rate to
-// relax through (its slip follows from consistency with the loading, and where several slip at a
-// vertex their split is not determined), and with D^-1 = 0 the filter credits it with absorbing
-// every part of the error its slip could carry: two FCC grains reversed (crystal_law_edges.yaml,
-// mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the tolerance at 1e-6 and 1e-7, their
-// references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS apart; unfiltered 0.58 and 0.45 times,
-// the references 3.3e-9 ... 4.9e-9 apart. Nor does any system of a pressure-sensitive phase: the
-// filter's model, a system relaxing through its own flow rule at a strength the stress does not
-// move, does not hold where the strength mu f_n moves with the normal stress on the plane, which
-// the slip changes too. Filtered, two FCC grains under 300 MPa confinement, reversed
-// (rate-independent), ran 11 ... 106 times the tolerance at 1e-5, and the references at 1e-8 and
-// 1e-7 stayed 8.7e-6 of the CRSS apart (the same with A + tau/f_n M:C:P in the filter: 11 times at
-// 1e-3); unfiltered, and with the turns of the strength seen (add_strength_change), the worst of
-// them 0.076 ... 0.48 times at 1e-3 ... 1e-7, its references 4e-9 apart. Solved as e - A_S y,
-// (D_S^-1 / dt + A_SS) y = e_S (Woodbury), with the pseudo-inverse where that matrix is singular to
-// working precision (nearly rate-independent systems, D^-1 -> 0; more systems than independent
-// directions). Measured on the
-// [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
-// a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
-// (docs/integrators.md, "Where the expansion does not hold: switches").
+// 1 / (dt d|rate|/d|tau|) of each system that slips in one sense throughout the step (`steady`)
+// at a rate its flow rule sets, from the flow rule at the end of the one-substep solution with
+// the subloading ratio and the CRSS carried along by its slip (their rise with slip is what
+// bounds the relaxation near r_s = 0: U(r_s) ~ 4e4 per unit slip at r_s = 0.003, where the flow
+// rule alone at fixed r_s is 1e6 times stiffer); -1 for every other system: one that starts,
+// stops or reverses inside the step, a rate-independent one (no flow rule with a rate: its slip
+// follows from consistency with the loading, and where several slip at a vertex their split is
+// not determined), and one whose flow rule gives no finite positive relaxation there.
 template <int N>
-typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
+typename Extrapolation<N>::VecN Extrapolation<N>::inverse_relaxations(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
-    const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt, const VecN& error) {
-  using MatNN = typename SlipTypes<N>::MatNN;
-  if (phase.pressure_sensitive) return error;  // (no system relaxes at a fixed strength)
-  const int n = phase.slip_count;
-  // 1 / (dt d|rate|/d|tau|) of each relaxing system, -1 for the others.
-  VecN inverse_relaxation = VecN::Constant(n, -1.0);
-  for (int a = 0; a < n; ++a) {
+    const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt) {
+  VecN inverse_relaxation = VecN::Constant(phase.slip_count, -1.0);
+  for (int a = 0; a < phase.slip_count; ++a) {
     if (!steady[static_cast<size_t>(a)]) continue;
     const law::SubloadingFrictionLaw& law = phase.laws[static_cast<size_t>(a)];
-    if (law.is_rate_independent()) continue;  // (no rate to relax through: its part stays)
+    if (law.is_rate_independent()) continue;
     const double crss = one.mu(a) * phase.tau0(a);
     const double r = std::abs(phase.schmid.col(a).dot(one.stress)) / crss;
     const double slip = std::abs(one.slip(a) - start.slip(a));
@@ -215,6 +202,39 @@ typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(
     if (rate_per_shear > 0.0 && std::isfinite(rate_per_shear))
       inverse_relaxation(a) = 1.0 / (dt * rate_per_shear);
   }
+  return inverse_relaxation;
+}
+
+// Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
+// Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f = e,
+// where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the systems that relax
+// through their flow rule over the whole step (inverse_relaxations: D^-1 / dt, negative for the
+// others). A system that starts, stops or reverses inside the step changes the Jacobian there,
+// and its part of the error stays. Nor does a rate-independent system relax: with D^-1 = 0 the
+// filter would credit it with absorbing every part of the error its slip could carry: two FCC
+// grains reversed (crystal_law_edges.yaml, mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the
+// tolerance at 1e-6 and 1e-7, their references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS
+// apart; unfiltered 0.58 and 0.45 times, the references 3.3e-9 ... 4.9e-9 apart. Nor does any
+// system of a pressure-sensitive phase: the filter's model, a system relaxing through its own flow
+// rule at a strength the stress does not move, does not hold where the strength mu f_n moves with
+// the normal stress on the plane, which the slip changes too. Filtered, two FCC grains under 300
+// MPa confinement, reversed (rate-independent), ran 11 ... 106 times the tolerance at 1e-5, and the
+// references at 1e-8 and 1e-7 stayed 8.7e-6 of the CRSS apart (the same with A + tau/f_n M:C:P in
+// the filter: 11 times at 1e-3); unfiltered, and with the turns of the strength seen
+// (add_strength_change), the worst of them 0.076 ... 0.48 times at 1e-3 ... 1e-7, its references
+// 4e-9 apart. Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S (Woodbury), with the pseudo-inverse
+// where that matrix is singular to working precision (nearly rate-independent systems, D^-1 -> 0;
+// more systems than independent directions). Measured on the
+// [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
+// a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
+// (docs/integrators.md, "Where the expansion does not hold: switches").
+template <int N>
+typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(const Phase<N>& phase,
+                                                          const VecN& inverse_relaxation,
+                                                          const VecN& error) {
+  using MatNN = typename SlipTypes<N>::MatNN;
+  if (phase.pressure_sensitive) return error;  // (no system relaxes at a fixed strength)
+  const int n = phase.slip_count;
   if (!(inverse_relaxation.array() >= 0.0).any()) return error;
   MatNN k = MatNN::Identity(n, n);  // the other systems' rows: y = 0
   VecN rhs = VecN::Zero(n);

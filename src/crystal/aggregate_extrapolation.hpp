@@ -79,9 +79,10 @@ class Extrapolation {
                       const GrainState<N>& combined) const;
   VecN switch_step_errors(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
                           double dt) const;
-  static VecN relaxed(const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
-                      const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt,
-                      const VecN& error);
+  static VecN inverse_relaxations(const Phase<N>& phase, const GrainState<N>& start,
+                                  const GrainState<N>& one,
+                                  const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt);
+  static VecN relaxed(const Phase<N>& phase, const VecN& inverse_relaxation, const VecN& error);
   static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
                           const GrainState<N>& combined, const Mat3& start_l, const Mat3& end_l,
                           double dt);
