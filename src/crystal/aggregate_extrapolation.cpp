@@ -179,12 +179,15 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // rule alone at fixed r_s is 1e6 times stiffer); -1 for every other system: one that starts,
 // stops or reverses inside the step, a rate-independent one (no flow rule with a rate: its slip
 // follows from consistency with the loading, and where several slip at a vertex their split is
-// not determined), and one whose flow rule gives no finite positive relaxation there.
+// not determined), and one whose flow rule gives no finite positive relaxation there. No system of
+// a pressure-sensitive phase relaxes in this sense: its strength mu f_n moves with the normal
+// stress on its plane, which the slip changes too (relaxed, below).
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::inverse_relaxations(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
     const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt) {
   VecN inverse_relaxation = VecN::Constant(phase.slip_count, -1.0);
+  if (phase.pressure_sensitive) return inverse_relaxation;
   for (int a = 0; a < phase.slip_count; ++a) {
     if (!steady[static_cast<size_t>(a)]) continue;
     const law::SubloadingFrictionLaw& law = phase.laws[static_cast<size_t>(a)];
@@ -233,7 +236,6 @@ typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(const Phase<N>& phase,
                                                           const VecN& inverse_relaxation,
                                                           const VecN& error) {
   using MatNN = typename SlipTypes<N>::MatNN;
-  if (phase.pressure_sensitive) return error;  // (no system relaxes at a fixed strength)
   const int n = phase.slip_count;
   if (!(inverse_relaxation.array() >= 0.0).any()) return error;
   MatNN k = MatNN::Identity(n, n);  // the other systems' rows: y = 0
