@@ -176,12 +176,23 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(const Phase
 // at a rate its flow rule sets, from the flow rule at the end of the one-substep solution with
 // the subloading ratio and the CRSS carried along by its slip (their rise with slip is what
 // bounds the relaxation near r_s = 0: U(r_s) ~ 4e4 per unit slip at r_s = 0.003, where the flow
-// rule alone at fixed r_s is 1e6 times stiffer); -1 for every other system: one that starts,
-// stops or reverses inside the step, a rate-independent one (no flow rule with a rate: its slip
-// follows from consistency with the loading, and where several slip at a vertex their split is
-// not determined), and one whose flow rule gives no finite positive relaxation there. No system of
-// a pressure-sensitive phase relaxes in this sense: its strength mu f_n moves with the normal
-// stress on its plane, which the slip changes too (relaxed, below).
+// rule alone at fixed r_s is 1e6 times stiffer); -1 for every other system. A system that starts,
+// stops or reverses inside the step changes the Jacobian there. A rate-independent system has no
+// flow rule with a rate (its slip follows from consistency with the loading, and where several
+// slip at a vertex their split is not determined); taken as relaxing at once (D^-1 = 0), the
+// filter credits it with absorbing every part of the error its slip could carry: two FCC grains
+// reversed (crystal_law_edges.yaml, mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the
+// tolerance at 1e-6 and 1e-7, their references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS
+// apart; kept out, 0.58 and 0.45 times, the references 3.3e-9 ... 4.9e-9 apart. A flow rule that
+// gives no finite positive relaxation (r at r_hat with the CRSS softening) holds its rate by
+// consistency as well. No system of a pressure-sensitive phase relaxes: the model, a system
+// relaxing through its own flow rule at a strength the stress does not move, does not hold where
+// the strength mu f_n moves with the normal stress on the plane, which the slip changes too.
+// Filtered, two FCC grains under 300 MPa confinement, reversed (rate-independent), ran 11 ... 106
+// times the tolerance at 1e-5, and the references at 1e-8 and 1e-7 stayed 8.7e-6 of the CRSS apart
+// (the same with A + tau/f_n M:C:P in the filter: 11 times at 1e-3); unfiltered, and with the
+// turns of the strength seen (add_strength_change), the worst of them 0.076 ... 0.48 times at
+// 1e-3 ... 1e-7, its references 4e-9 apart.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::inverse_relaxations(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
@@ -212,22 +223,9 @@ typename Extrapolation<N>::VecN Extrapolation<N>::inverse_relaxations(
 // Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f = e,
 // where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the systems that relax
 // through their flow rule over the whole step (inverse_relaxations: D^-1 / dt, negative for the
-// others). A system that starts, stops or reverses inside the step changes the Jacobian there,
-// and its part of the error stays. Nor does a rate-independent system relax: with D^-1 = 0 the
-// filter would credit it with absorbing every part of the error its slip could carry: two FCC
-// grains reversed (crystal_law_edges.yaml, mu_k = 3, kappa = 10, neg_log) ran 94 and 624 times the
-// tolerance at 1e-6 and 1e-7, their references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS
-// apart; unfiltered 0.58 and 0.45 times, the references 3.3e-9 ... 4.9e-9 apart. Nor does any
-// system of a pressure-sensitive phase: the filter's model, a system relaxing through its own flow
-// rule at a strength the stress does not move, does not hold where the strength mu f_n moves with
-// the normal stress on the plane, which the slip changes too. Filtered, two FCC grains under 300
-// MPa confinement, reversed (rate-independent), ran 11 ... 106 times the tolerance at 1e-5, and the
-// references at 1e-8 and 1e-7 stayed 8.7e-6 of the CRSS apart (the same with A + tau/f_n M:C:P in
-// the filter: 11 times at 1e-3); unfiltered, and with the turns of the strength seen
-// (add_strength_change), the worst of them 0.076 ... 0.48 times at 1e-3 ... 1e-7, its references
-// 4e-9 apart. Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S (Woodbury), with the pseudo-inverse
-// where that matrix is singular to working precision (nearly rate-independent systems, D^-1 -> 0;
-// more systems than independent directions). Measured on the
+// others, whose part of the error stays). Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S
+// (Woodbury), with the pseudo-inverse where that matrix is singular to working precision (nearly
+// rate-independent systems, D^-1 -> 0; more systems than independent directions). Measured on the
 // [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
 // a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
 // (docs/integrators.md, "Where the expansion does not hold: switches").
