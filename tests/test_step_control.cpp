@@ -195,6 +195,20 @@ TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
 
 // The step factor of an estimate of order q: the step that would meet the tolerance exactly,
 // 0.9 (tol/err)^(1/q), within the limits.
+// A step accepted right after a refused attempt is not grown, however small its estimate (the
+// refused estimate grew faster than the order says: the step that followed is all that is known
+// to fit); the next accepted step grows again.
+TEST(StepControl, StepAfterARefusalDoesNotGrow) {
+  AdaptiveSegment clock(10.0, 1.0, 1e-3);
+  ASSERT_TRUE(clock.refuse(false, 4e-3, kBackwardEuler));
+  const double retried = clock.step();
+  ASSERT_LT(retried, 1.0);
+  clock.accept(1e-6);  // a thousandth of the tolerance: 4 x growth without the rule
+  EXPECT_EQ(clock.step(), retried);
+  clock.accept(1e-6);
+  EXPECT_EQ(clock.step(), 4.0 * retried);
+}
+
 TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {
   using subslip::integrators::kAfterAccepted;
   using subslip::integrators::step_factor;

@@ -213,9 +213,13 @@ class AdaptiveSegment {
     // while dt < stop - t): it ended there, and the stop is behind it.
     for (; next_stop_ < stops_.size() && reaches(t_, stops_[next_stop_]); ++next_stop_) stop = true;
     ++accepted_;
+    // After a refused attempt the step does not grow (the rule of Hairer, Norsett and Wanner's
+    // codes, facmax = 1 after a rejection): the estimate just grew faster than its order says.
+    const bool after_refusal = refusals_ > 0;
     refusals_ = 0;
     refused_error_ = 0.0;
-    const double factor = step_factor(error, tolerance_, order_, growth_);
+    double factor = step_factor(error, tolerance_, order_, growth_);
+    if (after_refusal) factor = std::min(factor, 1.0);
     dt_ = h * factor;
     if (shortened && factor >= 1.0) dt_ = std::max(dt_, planned);
     return stop;
