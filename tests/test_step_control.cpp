@@ -195,6 +195,23 @@ TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
 
 // The step factor of an estimate of order q: the step that would meet the tolerance exactly,
 // 0.9 (tol/err)^(1/q), within the limits.
+// A step shorter than what is left of the segment whose end rounds onto the segment's end is the
+// last one (t = 1.7819370996222488, dt = 0.21806290037775111: t + dt = 2 while 2 - t =
+// 0.21806290037775122): the clock ends there instead of planning a step of no length. (Reached on
+// a contact of contact_stiffness_exponent.yaml, power form, n = 128, when a refusal held the step.)
+TEST(StepControl, StepThatRoundsOntoTheEndIsTheLast) {
+  const double t = 1.7819370996222488;
+  const double dt = 0.21806290037775111;
+  ASSERT_EQ(t + dt, 2.0);
+  ASSERT_LT(dt, 2.0 - t);
+  AdaptiveSegment clock(2.0, dt, 1e-3, 2, t, 10);
+  EXPECT_TRUE(clock.last());
+  EXPECT_EQ(clock.end_time(), 2.0);
+  EXPECT_EQ(clock.step(), 2.0 - t);
+  clock.accept(1e-4);
+  EXPECT_EQ(clock.time(), 2.0);
+}
+
 // A step accepted right after a refused attempt is not grown, however small its estimate (the
 // refused estimate grew faster than the order says: the step that followed is all that is known
 // to fit); the next accepted step grows again.

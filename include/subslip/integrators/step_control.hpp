@@ -179,8 +179,11 @@ class AdaptiveSegment {
   bool at_stop() const {
     return next_stop_ < stops_.size() && reaches(t_ + dt_, stops_[next_stop_]);
   }
+  // A step shorter than what is left can still end exactly on the segment's end (t + dt rounds to
+  // it while dt < duration - t): it is the last, or the next would have no length.
   bool last() const {
-    return at_stop() ? reaches(stops_[next_stop_], duration_) : dt_ >= duration_ - t_;
+    return at_stop() ? reaches(stops_[next_stop_], duration_)
+                     : dt_ >= duration_ - t_ || t_ + dt_ >= duration_;
   }
   // The step to try now: the planned one, or what is left to the next stop or the segment end.
   double step() const {
