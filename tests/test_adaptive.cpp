@@ -1156,6 +1156,30 @@ TEST(AdaptiveContact, StiffCasesRunAtATightToleranceWithBackwardEulersEstimate) 
   }
 }
 
+// A case of inputs/extreme/contact_stiffness_exponent.yaml (power form, n = 128, alpha_t = 1e7
+// MPa/mm, the 2 mm slide in 10 increments graded 1.02) at 1e-3: after a refused attempt held the
+// step, its last step is 0.21806290037775111 min from 1.7819370996222488, 1.1e-16 min short of
+// the 2 min left, and ends on 2 min by rounding. It is the segment's last step; the run ends there
+// (it stopped with "dt must be positive" when the clock planned a step of no length after it).
+TEST(AdaptiveContact, AStepThatRoundsOntoTheSegmentsEndEndsTheRun) {
+  const std::string text = R"(scene: contact
+units: {stress: MPa, length: mm, time: min}
+law:
+  friction:   {mu_s: 0.097, mu_k: 0.085, kappa: 0.2, xi: 0.009}
+  subloading: {function: cot, u_tilde: 80}
+  overstress: {form: power, eta_v: 950, n: 128, r_hat: 1.8}
+contact: {alpha_n: 1.0e6, alpha_t: 1.0e7, normal_traction: 5.56}
+loading:
+  - slide: {speed: 1.0, direction: [1, 0], distance: 2.0}
+    increments: 10
+    growth: 1.02
+integrator: {method: implicit, tolerance: 1.0e-3}
+)";
+  double end_ratio = 0.0;
+  EXPECT_EQ(run_contact_text(text, &end_ratio), "");
+  EXPECT_GT(end_ratio, 0.0);
+}
+
 TEST(AdaptiveScene, OrderNeedsAToleranceAndAKnownOrder) {
   const auto scene = subslip::io::parse_contact_scene(subslip::io::YamlDocument::from_string(
       kContactHead + "integrator: {tolerance: 1.0e-5, order: 3}\n", "s.yaml"));
