@@ -193,8 +193,6 @@ TEST(StepControl, StopBelowTheTimesResolutionNamesTheToleranceThatRunsPastIt) {
   EXPECT_EQ(failing.time_resolution_message().find("use a tolerance"), std::string::npos);
 }
 
-// The step factor of an estimate of order q: the step that would meet the tolerance exactly,
-// 0.9 (tol/err)^(1/q), within the limits.
 // A step shorter than what is left of the segment whose end rounds onto the segment's end is the
 // last one (t = 1.7819370996222488, dt = 0.21806290037775111: t + dt = 2 while 2 - t =
 // 0.21806290037775122): the clock ends there instead of planning a step of no length. (Reached on
@@ -226,6 +224,8 @@ TEST(StepControl, StepAfterARefusalDoesNotGrow) {
   EXPECT_EQ(clock.step(), 4.0 * retried);
 }
 
+// The step factor of an estimate of order q: the step that would meet the tolerance exactly,
+// 0.9 (tol/err)^(1/q), within the limits.
 TEST(StepControl, FactorFollowsTheOrderOfTheEstimate) {
   using subslip::integrators::kAfterAccepted;
   using subslip::integrators::step_factor;

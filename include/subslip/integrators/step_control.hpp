@@ -218,11 +218,11 @@ class AdaptiveSegment {
     ++accepted_;
     // After a refused attempt the step does not grow (the rule of Hairer, Norsett and Wanner's
     // codes, facmax = 1 after a rejection): the estimate just grew faster than its order says.
-    const bool after_refusal = refusals_ > 0;
+    const StepFactorLimits limits =
+        refusals_ > 0 ? StepFactorLimits{growth_.smallest, 1.0} : growth_;
     refusals_ = 0;
     refused_error_ = 0.0;
-    double factor = step_factor(error, tolerance_, order_, growth_);
-    if (after_refusal) factor = std::min(factor, 1.0);
+    const double factor = step_factor(error, tolerance_, order_, limits);
     dt_ = h * factor;
     if (shortened && factor >= 1.0) dt_ = std::max(dt_, planned);
     return stop;
