@@ -78,7 +78,19 @@ class Extrapolation {
   bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
                       const GrainState<N>& combined) const;
   VecN switch_step_errors(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
-                          double dt) const;
+                          double dt, const Loading* segment_start) const;
+  static double inverse_relaxation_of(const Phase<N>& phase, int a, const GrainState<N>& start,
+                                      const Vec6& stress, double mu, double r_s, double slip,
+                                      double dt);
+  void classify_switches_at_start(const Phase<N>& phase, size_t g, int order,
+                                  const Loading& at_start,
+                                  const std::array<bool, SlipTypes<N>::MaxN>& steady,
+                                  std::array<bool, SlipTypes<N>::MaxN>& started,
+                                  std::array<bool, SlipTypes<N>::MaxN>& stopped) const;
+  static double relaxation_at_end(const Phase<N>& phase, int a, const GrainState<N>& start,
+                                  const GrainState<N>& one, double dt);
+  static double relaxation_at_start(const Phase<N>& phase, int a, const GrainState<N>& start,
+                                    double dt);
   static VecN inverse_relaxations(const Phase<N>& phase, const GrainState<N>& start,
                                   const GrainState<N>& one,
                                   const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt);
