@@ -280,7 +280,7 @@ void Extrapolation<N>::classify_switches_at_start(
   };
   for (int a = 0; a < phase.slip_count; ++a) {
     const auto i = static_cast<size_t>(a);
-    if (steady[i] || phase.laws[i].is_rate_independent()) continue;
+    if (steady[i]) continue;  // (a rate-independent system gets no relaxation: its kink stays)
     if (start.rate(a) == 0.0 && at_start.loading(a) && one.rate(a) != 0.0 &&
         never_against(a, one.rate(a)))
       started[i] = true;

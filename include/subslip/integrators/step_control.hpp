@@ -214,8 +214,7 @@ class AdaptiveSegment {
   // end within kLastStepStretch of it takes the rest.
   bool last() const {
     return at_stop() ? reaches(stops_[next_stop_], duration_)
-                     : dt_ >= duration_ - t_ || t_ + dt_ >= duration_ ||
-                           t_ + kLastStepStretch * dt_ >= duration_;
+                     : dt_ >= duration_ - t_ || t_ + kLastStepStretch * dt_ >= duration_;
   }
   // The step to try now: the planned one, or what is left to the next stop or the segment end.
   double step() const {
