@@ -744,6 +744,25 @@ TEST(AccuracyCrystal, SwitchesTheLoadingSetsOffAreAtTheSegmentsStart) {
   EXPECT_LT(4 * loose.counters.rejected, loose.counters.steps);
 }
 
+// An idle system whose resolved shear passes zero inside the step starts slipping there, where
+// its |tau| turns to grow, at a rate continuous in the state: the switch is located, at the time
+// the unloading takes to zero, and judged as a transient from there
+// (Extrapolation::located_starts): a copper [001] crystal (G/tau0 = 1e4) pulled at 1e-6 /s and
+// compressed back at 1 /s, where the eight systems reverse 2.8e-4 s into the reversal. Judged at
+// a kink anywhere in the step, every step of 1e-4 s across that time was refused (0.005 ... 0.035
+// against 1e-5) and the run refused 14 attempts for 35 steps at 1e-5; located, 5 for 18, and the
+// reversal's first increment (0.01 s) is one step. The error stays within 10 times the tolerance.
+TEST(AccuracyCrystal, AStartWhereTauPassesZeroIsLocated) {
+  const SingleThread one;
+  const CrystalProblem problem = extreme_crystal_case(
+      "crystal_fcc_schmid_stiff.yaml", {"tau0=7.54,", "L[2][2]=1.0e-6,", "increments=10"});
+  const StudyResult s = run_study(problem, order_2_study(1e-9, {1e-3, 1e-5}));
+  expect_within_ten_times_the_tolerance(s, "Cu [001], G/tau0 = 1e4, 1e-6 /s, reversed at 1 /s");
+  for (const auto& point : s.points)
+    EXPECT_LT(3 * point.counters.rejected, point.counters.steps)
+        << "tolerance " << point.setting.value;
+}
+
 // The filter relaxes only what the systems slipping throughout the step relax, with their
 // subloading ratio and CRSS rising with their slip: eight magnesium grains on pyramidal <a>,
 // tau0 = 0.163 MPa, where near r_s = 0.003 the flow rule at a fixed r_s is 1e6 times stiffer

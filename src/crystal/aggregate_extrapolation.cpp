@@ -77,10 +77,9 @@ void Extrapolation<N>::combine(int order, double dt, double flow_residual, Grain
       errors_[gi] =
           errors_[gi].cwiseMax(turn_errors(phase, step_start_[gi], out, l_at_start, l_at_end, dt));
     } else {
-      std::optional<Loading> at_segment_start;
-      if (!start_l) at_segment_start = loading(phase, step_start_[gi], l_at_start);
-      errors_[gi] = errors_[gi].cwiseMax(switch_step_errors(
-          phase, gi, order, out, dt, at_segment_start ? &*at_segment_start : nullptr));
+      const Loading at_start = loading(phase, step_start_[gi], l_at_start);
+      errors_[gi] = errors_[gi].cwiseMax(
+          switch_step_errors(phase, gi, order, out, dt, at_start, !start_l.has_value()));
     }
   }
   combine_macro(order, l_at_end, grains);
@@ -138,12 +137,12 @@ void Extrapolation<N>::coarse_substep_start(int order, int j, int i, std::vector
 // the start of a reversal whose solutions all end elastic (each evaluates the flow rule only where
 // the stress has already unloaded) agree with each other exactly, while the true path slips on
 // until the system's r falls to r_s. Such a step is shortened until both meet the tolerance.
-// `segment_start`: at a segment's first step, how each system loads under the new loading at the
-// step's start (classify_switches_at_start); null elsewhere.
+// `at_start`: how each system loads at the step's start (at a segment's first step, under the
+// new loading: classify_switches_at_start); `segment_start`: whether the step is a segment's first.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
     const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined, double dt,
-    const Loading* segment_start) const {
+    const Loading& at_start, bool segment_start) const {
   const GrainState<N>& one = solutions_[0][g];
   const GrainState<N>& two = solutions_[1][g];
   const GrainState<N>& start = step_start_[g];
@@ -158,8 +157,8 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
     steady[static_cast<size_t>(a)] = throughout;
   }
   std::array<bool, SlipTypes<N>::MaxN> started{}, stopped{};
-  if (segment_start != nullptr)
-    classify_switches_at_start(phase, g, order, *segment_start, steady, started, stopped);
+  if (segment_start)
+    classify_switches_at_start(phase, g, order, at_start, steady, started, stopped);
   // Only the rates that jump carry a kink. A system that slips throughout the step at a rate its
   // flow rule sets from tau, r_s and mu has a continuous rate (only its slope jumps where another
   // system switches), and the extrapolation's own estimate measures its smooth change at the
@@ -182,12 +181,98 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
       inverse_relaxation(a) = relaxation_at_end(phase, a, start, one, dt);
     }
   }
+  // A start located inside the step (located_starts) leaves the rest of the estimate and is
+  // judged apart (located_start_errors).
+  const VecN onset = located_starts(phase, g, order, combined, at_start, steady, started, stopped);
+  VecN located_jump = VecN::Zero(phase.slip_count);
+  for (int a = 0; a < phase.slip_count; ++a)
+    if (onset(a) >= 0.0) located_jump(a) = rate_jump(a), rate_jump(a) = 0.0;
   const VecN shear_error = (0.5 * dt) * (phase.interaction * rate_jump);
+  const VecN located_error =
+      located_start_errors(phase, start, one, inverse_relaxation, onset, located_jump, dt);
   return integrators::combination_kink_bound(order) *
          system_errors(phase, one.stress - two.stress, yield_scale(phase, combined))
-             .cwiseMax(relaxed(phase, inverse_relaxation, shear_error)
-                           .cwiseAbs()
+             .cwiseMax((relaxed(phase, inverse_relaxation, shear_error).cwiseAbs() + located_error)
                            .cwiseQuotient(yield_scale(phase, start)));
+}
+
+// A system idle at the step's start (or slipping there the other way), unloading there, that ends
+// slipping in one sense in every solution and in their combination, against the sign of its
+// resolved shear at the start: its tau passes zero inside the step, and there its |tau| turns to
+// grow. An idle system sits on its subloading surface (r_s follows r down, (3.12)), so it starts
+// slipping at that turn, at a rate continuous in the state (zero at r = r_s): its switch is
+// located, at theta = |tau| / (the fall of |tau| at the start), the time the unloading at the
+// start's rate takes to zero; for a system still slipping the other way at the start, the fall
+// without its own slip (which stops first and speeds the fall while it lasts): the latest the
+// crossing can be, and the estimate below grows with theta. Returns theta of every such system, -1
+// for the others (and for all of a pressure-sensitive phase, whose strength moves with the plane's
+// normal stress, and for a rate-independent system, whose rate jumps). A turn of |tau| on one side
+// of zero is not located (its time depends on how the growth runs between the step's ends, which
+// the samples do not show; a crossing of zero lies on the unloading's own line) and keeps its
+// kink.
+template <int N>
+typename Extrapolation<N>::VecN Extrapolation<N>::located_starts(
+    const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
+    const Loading& at_start, const std::array<bool, SlipTypes<N>::MaxN>& steady,
+    const std::array<bool, SlipTypes<N>::MaxN>& started,
+    const std::array<bool, SlipTypes<N>::MaxN>& stopped) const {
+  VecN onset = VecN::Constant(phase.slip_count, -1.0);
+  if (phase.pressure_sensitive) return onset;
+  const GrainState<N>& start = step_start_[g];
+  const VecN tau = phase.schmid.transpose() * start.stress;
+  for (int a = 0; a < phase.slip_count; ++a) {
+    const auto i = static_cast<size_t>(a);
+    if (steady[i] || started[i] || stopped[i] || !at_start.unloading(a)) continue;
+    if (phase.laws[i].is_rate_independent()) continue;
+    const double sense = combined.rate(a) > 0.0 ? 1.0 : (combined.rate(a) < 0.0 ? -1.0 : 0.0);
+    bool slips = sense != 0.0 && start.rate(a) * sense <= 0.0 && tau(a) * sense < 0.0;
+    for (int j = 0; j < order; ++j)
+      slips = slips && solutions_[static_cast<size_t>(j)][g].rate(a) * sense > 0.0;
+    if (!slips) continue;
+    // The fall once its own slip the other way (if any) has stopped: the latest crossing.
+    const double fall = -at_start.growth(a) - phase.interaction(a, a) * std::abs(start.rate(a));
+    if (fall > 0.0) onset(a) = std::abs(tau(a)) / fall;
+  }
+  return onset;
+}
+
+// The error of the starts located inside the step (onset: their times, -1 elsewhere), of their
+// rate changes `jump` (at the end of the one-substep solution, from the step's start). The
+// one-substep solution spreads the start over the whole step: where the system relaxes quickly
+// (a stiff start) it ends short of the overstress (rate / D, D = d rate / d tau) by the part of
+// the step before the start, rate / D theta / dt, and the transient after the start is what
+// backward Euler's estimate over that part, (dt - theta) / 2 A jump, filtered through the
+// system's relaxation there (its flow rule at the one-substep end over dt - theta, as a start at a
+// segment's start; the steady systems relax it too), measures: jump / D / 2. Together, with
+// rate = jump dt / (dt - theta), the filtered estimate times (dt + theta) / (dt - theta). Where
+// the start is not stiff that exceeds backward Euler's estimate over the whole step, dt / 2 A
+// jump, the kink bound's, which bounds it wherever the kink lies: the smaller of the two, per
+// system. The starts' relaxation is kept out of the rest of the estimate: they do not relax what
+// happened before them.
+template <int N>
+typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
+    const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
+    const VecN& inverse_relaxation, const VecN& onset, const VecN& jump, double dt) {
+  const int n = phase.slip_count;
+  if (!(onset.array() >= 0.0).any()) return VecN::Zero(n);
+  VecN relaxation = inverse_relaxation;
+  VecN after_jump = VecN::Zero(n);
+  double latest = 0.0;
+  for (int a = 0; a < n; ++a) {
+    if (!(onset(a) >= 0.0)) continue;
+    const double after = dt - std::min(onset(a), dt);
+    const double inverse =
+        after > 0.0 ? inverse_relaxation_of(phase, a, start, one.stress, one.mu(a), one.r_s(a),
+                                            std::abs(one.slip(a) - start.slip(a)), after)
+                    : -1.0;
+    if (inverse < 0.0) return ((0.5 * dt) * (phase.interaction * jump)).cwiseAbs();
+    relaxation(a) = inverse;
+    after_jump(a) = (0.5 * after) * jump(a);
+    latest = std::max(latest, onset(a));
+  }
+  const VecN filtered = relaxed(phase, relaxation, phase.interaction * after_jump).cwiseAbs() *
+                        ((dt + latest) / (dt - latest));
+  return filtered.cwiseMin(((0.5 * dt) * (phase.interaction * jump)).cwiseAbs());
 }
 
 // 1 / (dt d|rate|/d|tau|) of each system that slips in one sense throughout the step (`steady`)

@@ -78,7 +78,14 @@ class Extrapolation {
   bool switches_phase(const Phase<N>& phase, const GrainState<N>& start, size_t g, int order,
                       const GrainState<N>& combined) const;
   VecN switch_step_errors(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
-                          double dt, const Loading* segment_start) const;
+                          double dt, const Loading& at_start, bool segment_start) const;
+  VecN located_starts(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
+                      const Loading& at_start, const std::array<bool, SlipTypes<N>::MaxN>& steady,
+                      const std::array<bool, SlipTypes<N>::MaxN>& started,
+                      const std::array<bool, SlipTypes<N>::MaxN>& stopped) const;
+  static VecN located_start_errors(const Phase<N>& phase, const GrainState<N>& start,
+                                   const GrainState<N>& one, const VecN& inverse_relaxation,
+                                   const VecN& onset, const VecN& jump, double dt);
   static double inverse_relaxation_of(const Phase<N>& phase, int a, const GrainState<N>& start,
                                       const Vec6& stress, double mu, double r_s, double slip,
                                       double dt);
