@@ -255,6 +255,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
     const VecN& inverse_relaxation, const VecN& onset, const VecN& jump, double dt) {
   const int n = phase.slip_count;
   if (!(onset.array() >= 0.0).any()) return VecN::Zero(n);
+  const VecN kink = ((0.5 * dt) * (phase.interaction * jump)).cwiseAbs();
   VecN relaxation = inverse_relaxation;
   VecN after_jump = VecN::Zero(n);
   double latest = 0.0;
@@ -265,14 +266,14 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
         after > 0.0 ? inverse_relaxation_of(phase, a, start, one.stress, one.mu(a), one.r_s(a),
                                             std::abs(one.slip(a) - start.slip(a)), after)
                     : -1.0;
-    if (inverse < 0.0) return ((0.5 * dt) * (phase.interaction * jump)).cwiseAbs();
+    if (inverse < 0.0) return kink;
     relaxation(a) = inverse;
     after_jump(a) = (0.5 * after) * jump(a);
     latest = std::max(latest, onset(a));
   }
   const VecN filtered = relaxed(phase, relaxation, phase.interaction * after_jump).cwiseAbs() *
                         ((dt + latest) / (dt - latest));
-  return filtered.cwiseMin(((0.5 * dt) * (phase.interaction * jump)).cwiseAbs());
+  return filtered.cwiseMin(kink);
 }
 
 // 1 / (dt d|rate|/d|tau|) of each system that slips in one sense throughout the step (`steady`)
