@@ -266,6 +266,8 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
         after > 0.0 ? inverse_relaxation_of(phase, a, start, one.stress, one.mu(a), one.r_s(a),
                                             std::abs(one.slip(a) - start.slip(a)), after)
                     : -1.0;
+    // No finite relaxation over the part after the start (a flow rule that gives none there):
+    // no transient model holds, and the kink bound judges every located start of the grain.
     if (inverse < 0.0) return kink;
     relaxation(a) = inverse;
     after_jump(a) = (0.5 * after) * jump(a);
