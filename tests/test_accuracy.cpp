@@ -664,14 +664,13 @@ TEST(AccuracyCrystal, SwitchesBetweenTheSolutionsSamplesAreSeen) {
                                         "prismatic <a> at tau0 0.163 MPa");
 }
 
-// A pressure-sensitive phase's switch steps are judged by backward Euler's estimate unfiltered
-// (Extrapolation::relaxed): the filter relaxes a steady system's error through its
-// flow rule at a strength the stress does not move, and the strength mu f_n of a pressure-sensitive
-// plane moves with its normal stress. Two FCC grains under 300 MPa confinement, compressed and
-// reversed, rate-independent with softening (mu_k = 0.2): filtered, 106 times the tolerance at
-// 1e-5 (its references at 1e-8 and 1e-7 8.7e-6 of the CRSS apart); unfiltered within 10 times,
-// the reference resolving the error. At 1e-7 an idle system turns to slip as its plane unloads
-// while its |tau| falls (Extrapolation::add_strength_change): judged on |tau| alone, 18 times.
+// A rate-independent system under plane pressure keeps its rate change on a switch step (it has
+// no flow rule to relax through, Extrapolation::relaxed), and an idle system turns to slip as its
+// plane unloads while its |tau| falls (Extrapolation::add_strength_change). Two FCC grains under
+// 300 MPa confinement, compressed and reversed, rate-independent with softening (mu_k = 0.2):
+// credited with relaxing at once (D^-1 = 0), 106 times the tolerance at 1e-5 (its references at
+// 1e-8 and 1e-7 8.7e-6 of the CRSS apart); the turn judged on |tau| alone, 18 times at 1e-7.
+// Within 10 times, the reference resolving the error.
 TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
   const SingleThread one;
   const CrystalProblem problem =
@@ -680,6 +679,24 @@ TEST(AccuracyCrystal, PressureSensitiveSwitchStepsFollowTheTolerance) {
   o.cvode_check_seconds = 1.0;  // (the references' own companions judge them here)
   expect_within_ten_times_the_tolerance(run_study(problem, o),
                                         "rate-independent pressure-sensitive reversal");
+}
+
+// A pressure-sensitive system relaxes through its flow rule in what drives it, r = |tau| / (mu
+// f_n), whose strength its neighbours' slip moves too (Extrapolation::driving_interaction). Two
+// FCC grains under 300 MPa confinement, compressed, reversed and held (exponential overstress, no
+// change of mu): with every switch step of the phase judged by backward Euler's estimate
+// unfiltered, 0.028 times the tolerance at 1e-3 (102 steps, 52 refused; its coarsest path 5.4e-3
+// off, so not for want of steps); relaxed through the drive, 0.16 and 0.91 times at 1e-3 and 1e-5
+// (55 and 176 steps), within 0.1 ... 10 times, the reference resolving the error.
+TEST(AccuracyCrystal, APressureSensitivePhaseRelaxesThroughWhatDrivesIt) {
+  const SingleThread one;
+  const CrystalProblem problem = extreme_crystal_case(
+      "crystal_pressure_sensitive.yaml", {"mu_k: 0.3, kappa: 0.0, xi: 0.0", "exponential"});
+  StudyOptions o = order_2_study(1e-9, {1e-3, 1e-5});
+  o.cvode_check_seconds = 1.0;  // (the reference's own companion judges it here)
+  const StudyResult s = run_study(problem, o);
+  expect_within_ten_times_the_tolerance(s, "exponential pressure-sensitive reversal");
+  for (const auto& p : s.points) EXPECT_GT(p.error.max_error, 0.1 * p.setting.value);
 }
 
 // A rate-independent system does not relax in the switch step's filter (Extrapolation::relaxed):

@@ -183,17 +183,22 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
   }
   // A start located inside the step (located_starts) leaves the rest of the estimate and is
   // judged apart (located_start_errors).
-  const VecN onset = located_starts(phase, g, order, combined, at_start, steady, started, stopped);
+  const MatNN drive = driving_interaction(phase, start.stress);
+  const VecN onset =
+      located_starts(phase, drive, g, order, combined, at_start, steady, started, stopped);
   VecN located_jump = VecN::Zero(phase.slip_count);
   for (int a = 0; a < phase.slip_count; ++a)
     if (onset(a) >= 0.0) located_jump(a) = rate_jump(a), rate_jump(a) = 0.0;
   const VecN shear_error = (0.5 * dt) * (phase.interaction * rate_jump);
+  const VecN drive_error = (0.5 * dt) * (drive * rate_jump);
   const VecN located_error =
-      located_start_errors(phase, start, one, inverse_relaxation, onset, located_jump, dt);
+      located_start_errors(phase, drive, start, one, inverse_relaxation, onset, located_jump, dt);
   return integrators::combination_kink_bound(order) *
          system_errors(phase, one.stress - two.stress, yield_scale(phase, combined))
-             .cwiseMax((relaxed(phase, inverse_relaxation, shear_error).cwiseAbs() + located_error)
-                           .cwiseQuotient(yield_scale(phase, start)));
+             .cwiseMax(
+                 (relaxed(phase, drive, inverse_relaxation, shear_error, drive_error).cwiseAbs() +
+                  located_error)
+                     .cwiseQuotient(yield_scale(phase, start)));
 }
 
 // A system idle at the step's start (or slipping there the other way), unloading there, that ends
@@ -204,20 +209,20 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
 // located, at theta = |tau| / (the fall of |tau| at the start), the time the unloading at the
 // start's rate takes to zero; for a system still slipping the other way at the start, the fall
 // without its own slip (which stops first and speeds the fall while it lasts): the latest the
-// crossing can be, and the estimate below grows with theta. Returns theta of every such system, -1
-// for the others (and for all of a pressure-sensitive phase, whose strength moves with the plane's
-// normal stress, and for a rate-independent system, whose rate jumps). A turn of |tau| on one side
-// of zero is not located (its time depends on how the growth runs between the step's ends, which
-// the samples do not show; a crossing of zero lies on the unloading's own line) and keeps its
-// kink.
+// crossing can be, and the estimate below grows with theta. On a pressure-sensitive plane r =
+// |tau| / (mu f_n) passes zero with |tau|, and the fall is that of f_n r (Loading; its own slip's
+// part through `drive`, driving_interaction): theta is where r's line reaches zero. Returns theta
+// of every such system, -1 for the others (and for a rate-independent system, whose rate jumps).
+// A turn of |tau| on one side of zero is not located (its time depends on how the growth runs
+// between the step's ends, which the samples do not show; a crossing of zero lies on the
+// unloading's own line) and keeps its kink.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::located_starts(
-    const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
+    const Phase<N>& phase, const MatNN& drive, size_t g, int order, const GrainState<N>& combined,
     const Loading& at_start, const std::array<bool, SlipTypes<N>::MaxN>& steady,
     const std::array<bool, SlipTypes<N>::MaxN>& started,
     const std::array<bool, SlipTypes<N>::MaxN>& stopped) const {
   VecN onset = VecN::Constant(phase.slip_count, -1.0);
-  if (phase.pressure_sensitive) return onset;
   const GrainState<N>& start = step_start_[g];
   const VecN tau = phase.schmid.transpose() * start.stress;
   for (int a = 0; a < phase.slip_count; ++a) {
@@ -230,7 +235,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_starts(
       slips = slips && solutions_[static_cast<size_t>(j)][g].rate(a) * sense > 0.0;
     if (!slips) continue;
     // The fall once its own slip the other way (if any) has stopped: the latest crossing.
-    const double fall = -at_start.growth(a) - phase.interaction(a, a) * std::abs(start.rate(a));
+    const double fall = -at_start.growth(a) - drive(a, a) * std::abs(start.rate(a));
     if (fall > 0.0) onset(a) = std::abs(tau(a)) / fall;
   }
   return onset;
@@ -251,7 +256,7 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_starts(
 // happened before them.
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
-    const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
+    const Phase<N>& phase, const MatNN& drive, const GrainState<N>& start, const GrainState<N>& one,
     const VecN& inverse_relaxation, const VecN& onset, const VecN& jump, double dt) {
   const int n = phase.slip_count;
   if (!(onset.array() >= 0.0).any()) return VecN::Zero(n);
@@ -273,8 +278,10 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
     after_jump(a) = (0.5 * after) * jump(a);
     latest = std::max(latest, onset(a));
   }
-  const VecN filtered = relaxed(phase, relaxation, phase.interaction * after_jump).cwiseAbs() *
-                        ((dt + latest) / (dt - latest));
+  const VecN filtered =
+      relaxed(phase, drive, relaxation, phase.interaction * after_jump, drive * after_jump)
+          .cwiseAbs() *
+      ((dt + latest) / (dt - latest));
   return filtered.cwiseMin(kink);
 }
 
@@ -291,27 +298,22 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
 // tolerance at 1e-6 and 1e-7, their references at 1e-9 and 1e-8 1.4e-5 ... 1.6e-5 of the CRSS
 // apart; kept out, 0.58 and 0.45 times, the references 3.3e-9 ... 4.9e-9 apart. A flow rule that
 // gives no finite positive relaxation (r at r_hat with the CRSS softening) holds its rate by
-// consistency as well. No system of a pressure-sensitive phase relaxes: the model, a system
-// relaxing through its own flow rule at a strength the stress does not move, does not hold where
-// the strength mu f_n moves with the normal stress on the plane, which the slip changes too.
-// Filtered, two FCC grains under 300 MPa confinement, reversed (rate-independent), ran 11 ... 106
-// times the tolerance at 1e-5, and the references at 1e-8 and 1e-7 stayed 8.7e-6 of the CRSS apart
-// (the same with A + tau/f_n M:C:P in the filter: 11 times at 1e-3); unfiltered, and with the
-// turns of the strength seen (add_strength_change), the worst of them 0.076 ... 0.48 times at
-// 1e-3 ... 1e-7, its references 4e-9 apart.
+// consistency as well. A pressure-sensitive system relaxes through its flow rule in r = |tau| /
+// (mu f_n) at the stress's f_n, the strength's move with the slip carried by the filter
+// (driving_interaction).
 template <int N>
 typename Extrapolation<N>::VecN Extrapolation<N>::inverse_relaxations(
     const Phase<N>& phase, const GrainState<N>& start, const GrainState<N>& one,
     const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt) {
   VecN inverse_relaxation = VecN::Constant(phase.slip_count, -1.0);
-  if (phase.pressure_sensitive) return inverse_relaxation;
   for (int a = 0; a < phase.slip_count; ++a)
     if (steady[static_cast<size_t>(a)])
       inverse_relaxation(a) = relaxation_at_end(phase, a, start, one, dt);
   return inverse_relaxation;
 }
 
-// 1 / (dt d|rate|/d|tau|) of system a from its flow rule at `stress`, CRSS mu tau0 and subloading
+// 1 / (dt d|rate|/d|tau|) of system a from its flow rule at `stress`, yield traction mu f_n (the
+// CRSS mu tau0 without the pressure-sensitive reading; f_n at `stress`, held) and subloading
 // ratio r_s after a slip of `slip` from `start` over dt, its r_s and mu carried along by the slip;
 // -1 for a rate-independent system or where the flow rule gives no finite positive relaxation.
 template <int N>
@@ -320,7 +322,9 @@ double Extrapolation<N>::inverse_relaxation_of(const Phase<N>& phase, int a,
                                                double mu, double r_s, double slip, double dt) {
   const law::SubloadingFrictionLaw& law = phase.laws[static_cast<size_t>(a)];
   if (law.is_rate_independent()) return -1.0;
-  const double crss = mu * phase.tau0(a);
+  const double strength = detail::normal_traction(phase, stress)(a);
+  if (!(strength > 0.0)) return -1.0;  // an open plane carries no shear: no flow rule applies
+  const double crss = mu * strength;
   const double r = std::abs(phase.schmid.col(a).dot(stress)) / crss;
   const law::FlowResidual g = law.flow_residual(r, r_s, slip, dt);
   if (!g.admissible || !(slip > 0.0)) return -1.0;
@@ -350,14 +354,13 @@ double Extrapolation<N>::inverse_relaxation_of(const Phase<N>& phase, int a,
 // crystal of crystal_fcc_schmid_stiff.yaml (G/tau0 = 100, 1 /s, 10 increments): reversed, the
 // stop read 0.095 at dt = 0.01 s (the kink bound) where the path is 7.7e-6 off, and the step was
 // refused down to 1e-4 s; filtered, 3.8e-6. A rate-independent system (its rate jumps with the
-// loading) and a pressure-sensitive phase (inverse_relaxations) keep the kink bound.
+// loading) keeps the kink bound.
 template <int N>
 void Extrapolation<N>::classify_switches_at_start(
     const Phase<N>& phase, size_t g, int order, const Loading& at_start,
     const std::array<bool, SlipTypes<N>::MaxN>& steady,
     std::array<bool, SlipTypes<N>::MaxN>& started,
     std::array<bool, SlipTypes<N>::MaxN>& stopped) const {
-  if (phase.pressure_sensitive) return;
   const GrainState<N>& start = step_start_[g];
   const GrainState<N>& one = solutions_[0][g];
   // Whether no solution ends slipping against `sense` (their combination may pass zero).
@@ -398,30 +401,48 @@ double Extrapolation<N>::relaxation_at_start(const Phase<N>& phase, int a,
   return inverse_relaxation_of(phase, a, start, start.stress, mu, r_s, slip, dt);
 }
 
-// Backward Euler's error of the resolved shears, `error`, filtered through the step's Jacobian as
-// Shampine filters it for stiff problems (as the contact step's estimate is): (I + dt A D) e_f = e,
-// where tau' = (elastic loading) - A rate(tau) and D = d rate / d tau of the systems that relax
-// through their flow rule over the whole step (inverse_relaxations: D^-1 / dt, negative for the
-// others, whose part of the error stays). Solved as e - A_S y, (D_S^-1 / dt + A_SS) y = e_S
-// (Woodbury), with the pseudo-inverse where that matrix is singular to working precision (nearly
-// rate-independent systems, D^-1 -> 0; more systems than independent directions). Measured on the
-// [-123] single crystal: the refused steps fall from about half of the accepted ones to a tenth; on
-// a soft pyramidal HCP aggregate (tau0 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
+// How the slip rates move what drives each system's rate, d(drive_a) = -K_ab d(gamma_b): the
+// interaction matrix A (tau_a moves by -A_ab per unit slip of b), and on a pressure-sensitive
+// plane also its strength's move. Such a system's rate follows r = |tau| / (mu f_n); at fixed mu,
+// f_n dr = d|tau| - (|tau| / f_n) df_n, and a slip of b raises f_n,a by M_a : C : P_b, so in tau's
+// sign K_ab = A_ab + (tau_a / f_n,a) M_a : C : P_b. At `stress` (an open plane, f_n <= 0, keeps A).
+template <int N>
+typename Extrapolation<N>::MatNN Extrapolation<N>::driving_interaction(const Phase<N>& phase,
+                                                                       const Vec6& stress) {
+  MatNN drive = phase.interaction;
+  if (!phase.pressure_sensitive) return drive;
+  const VecN fn = detail::normal_traction(phase, stress);
+  const VecN tau = phase.schmid.transpose() * stress;
+  for (int a = 0; a < phase.slip_count; ++a)
+    if (fn(a) > 0.0) drive.row(a) += (tau(a) / fn(a)) * phase.normal_interaction.row(a);
+  return drive;
+}
+
+// Backward Euler's error of the resolved shears, `error` (A times the slips' error), filtered
+// through the step's Jacobian as Shampine filters it for stiff problems (as the contact step's
+// estimate is): the systems that relax through their flow rule over the whole step
+// (inverse_relaxations: D^-1 / dt, negative for the others, whose part of the error stays) absorb
+// the error of what drives them, `drive_error` (K times the slips' error, K = `drive`,
+// driving_interaction: A without plane pressure), by slipping y more: (D_S^-1 / dt + K_SS) y =
+// drive_error_S, and the resolved shears keep error - A_S y. Solved with the pseudo-inverse where
+// that matrix is singular to working precision (nearly rate-independent systems, D^-1 -> 0; more
+// systems than independent directions). Measured on the [-123] single crystal: the refused steps
+// fall from about half of the accepted ones to a tenth; on a soft pyramidal HCP aggregate (tau0
+// 0.163 MPa) the error stays 0.6 ... 0.9 times the tolerance
 // (docs/integrators.md, "Where the expansion does not hold: switches").
 template <int N>
-typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(const Phase<N>& phase,
+typename Extrapolation<N>::VecN Extrapolation<N>::relaxed(const Phase<N>& phase, const MatNN& drive,
                                                           const VecN& inverse_relaxation,
-                                                          const VecN& error) {
-  using MatNN = typename SlipTypes<N>::MatNN;
+                                                          const VecN& error,
+                                                          const VecN& drive_error) {
   const int n = phase.slip_count;
   if (!(inverse_relaxation.array() >= 0.0).any()) return error;
   MatNN k = MatNN::Identity(n, n);  // the other systems' rows: y = 0
   VecN rhs = VecN::Zero(n);
   for (int a = 0; a < n; ++a) {
     if (inverse_relaxation(a) < 0.0) continue;
-    rhs(a) = error(a);
-    for (int b = 0; b < n; ++b)
-      k(a, b) = inverse_relaxation(b) < 0.0 ? 0.0 : phase.interaction(a, b);
+    rhs(a) = drive_error(a);
+    for (int b = 0; b < n; ++b) k(a, b) = inverse_relaxation(b) < 0.0 ? 0.0 : drive(a, b);
     k(a, a) += inverse_relaxation(a);
   }
   return error - phase.interaction * k.completeOrthogonalDecomposition().solve(rhs);

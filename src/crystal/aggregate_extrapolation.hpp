@@ -21,6 +21,7 @@ template <int N>
 class Extrapolation {
  public:
   using VecN = typename SlipTypes<N>::VecN;
+  using MatNN = typename SlipTypes<N>::MatNN;
 
   explicit Extrapolation(size_t grains) : errors_(grains) {}
 
@@ -79,13 +80,15 @@ class Extrapolation {
                       const GrainState<N>& combined) const;
   VecN switch_step_errors(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
                           double dt, const Loading& at_start, bool segment_start) const;
-  VecN located_starts(const Phase<N>& phase, size_t g, int order, const GrainState<N>& combined,
-                      const Loading& at_start, const std::array<bool, SlipTypes<N>::MaxN>& steady,
+  VecN located_starts(const Phase<N>& phase, const MatNN& drive, size_t g, int order,
+                      const GrainState<N>& combined, const Loading& at_start,
+                      const std::array<bool, SlipTypes<N>::MaxN>& steady,
                       const std::array<bool, SlipTypes<N>::MaxN>& started,
                       const std::array<bool, SlipTypes<N>::MaxN>& stopped) const;
-  static VecN located_start_errors(const Phase<N>& phase, const GrainState<N>& start,
-                                   const GrainState<N>& one, const VecN& inverse_relaxation,
-                                   const VecN& onset, const VecN& jump, double dt);
+  static VecN located_start_errors(const Phase<N>& phase, const MatNN& drive,
+                                   const GrainState<N>& start, const GrainState<N>& one,
+                                   const VecN& inverse_relaxation, const VecN& onset,
+                                   const VecN& jump, double dt);
   static double inverse_relaxation_of(const Phase<N>& phase, int a, const GrainState<N>& start,
                                       const Vec6& stress, double mu, double r_s, double slip,
                                       double dt);
@@ -101,7 +104,9 @@ class Extrapolation {
   static VecN inverse_relaxations(const Phase<N>& phase, const GrainState<N>& start,
                                   const GrainState<N>& one,
                                   const std::array<bool, SlipTypes<N>::MaxN>& steady, double dt);
-  static VecN relaxed(const Phase<N>& phase, const VecN& inverse_relaxation, const VecN& error);
+  static MatNN driving_interaction(const Phase<N>& phase, const Vec6& stress);
+  static VecN relaxed(const Phase<N>& phase, const MatNN& drive, const VecN& inverse_relaxation,
+                      const VecN& error, const VecN& drive_error);
   static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
                           const GrainState<N>& combined, const Mat3& start_l, const Mat3& end_l,
                           double dt);
