@@ -107,6 +107,9 @@ class Extrapolation {
   static MatNN driving_interaction(const Phase<N>& phase, const Vec6& stress);
   static VecN relaxed(const Phase<N>& phase, const MatNN& drive, const VecN& inverse_relaxation,
                       const VecN& error, const VecN& drive_error);
+  static VecN switching_subloading_errors(const Phase<N>& phase, const GrainState<N>& one,
+                                          const GrainState<N>& two,
+                                          const std::array<bool, SlipTypes<N>::MaxN>& steady);
   static VecN turn_errors(const Phase<N>& phase, const GrainState<N>& start,
                           const GrainState<N>& combined, const Mat3& start_l, const Mat3& end_l,
                           double dt);
