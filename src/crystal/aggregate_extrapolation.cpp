@@ -190,11 +190,13 @@ typename Extrapolation<N>::VecN Extrapolation<N>::switch_step_errors(
   for (int a = 0; a < phase.slip_count; ++a)
     if (onset(a) >= 0.0) located_jump(a) = rate_jump(a), rate_jump(a) = 0.0;
   const VecN shear_error = (0.5 * dt) * (phase.interaction * rate_jump);
-  const VecN drive_error = (0.5 * dt) * (drive * rate_jump);
+  // (Without plane pressure K = A, and the drive's error is the resolved shears'.)
+  const VecN drive_error =
+      phase.pressure_sensitive ? VecN((0.5 * dt) * (drive * rate_jump)) : shear_error;
   const VecN located_error =
       located_start_errors(phase, drive, start, one, inverse_relaxation, onset, located_jump, dt);
   const double bound = integrators::combination_kink_bound(order);
-  VecN error =
+  const VecN error =
       bound *
       system_errors(phase, one.stress - two.stress, yield_scale(phase, combined))
           .cwiseMax(
@@ -307,10 +309,11 @@ typename Extrapolation<N>::VecN Extrapolation<N>::located_start_errors(
     after_jump(a) = (0.5 * after) * jump(a);
     latest = std::max(latest, onset(a));
   }
-  const VecN filtered =
-      relaxed(phase, drive, relaxation, phase.interaction * after_jump, drive * after_jump)
-          .cwiseAbs() *
-      ((dt + latest) / (dt - latest));
+  const VecN shear_jump = phase.interaction * after_jump;
+  const VecN filtered = relaxed(phase, drive, relaxation, shear_jump,
+                                phase.pressure_sensitive ? VecN(drive * after_jump) : shear_jump)
+                            .cwiseAbs() *
+                        ((dt + latest) / (dt - latest));
   return filtered.cwiseMin(kink);
 }
 
